@@ -1,0 +1,50 @@
+"""STISIM-style SDL scenarios: parse text into typed events in SI, and the vehicle table they refer to."""
+
+from .events import (
+    BRAKE_THRESHOLDS,
+    DEFAULT_ROAD,
+    LEFT_SHOULDER,
+    RIGHT_SHOULDER,
+    SUPPORTED_CODES,
+    Action,
+    ApproachingVehicle,
+    Brake,
+    ClosureTrigger,
+    EndOfScenario,
+    Event,
+    ModelChoice,
+    Relative,
+    Road,
+    Scenario,
+    SurfaceAttribute,
+)
+from .parser import ScenarioError, SdlError, describe, load_scenario, parse_text
+from .vehicles import VehicleModel, check_models, default_vehicle_table_path, load_vehicle_table
+
+__all__ = [
+    "BRAKE_THRESHOLDS",
+    "DEFAULT_ROAD",
+    "LEFT_SHOULDER",
+    "RIGHT_SHOULDER",
+    "SUPPORTED_CODES",
+    "Action",
+    "ApproachingVehicle",
+    "Brake",
+    "ClosureTrigger",
+    "EndOfScenario",
+    "Event",
+    "ModelChoice",
+    "Relative",
+    "Road",
+    "Scenario",
+    "SurfaceAttribute",
+    "ScenarioError",
+    "SdlError",
+    "describe",
+    "load_scenario",
+    "parse_text",
+    "VehicleModel",
+    "check_models",
+    "default_vehicle_table_path",
+    "load_vehicle_table",
+]

@@ -1,0 +1,172 @@
+"""Typed SDL events: what a scenario file says, in SI units (m, m/s, s)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import ClassVar, Union
+
+from ..units import ENGLISH, to_si
+
+RIGHT_SHOULDER = 101
+LEFT_SHOULDER = -101
+
+BRAKE_THRESHOLDS = ("time", "distance", "velocity", "relative_velocity")
+"""BRK parameter 2 values 0..3, by name."""
+
+SUPPORTED_CODES = ("A", "BRK", "RSA", "ROAD", "ES")
+
+
+@dataclass(frozen=True)
+class Relative:
+    """A value that may be relative to the ego's current value (written with a '*' prefix)."""
+
+    value: float
+    relative: bool
+
+    def resolve(self, ego_value: float) -> float:
+        """The absolute value, given the ego's current value of the same quantity."""
+        return ego_value + self.value if self.relative else self.value
+
+
+@dataclass(frozen=True)
+class ModelChoice:
+    """A vehicle model number: fixed (low == high) or drawn uniformly from low..high inclusive."""
+
+    low: int
+    high: int
+
+    @property
+    def is_random(self) -> bool:
+        return self.low != self.high
+
+
+@dataclass(frozen=True)
+class ClosureTrigger:
+    """When an action fires: closing within `seconds` (> 0) or separating for at least -`seconds` (< 0)."""
+
+    seconds: float
+    where: str | None  # 'F' only while the vehicle is in front of the ego, 'B' only behind, None either
+
+
+@dataclass(frozen=True)
+class Action:
+    """One action set of an A event: at the trigger, move to a new lateral position and speed linearly."""
+
+    trigger: ClosureTrigger
+    lateral: Relative
+    speed: Relative
+    duration: float
+
+
+@dataclass(frozen=True)
+class ApproachingVehicle:
+    """SDL 'A': a traffic vehicle appearing `gap` ahead (behind if negative) with up to 5 actions."""
+
+    line: int
+    distance: float
+    speed: Relative
+    gap: float
+    lateral: Relative
+    model: ModelChoice
+    actions: tuple[Action, ...]
+    code: ClassVar[str] = "A"
+
+
+@dataclass(frozen=True)
+class Brake:
+    """SDL 'BRK': hold the brake pedal at `pedal` until the threshold is reached or the ego stops."""
+
+    line: int
+    distance: float
+    pedal: float
+    threshold: str
+    magnitude: float
+    code: ClassVar[str] = "BRK"
+
+
+@dataclass(frozen=True)
+class SurfaceAttribute:
+    """SDL 'RSA': set the surface value of lanes from this distance on (10*mu or attribute number)."""
+
+    line: int
+    distance: float
+    settings: tuple[tuple[int, float], ...]
+    code: ClassVar[str] = "RSA"
+
+
+@dataclass(frozen=True)
+class Road:
+    """Roadway layout: lateral positions are metres from the dividing line, positive to the driver's right."""
+
+    line: int
+    distance: float
+    lane_width: float
+    lanes: int
+    lanes_right: int
+    code: ClassVar[str] = "ROAD"
+
+    @property
+    def lanes_left(self) -> int:
+        return self.lanes - self.lanes_right
+
+    @property
+    def valid_lanes(self) -> tuple[int, ...]:
+        """Every lane number an event may name: right lanes, left lanes, then both shoulders."""
+        right = tuple(range(1, self.lanes_right + 1))
+        left = tuple(-k for k in range(1, self.lanes_left + 1))
+        return right + left + (RIGHT_SHOULDER, LEFT_SHOULDER)
+
+    @property
+    def right_edge(self) -> float:
+        return self.lanes_right * self.lane_width
+
+    @property
+    def left_edge(self) -> float:
+        return -self.lanes_left * self.lane_width
+
+    def lane_center(self, lane: int) -> float:
+        """Lateral position of a lane's centre; a shoulder is taken as one lane width beyond the edge."""
+        if lane not in self.valid_lanes:
+            raise ValueError(f"lane {lane} is not on this road (lanes {self.valid_lanes})")
+        if lane == RIGHT_SHOULDER:
+            return self.right_edge + self.lane_width / 2
+        if lane == LEFT_SHOULDER:
+            return self.left_edge - self.lane_width / 2
+        side = 1 if lane > 0 else -1
+        return side * (abs(lane) - 0.5) * self.lane_width
+
+    def lane_at(self, lateral: float) -> int:
+        """Lane number under a lateral position; beyond the outer lanes is the shoulder."""
+        # A boundary between two lanes belongs to the outer one; the dividing line itself belongs to lane 1.
+        if lateral >= 0:
+            k = math.floor(lateral / self.lane_width) + 1
+            return k if k <= self.lanes_right else RIGHT_SHOULDER
+        k = math.floor(-lateral / self.lane_width) + 1
+        return -k if k <= self.lanes_left else LEFT_SHOULDER
+
+
+@dataclass(frozen=True)
+class EndOfScenario:
+    """SDL 'ES': the scenario ends when the ego reaches this distance."""
+
+    line: int
+    distance: float
+    code: ClassVar[str] = "ES"
+
+
+Event = Union[ApproachingVehicle, Brake, SurfaceAttribute, EndOfScenario]
+
+DEFAULT_ROAD = Road(line=0, distance=0.0, lane_width=to_si(12.0, ENGLISH), lanes=2, lanes_right=1)
+"""Without a ROAD event: one 12 ft lane each way, dividing line between them."""
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A parsed scenario file: its units, road layout and events in file order (ROAD excluded)."""
+
+    path: str
+    units: str
+    road: Road
+    events: tuple[Event, ...]
+    end_distance: float | None

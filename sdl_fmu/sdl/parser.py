@@ -1,0 +1,493 @@
+"""SDL scenario text -> typed events in SI, reporting every problem in the file at once."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+from typing import Callable
+
+from ..units import ENGLISH, METRIC, from_si, length_label, speed_label, to_si
+from .events import (
+    BRAKE_THRESHOLDS,
+    DEFAULT_ROAD,
+    LEFT_SHOULDER,
+    RIGHT_SHOULDER,
+    SUPPORTED_CODES,
+    Action,
+    ApproachingVehicle,
+    Brake,
+    ClosureTrigger,
+    EndOfScenario,
+    Event,
+    ModelChoice,
+    Relative,
+    Road,
+    Scenario,
+    SurfaceAttribute,
+)
+
+
+@dataclass(frozen=True)
+class SdlError:
+    """One problem in a scenario file, located by line and field."""
+
+    path: str
+    line: int
+    field: str
+    reason: str
+
+    def __str__(self) -> str:
+        return f"{self.path}:{self.line}: {self.field}: {self.reason}"
+
+
+class ScenarioError(Exception):
+    """A scenario file could not be used; carries every problem found, one per line of the message."""
+
+    def __init__(self, errors: list[SdlError]):
+        self.errors = list(errors)
+        super().__init__("\n".join(str(error) for error in self.errors))
+
+
+class _Invalid(Exception):
+    """A field's text is unacceptable; the message is the reason."""
+
+
+Report = Callable[[str, str], None]
+
+_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_WHOLE = re.compile(r"[+-]?\d+")
+_CLOSURE = re.compile(rf"({_NUMBER.pattern})\s*([FfBb]?)")
+_MODEL_RANGE = re.compile(r"\*\s*([+-]?\d+)\s*~\s*([+-]?\d+)")
+_UNITS_HEADERS = {"english": ENGLISH, "metric": METRIC}
+
+_A_FIELDS = ("speed", "gap", "lateral position", "model")
+_ACTION_FIELDS = ("closure time", "lateral position", "speed", "transition time")
+_BRK_FIELDS = ("pedal %", "threshold type", "magnitude")
+_ROAD_FIELDS = ("lane width", "lanes", "lanes right of the dividing line")
+
+
+# --- field parsers: text -> value, or _Invalid(reason) -------------------------------------------
+
+
+def _number(text: str) -> float:
+    """A plain decimal number (no '*')."""
+    if text == "":
+        raise _Invalid("empty; expected a number")
+    if text.startswith("*"):
+        raise _Invalid(f"'{text}': '*' (relative to the ego) is not allowed here; expected a plain number")
+    if not _NUMBER.fullmatch(text):
+        raise _Invalid(f"'{text}' is not a number")
+    value = float(text)
+    if not math.isfinite(value):
+        raise _Invalid(f"'{text}' is too large")
+    return value
+
+
+def _whole(text: str) -> int:
+    """A whole number written without a decimal point."""
+    if not _WHOLE.fullmatch(text):
+        _number(text)  # the more specific reason when it is not a number at all
+        raise _Invalid(f"'{text}' is not a whole number")
+    return int(text)
+
+
+def _relative(text: str, units: str) -> Relative:
+    """A distance or speed, '*' meaning the ego's current value plus this one."""
+    if text == "":
+        raise _Invalid("empty; expected a number or '*number'")
+    relative = text.startswith("*")
+    body = text[1:].strip() if relative else text
+    if not _NUMBER.fullmatch(body):
+        raise _Invalid(f"'{text}' is not a number or '*number' (relative to the ego)")
+    return Relative(to_si(_number(body), units), relative)
+
+
+def _model_choice(text: str) -> ModelChoice:
+    """A model number, or '*lo~hi' for one drawn uniformly from lo..hi."""
+    if text.startswith("*"):
+        match = _MODEL_RANGE.fullmatch(text)
+        if not match:
+            raise _Invalid(f"'{text}': expected a model number or a random range '*low~high' such as '*1~8'")
+        low, high = int(match[1]), int(match[2])
+        if low < 1:
+            raise _Invalid(f"'{text}': model numbers start at 1, low end is {low}")
+        if low > high:
+            raise _Invalid(f"'{text}': low end {low} is above high end {high}")
+        return ModelChoice(low, high)
+    try:
+        model = _whole(text)
+    except _Invalid as exc:
+        raise _Invalid(f"{exc}; expected a model number or a random range '*low~high' such as '*1~8'") from exc
+    if model < 1:
+        raise _Invalid(f"model {model}: model numbers start at 1")
+    return ModelChoice(model, model)
+
+
+def _closure_trigger(text: str) -> ClosureTrigger:
+    """Closure time in s, optionally suffixed F (vehicle in front only) or B (behind only)."""
+    match = _CLOSURE.fullmatch(text)
+    if not match:
+        if text == "" or text.startswith("*"):
+            _number(text)  # the reason for an empty or relative field
+        raise _Invalid(f"'{text}': expected seconds with an optional F or B suffix, such as 10, -5 or 10F")
+    seconds = _number(match[1])
+    # A zero closure time could never be met by a finite gap, so the action would never fire.
+    if seconds == 0:
+        raise _Invalid(f"'{text}': closure time 0 can never fire; use > 0 (closing) or < 0 (separating)")
+    return ClosureTrigger(seconds, match[2].upper() or None)
+
+
+def _checked(report: Report, field: str, parse: Callable, *args):
+    """Run one field parser; on failure report it under `field` and return None."""
+    try:
+        return parse(*args)
+    except _Invalid as exc:
+        report(field, str(exc))
+        return None
+
+
+def _at_least(value: float | None, low: float, report: Report, field: str, text: str, strict: bool = False):
+    """Check a parsed value against a lower bound; None when it fails (or was already bad)."""
+    if value is None:
+        return None
+    if value < low or (strict and value == low):
+        report(field, f"'{text}' must be {'>' if strict else '>='} {low:g}")
+        return None
+    return value
+
+
+# --- events: parameters -> typed event, or None after reporting ----------------------------------
+
+
+def _a_field(number: int) -> str:
+    if number <= 4:
+        return f"A parameter {number} ({_A_FIELDS[number - 1]})"
+    action = (number - 5) // 4 + 1
+    return f"A parameter {number} (action {action} {_ACTION_FIELDS[(number - 5) % 4]})"
+
+
+def _approaching_vehicle(line: int, distance: float, params: list[str], units: str, report: Report):
+    """A: speed, gap, lateral, model, then 0..5 sets of (closure time, lateral, speed, transition time)."""
+    if len(params) < 4 or len(params) > 24 or len(params) % 4:
+        report("A parameters", "A takes 4 parameters plus 0 to 5 action sets of 4 (4, 8, 12, 16, 20 or 24 "
+               f"parameters); got {len(params)}")
+        return None
+    speed = _checked(report, _a_field(1), _relative, params[0], units)
+    gap = _checked(report, _a_field(2), _number, params[1])
+    # A zero gap would put the vehicle on top of the ego; negative means behind it.
+    if gap == 0:
+        report(_a_field(2), f"'{params[1]}': the vehicle cannot appear at gap 0; use > 0 ahead or < 0 behind")
+        gap = None
+    lateral = _checked(report, _a_field(3), _relative, params[2], units)
+    model = _checked(report, _a_field(4), _model_choice, params[3])
+    actions = []
+    for first in range(5, len(params) + 1, 4):
+        trigger_text, lateral_text, speed_text, duration_text = params[first - 1:first + 3]
+        trigger = _checked(report, _a_field(first), _closure_trigger, trigger_text)
+        # The seed calls this a move relative to the vehicle's own position, but its worked example
+        # (*0 = into the driver's lane, -6 = back into its own lane) only works as a roadway position.
+        action_lateral = _checked(report, _a_field(first + 1), _relative, lateral_text, units)
+        action_speed = _checked(report, _a_field(first + 2), _relative, speed_text, units)
+        duration = _checked(report, _a_field(first + 3), _number, duration_text)
+        duration = _at_least(duration, 0, report, _a_field(first + 3), duration_text)
+        actions.append((trigger, action_lateral, action_speed, duration))
+    fields = [speed, gap, lateral, model, *(part for action in actions for part in action)]
+    if any(part is None for part in fields):
+        return None
+    return ApproachingVehicle(
+        line=line, distance=distance, speed=speed, gap=to_si(gap, units), lateral=lateral, model=model,
+        actions=tuple(Action(trigger, lat, spd, dur) for trigger, lat, spd, dur in actions),
+    )
+
+
+def _brake(line: int, distance: float, params: list[str], units: str, report: Report):
+    """BRK: pedal %, threshold type 0..3, magnitude (s, distance or speed)."""
+    if len(params) != 3:
+        report("BRK parameters", f"BRK takes 3 parameters (pedal %, threshold type, magnitude); got {len(params)}")
+        return None
+    field = [f"BRK parameter {n} ({name})" for n, name in enumerate(_BRK_FIELDS, start=1)]
+    pedal = _checked(report, field[0], _number, params[0])
+    if pedal is not None and not 0 <= pedal <= 100:
+        report(field[0], f"'{params[0]}' must be a percentage from 0 to 100")
+        pedal = None
+    threshold = _checked(report, field[1], _whole, params[1])
+    if threshold is not None and not 0 <= threshold < len(BRAKE_THRESHOLDS):
+        report(field[1], f"'{params[1]}' must be 0 (time), 1 (distance), 2 (velocity) or 3 (relative velocity)")
+        threshold = None
+    magnitude = _checked(report, field[2], _number, params[2])
+    magnitude = _at_least(magnitude, 0, report, field[2], params[2], strict=True)
+    if pedal is None or threshold is None or magnitude is None:
+        return None
+    name = BRAKE_THRESHOLDS[threshold]
+    magnitude_si = magnitude if name == "time" else to_si(magnitude, units)
+    return Brake(line=line, distance=distance, pedal=pedal / 100, threshold=name, magnitude=magnitude_si)
+
+
+def _surface_attribute(line: int, distance: float, params: list[str], units: str, report: Report):
+    """RSA: (lane, value) pairs; lanes are checked against the road once the whole file is read."""
+    if not params or len(params) % 2:
+        report("RSA parameters", f"RSA takes pairs of (lane, value), at least one pair; got {len(params)} parameters")
+        return None
+    settings, ok = [], True
+    for first in range(1, len(params), 2):
+        lane_field, value_field = f"RSA parameter {first} (lane)", f"RSA parameter {first + 1} (value)"
+        lane = _checked(report, lane_field, _whole, params[first - 1])
+        if lane is not None and lane in (pair[0] for pair in settings):
+            # Two values for one lane in one event would be ambiguous, so it is an error.
+            report(lane_field, f"lane {lane} is set twice in this event")
+            lane = None
+        value = _checked(report, value_field, _number, params[first])
+        value = _at_least(value, 0, report, value_field, params[first])
+        ok = ok and lane is not None and value is not None
+        settings.append((lane, value))
+    return SurfaceAttribute(line=line, distance=distance, settings=tuple(settings)) if ok else None
+
+
+def _road(line: int, distance: float, params: list[str], units: str, report: Report):
+    """ROAD: lane width, number of lanes, lanes right of the dividing line."""
+    if len(params) != 3:
+        report("ROAD parameters", "ROAD takes 3 parameters (lane width, lanes, lanes right of the dividing line); "
+               f"got {len(params)}")
+        return None
+    field = [f"ROAD parameter {n} ({name})" for n, name in enumerate(_ROAD_FIELDS, start=1)]
+    width = _checked(report, field[0], _number, params[0])
+    width = _at_least(width, 0, report, field[0], params[0], strict=True)
+    lanes = _checked(report, field[1], _whole, params[1])
+    lanes = _at_least(lanes, 1, report, field[1], params[1])
+    lanes_right = _checked(report, field[2], _whole, params[2])
+    # The ego starts in the centre of lane 1, so lane 1 must exist.
+    if lanes_right is not None and lanes is not None and not 1 <= lanes_right <= lanes:
+        report(field[2], f"'{params[2]}' must be from 1 to the number of lanes ({lanes}): the ego starts in lane 1")
+        lanes_right = None
+    if width is None or lanes is None or lanes_right is None:
+        return None
+    return Road(line=line, distance=distance, lane_width=to_si(width, units), lanes=lanes, lanes_right=lanes_right)
+
+
+def _end_of_scenario(line: int, distance: float, params: list[str], units: str, report: Report):
+    """ES: no parameters."""
+    if params:
+        report("ES parameters", f"ES takes no parameters; got {len(params)}")
+        return None
+    return EndOfScenario(line=line, distance=distance)
+
+
+_EVENT_PARSERS = {
+    "A": _approaching_vehicle,
+    "BRK": _brake,
+    "RSA": _surface_attribute,
+    "ROAD": _road,
+    "ES": _end_of_scenario,
+}
+assert tuple(_EVENT_PARSERS) == SUPPORTED_CODES
+
+
+# --- the file ------------------------------------------------------------------------------------
+
+
+def _content_lines(text: str):
+    """(line number, text without comment) for every line that has content."""
+    text = text.removeprefix("\ufeff")
+    for number, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):
+        content = raw.split("//", 1)[0].strip()
+        if content:
+            yield number, content
+
+
+def _lane_errors(event: SurfaceAttribute, road: Road, path: str) -> list[SdlError]:
+    """RSA lanes that the road layout does not have."""
+    errors = []
+    for index, (lane, _value) in enumerate(event.settings):
+        if lane not in road.valid_lanes:
+            lanes = ", ".join(str(n) for n in road.valid_lanes if abs(n) != RIGHT_SHOULDER)
+            errors.append(SdlError(
+                path, event.line, f"RSA parameter {2 * index + 1} (lane)",
+                f"lane {lane} is not on the road: lanes are {lanes}, {RIGHT_SHOULDER} (right shoulder) and "
+                f"{LEFT_SHOULDER} (left shoulder); a ROAD event sets the layout",
+            ))
+    return errors
+
+
+def parse_text(text: str, path: str = "<text>") -> Scenario:
+    """Parse a whole SDL file's text; raises ScenarioError listing every problem, not only the first."""
+    errors: list[SdlError] = []
+    units, seen_content = ENGLISH, False
+    events: list[Event] = []
+    road: Road | None = None
+    road_line: int | None = None  # line of the first ROAD, even a bad one
+    road_failed = False
+    end: EndOfScenario | None = None
+    end_line: int | None = None
+    previous: tuple[float, str, int] | None = None  # last good distance: value, text, line
+
+    for number, content in _content_lines(text):
+        first, seen_content = not seen_content, True
+
+        def report(field: str, reason: str) -> None:
+            errors.append(SdlError(path, number, field, reason))
+
+        if "," not in content:
+            if content.lower() in _UNITS_HEADERS:
+                if first:
+                    units = _UNITS_HEADERS[content.lower()]
+                else:
+                    report("units header", f"'{content}' must be the first line that is not blank or a comment")
+            elif first and not _NUMBER.fullmatch(content):
+                report("units header", f"'{content}' is not a units header; expected English or Metric, "
+                       "or an event line '<distance>,<CODE>,<parameters>'")
+            else:
+                report("event code", f"'{content}' has no event code; expected '<distance>,<CODE>,<parameters>'")
+            continue
+
+        distance_text, code_text, *params = (field.strip() for field in content.split(","))
+        code = code_text.upper()
+
+        distance = _checked(report, "distance", _number, distance_text)
+        distance = _at_least(distance, 0, report, "distance", distance_text)
+        if distance is not None:
+            if previous is not None and distance < previous[0]:
+                report("distance", f"{distance_text} is less than {previous[1]} on line {previous[2]}; "
+                       "event distances must not decrease down the file")
+            else:
+                previous = (distance, distance_text, number)
+
+        parser = _EVENT_PARSERS.get(code)
+        if parser is None:
+            shown = f"'{code_text}'" if code_text else "empty"
+            report("event code", f"unsupported event code {shown} (supported: {', '.join(SUPPORTED_CODES)})")
+            continue
+
+        if end_line is not None:
+            if code == "ES":
+                report("event code", f"a second ES (the first is on line {end_line}); at most one ES is allowed")
+            else:
+                report("event code", f"{code} after ES on line {end_line}; ES must be the last event")
+        if code == "ROAD":
+            if road_line is not None:
+                report("event code", f"a second ROAD (the first is on line {road_line}); "
+                       "the road layout is fixed for the whole road, so at most one ROAD is allowed")
+            # The layout is fixed for the whole road, so it must be set where the road begins.
+            if distance is not None and distance != 0:
+                report("distance", f"ROAD must be at distance 0 (the layout is fixed for the whole road); got {distance_text}")
+
+        event = parser(number, to_si(distance, units) if distance is not None else 0.0, params, units, report)
+        if code == "ROAD":
+            if road_line is None:
+                road_line, road, road_failed = number, event, event is None
+            continue
+        if code == "ES" and end_line is None:
+            end_line, end = number, event
+        if event is not None and distance is not None:
+            events.append(event)
+
+    road = road or DEFAULT_ROAD
+    if not road_failed:
+        for event in events:
+            if isinstance(event, SurfaceAttribute):
+                errors.extend(_lane_errors(event, road, path))
+    if errors:
+        errors.sort(key=lambda error: error.line)
+        raise ScenarioError(errors)
+    return Scenario(
+        path=path, units=units, road=road, events=tuple(events),
+        end_distance=end.distance if end is not None else None,
+    )
+
+
+def load_scenario(path: str | os.PathLike) -> Scenario:
+    """Read and parse a scenario file (UTF-8, BOM and CRLF tolerated); any failure is a ScenarioError."""
+    name = os.fspath(path)
+    try:
+        with open(name, "rb") as file:
+            data = file.read()
+    except OSError as exc:
+        raise ScenarioError([SdlError(name, 0, "file", f"cannot be read: {exc.strerror or exc}")]) from exc
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise ScenarioError([SdlError(name, line, "file", f"is not UTF-8 text (byte {exc.start})")]) from exc
+    return parse_text(text, name)
+
+
+# --- the report for `sdl-fmu check` --------------------------------------------------------------
+
+
+def _num(value: float) -> str:
+    return f"{value:.10g}"
+
+
+def _length(value: float, units: str) -> str:
+    return f"{_num(from_si(value, units))} {length_label(units)}"
+
+
+def _speed(value: float, units: str) -> str:
+    return f"{_num(from_si(value, units))} {speed_label(units)}"
+
+
+def _relative_text(value: Relative, units: str, label: str) -> str:
+    shown = _num(from_si(value.value, units))
+    if value.relative:
+        return f"ego{'' if shown.startswith('-') else '+'}{shown} {label}"
+    return f"{shown} {label}"
+
+
+def _trigger_text(trigger: ClosureTrigger) -> str:
+    if trigger.seconds > 0:
+        text = f"closing within {_num(trigger.seconds)} s"
+    else:
+        text = f"separating for {_num(-trigger.seconds)} s or more"
+    return text + {"F": " (vehicle in front)", "B": " (vehicle behind)", None: ""}[trigger.where]
+
+
+def _event_text(event: Event, units: str) -> list[str]:
+    """One line (A: plus one per action) describing an event in the file's units."""
+    if isinstance(event, ApproachingVehicle):
+        model = event.model
+        model_text = f"{model.low}~{model.high} (random)" if model.is_random else str(model.low)
+        place = "ahead" if event.gap > 0 else "behind"
+        lines = [f"A model {model_text}, {_length(abs(event.gap), units)} {place}, lateral "
+                 f"{_relative_text(event.lateral, units, length_label(units))}, speed "
+                 f"{_relative_text(event.speed, units, speed_label(units))}"]
+        for index, action in enumerate(event.actions, start=1):
+            lines.append(f"action {index}: {_trigger_text(action.trigger)} -> lateral "
+                         f"{_relative_text(action.lateral, units, length_label(units))}, speed "
+                         f"{_relative_text(action.speed, units, speed_label(units))} over {_num(action.duration)} s")
+        return lines
+    if isinstance(event, Brake):
+        until = {
+            "time": f"time {_num(event.magnitude)} s",
+            "distance": f"distance {_length(event.magnitude, units)}",
+            "velocity": f"speed below {_speed(event.magnitude, units)}",
+            "relative_velocity": f"speed dropped by {_speed(event.magnitude, units)}",
+        }[event.threshold]
+        return [f"BRK {_num(event.pedal * 100)} % until {until} (or stopped)"]
+    if isinstance(event, SurfaceAttribute):
+        return ["RSA " + ", ".join(f"lane {lane} = {_num(value)}" for lane, value in event.settings)]
+    return ["ES end of scenario"]
+
+
+def describe(scenario: Scenario) -> str:
+    """A human-readable report of a parsed scenario, in the file's units, for `sdl-fmu check`."""
+    units, road = scenario.units, scenario.road
+    source = f"ROAD on line {road.line}" if road.line else "default layout"
+    lines = [
+        f"{scenario.path}",
+        f"  units: {units} ({length_label(units)}, {speed_label(units)})",
+        f"  road: {road.lanes} lanes of {_length(road.lane_width, units)}, {road.lanes_right} right and "
+        f"{road.lanes_left} left of the dividing line ({source})",
+        f"  end: {_length(scenario.end_distance, units)}" if scenario.end_distance is not None
+        else "  end: none (no ES event)",
+        f"  events: {len(scenario.events)}",
+    ]
+    heads = [(f"line {event.line}", _length(event.distance, units)) for event in scenario.events]
+    line_width = max((len(line) for line, _ in heads), default=0)
+    distance_width = max((len(distance) for _, distance in heads), default=0)
+    for event, (line, distance) in zip(scenario.events, heads):
+        head = f"  {line:<{line_width}}  {distance:>{distance_width}}  "
+        first, *rest = _event_text(event, units)
+        lines.append(head + first)
+        lines.extend(" " * len(head) + "  " + more for more in rest)
+    return "\n".join(lines)

@@ -1,0 +1,93 @@
+"""What a dynamics model hands to the FMU build: CasADi expressions over the interface's vectors.
+
+Every expression is a function of the same four vectors (x, d, u, p) — continuous states, discrete
+states, inputs, parameters — laid out in the order of the interface data, so the generated C knows
+the model only through them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+
+from ..interface import DISCRETE, INPUT, OUTPUT, PARAMETER, STATE, Interface
+
+
+@dataclass
+class Symbols:
+    """The CasADi vectors of one interface and a name -> element lookup."""
+
+    x: ca.SX
+    d: ca.SX
+    u: ca.SX
+    p: ca.SX
+    by_name: dict
+
+    def __getitem__(self, name: str) -> ca.SX:
+        return self.by_name[name]
+
+
+def make_symbols(interface: Interface) -> Symbols:
+    vectors = {}
+    by_name = {}
+    for role, letter in ((STATE, "x"), (DISCRETE, "d"), (INPUT, "u"), (PARAMETER, "p")):
+        names = interface.names(role)
+        vector = ca.SX.sym(letter, len(names))
+        vectors[letter] = vector
+        for i, name in enumerate(names):
+            by_name[name] = vector[i]
+    return Symbols(by_name=by_name, **vectors)
+
+
+@dataclass
+class Equations:
+    interface: Interface
+    symbols: Symbols
+    derivatives: ca.SX  # dx/dt, one per state
+    outputs: dict  # output name -> expression, one per interface output
+    event_indicators: ca.SX  # a sign change of any entry is an event
+    state_update: ca.SX  # x after the discrete update at an event
+    discrete_update: ca.SX  # d after the discrete update at an event
+    initial_states: ca.SX  # x at initialization, from the parameters
+    initial_discrete: ca.SX  # d at initialization
+
+    def check(self) -> None:
+        """Sizes and names agree with the interface (caught at build time, not in C)."""
+        s = self.symbols
+        expected = {
+            "derivatives": (self.derivatives, s.x.numel()),
+            "state_update": (self.state_update, s.x.numel()),
+            "initial_states": (self.initial_states, s.x.numel()),
+            "discrete_update": (self.discrete_update, s.d.numel()),
+            "initial_discrete": (self.initial_discrete, s.d.numel()),
+        }
+        for name, (expression, size) in expected.items():
+            if expression.numel() != size:
+                raise ValueError(f"{self.interface.model_name}: {name} has {expression.numel()} entries, expected {size}")
+        missing = set(self.interface.names(OUTPUT)) ^ set(self.outputs)
+        if missing:
+            raise ValueError(f"{self.interface.model_name}: outputs and interface disagree on {sorted(missing)}")
+
+    def functions(self) -> dict[str, ca.Function]:
+        """The six CasADi functions the C runtime calls, all with arguments (x, d, u, p)."""
+        self.check()
+        s = self.symbols
+        args = [s.x, s.d, s.u, s.p]
+        names = ["x", "d", "u", "p"]
+        model = self.interface.model_name
+        outputs = ca.vertcat(*[self.outputs[name] for name in self.interface.names(OUTPUT)])
+        return {
+            "derivatives": ca.Function(f"{model}_derivatives", args, [self.derivatives], names, ["xdot"]),
+            "jacobian": ca.Function(
+                f"{model}_jacobian", args, [ca.densify(ca.jacobian(self.derivatives, s.x))], names, ["jac"]
+            ),
+            "outputs": ca.Function(f"{model}_outputs", args, [outputs], names, ["y"]),
+            "event_indicators": ca.Function(f"{model}_event_indicators", args, [self.event_indicators], names, ["z"]),
+            "discrete_update": ca.Function(
+                f"{model}_discrete_update", args, [self.state_update, self.discrete_update], names, ["x_next", "d_next"]
+            ),
+            "initial_state": ca.Function(
+                f"{model}_initial_state", args, [self.initial_states, self.initial_discrete], names, ["x0", "d0"]
+            ),
+        }

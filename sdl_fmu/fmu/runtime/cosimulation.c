@@ -1,0 +1,243 @@
+/* Co-simulation stepping: the in-step solver and event location.
+ *
+ * Solver: RODAS4 (Hairer & Wanner, Solving ODEs II, sec. IV.7), a linearly implicit, L-stable,
+ * stiffly accurate Rosenbrock method of order 4 that uses the model's exact Jacobian from CasADi.
+ * Inputs are held over a communication step, so the system is autonomous inside it.
+ * Fixed internal steps (parameter solver_step); a step in which an event indicator changes sign is
+ * repeated with shorter lengths (Illinois method) until the crossing is bracketed within
+ * EVENT_TIME_TOLERANCE, then the discrete update is applied at that instant.
+ */
+#include "instance.h"
+
+#include <math.h>
+#include <string.h>
+
+#define EVENT_TIME_TOLERANCE 1e-12 /* s */
+#define MAX_ROOT_ITERATIONS 200
+
+/* RODAS4 coefficients in the form
+ *   (I/(h gamma) - J) k_i = f(x + sum_j a_ij k_j) + sum_j (c_ij / h) k_j,   x1 = x + sum_i b_i k_i */
+static const double GAMMA = 0.25;
+static const double A[6][5] = {
+    {0, 0, 0, 0, 0},
+    {1.544, 0, 0, 0, 0},
+    {0.9466785280815826, 0.2557011698983284, 0, 0, 0},
+    {3.314825187068521, 2.896124015972201, 0.9986419139977817, 0, 0},
+    {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 0},
+    {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 1.0}};
+static const double C[6][5] = {
+    {0, 0, 0, 0, 0},
+    {-5.6688, 0, 0, 0, 0},
+    {-2.430093356833875, -0.2063599157091915, 0, 0, 0},
+    {-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0, 0},
+    {7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0},
+    {8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136, -6.058818238834054}};
+static const double B[6] = {1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 1.0,
+                            1.0};
+
+/* In-place LU factorisation with partial pivoting of a row-major n x n matrix. */
+static int lu_factor(double *a, int n, int *pivots) {
+    int i, j, k;
+    for (k = 0; k < n; k++) {
+        int p = k;
+        double largest = fabs(a[k * n + k]);
+        for (i = k + 1; i < n; i++)
+            if (fabs(a[i * n + k]) > largest) {
+                largest = fabs(a[i * n + k]);
+                p = i;
+            }
+        pivots[k] = p;
+        if (largest == 0.0 || !isfinite(largest)) return -1;
+        if (p != k)
+            for (j = 0; j < n; j++) {
+                double t = a[k * n + j];
+                a[k * n + j] = a[p * n + j];
+                a[p * n + j] = t;
+            }
+        for (i = k + 1; i < n; i++) {
+            double factor = a[i * n + k] /= a[k * n + k];
+            for (j = k + 1; j < n; j++) a[i * n + j] -= factor * a[k * n + j];
+        }
+    }
+    return 0;
+}
+
+static void lu_solve(const double *a, int n, const int *pivots, double *b) {
+    int i, j;
+    for (i = 0; i < n; i++) {
+        double t = b[pivots[i]];
+        b[pivots[i]] = b[i];
+        b[i] = t;
+        for (j = 0; j < i; j++) b[i] -= a[i * n + j] * b[j];
+    }
+    for (i = n - 1; i >= 0; i--) {
+        for (j = i + 1; j < n; j++) b[i] -= a[i * n + j] * b[j];
+        b[i] /= a[i * n + i];
+    }
+}
+
+/* One RODAS4 step of length h from x0 (discrete states d held) into x1; x1 may not alias x0. */
+static Status rodas_step(Instance *instance, const double *x0, const double *d, double h, double *x1) {
+    const ModelInfo *info = instance->info;
+    int n = info->nx, i, j, s;
+    Status status;
+    if (n == 0) return STATUS_OK;
+    status = instance->info->jacobian.eval ? STATUS_OK : STATUS_ERROR;
+    instance->arg[0] = x0;
+    instance->arg[1] = d;
+    instance->arg[2] = instance->now.u;
+    instance->arg[3] = instance->now.p;
+    instance->res[0] = instance->jac;
+    instance->res[1] = NULL;
+    if (status != STATUS_OK || info->jacobian.eval(instance->arg, instance->res, instance->iw, instance->w, 0)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "evaluation of the Jacobian failed");
+        return STATUS_ERROR;
+    }
+    /* M = I / (h gamma) - J; CasADi's dense Jacobian is column-major */
+    for (i = 0; i < n; i++)
+        for (j = 0; j < n; j++)
+            instance->matrix[i * n + j] = (i == j ? 1.0 / (h * GAMMA) : 0.0) - instance->jac[j * n + i];
+    if (lu_factor(instance->matrix, n, instance->pivots) != 0) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "singular iteration matrix at t = %.17g (step %g s)", instance->now.time, h);
+        return STATUS_ERROR;
+    }
+    for (s = 0; s < 6; s++) {
+        for (i = 0; i < n; i++) {
+            double xi = x0[i];
+            for (j = 0; j < s; j++) xi += A[s][j] * instance->stage[j][i];
+            instance->x_stage[i] = xi;
+        }
+        status = instance_derivatives(instance, instance->x_stage, d, instance->rhs);
+        if (status != STATUS_OK) return status;
+        for (i = 0; i < n; i++) {
+            double correction = 0.0;
+            for (j = 0; j < s; j++) correction += C[s][j] * instance->stage[j][i];
+            instance->stage[s][i] = instance->rhs[i] + correction / h;
+        }
+        lu_solve(instance->matrix, n, instance->pivots, instance->stage[s]);
+    }
+    for (i = 0; i < n; i++) {
+        double xi = x0[i];
+        for (s = 0; s < 6; s++) xi += B[s] * instance->stage[s][i];
+        if (!isfinite(xi)) {
+            instance_log(instance, STATUS_ERROR, "logStatusError",
+                         "the solution is no longer finite at t = %.17g; try a smaller solver_step",
+                         instance->now.time);
+            return STATUS_ERROR;
+        }
+        x1[i] = xi;
+    }
+    instance->steps++;
+    return STATUS_OK;
+}
+
+static int crossed(double before, double after) {
+    return (before > 0.0 && after <= 0.0) || (before < 0.0 && after >= 0.0);
+}
+
+/* Locates the first sign change of indicator `k` in (0, h] by the Illinois method; returns the
+ * fraction theta of h just past the crossing, with x_trial holding the state there. */
+static Status locate_crossing(Instance *instance, int k, double h, double *theta_out) {
+    double lo = 0.0, hi = 1.0, g_lo = instance->z_start[k], g_hi = instance->z_trial[k];
+    int side = 0, iteration;
+    Status status;
+    for (iteration = 0; iteration < MAX_ROOT_ITERATIONS && (hi - lo) * h > EVENT_TIME_TOLERANCE; iteration++) {
+        double theta = (lo * g_hi - hi * g_lo) / (g_hi - g_lo), g;
+        if (!(theta > lo && theta < hi)) theta = 0.5 * (lo + hi);
+        status = rodas_step(instance, instance->x_start, instance->now.d, theta * h, instance->x_trial);
+        if (status != STATUS_OK) return status;
+        status = instance_event_indicators(instance, instance->x_trial, instance->now.d, instance->z_trial);
+        if (status != STATUS_OK) return status;
+        g = instance->z_trial[k];
+        if (crossed(instance->z_start[k], g)) {
+            hi = theta;
+            g_hi = g;
+            if (side == -1) g_lo *= 0.5;
+            side = -1;
+            if (g == 0.0) break;
+        } else {
+            lo = theta;
+            g_lo = g;
+            if (side == 1) g_hi *= 0.5;
+            side = 1;
+        }
+    }
+    *theta_out = hi;
+    return STATUS_OK;
+}
+
+Status instance_do_step(Instance *instance, double current_time, double h) {
+    const ModelInfo *info = instance->info;
+    double end_time = current_time + h, solver_step;
+    size_t x_bytes = sizeof(double) * (size_t)info->nx;
+    int states_changed, discrete_changed;
+    Status status;
+
+    if (!(h >= 0.0) || !isfinite(h)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "communication step size %g must be >= 0", h);
+        return STATUS_ERROR;
+    }
+    if (fabs(current_time - instance->now.time) > 1e-9 * fmax(1.0, fabs(current_time))) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "doStep at t = %.17g but the FMU is at t = %.17g", current_time, instance->now.time);
+        return STATUS_ERROR;
+    }
+    solver_step = info->solver_step_parameter >= 0 ? instance->now.p[info->solver_step_parameter] : 1e-3;
+    if (!(solver_step > 0.0)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "solver_step %g must be > 0", solver_step);
+        return STATUS_ERROR;
+    }
+    /* inputs may have changed since the last step: settle the discrete states first */
+    status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    if (status != STATUS_OK) return status;
+
+    while (end_time - instance->now.time > EVENT_TIME_TOLERANCE) {
+        double remaining = end_time - instance->now.time;
+        double dt = remaining / ceil(remaining / solver_step - 1e-9);
+        int k, first = -1;
+        double first_theta = 2.0;
+
+        memcpy(instance->x_start, instance->now.x, x_bytes);
+        status = instance_event_indicators(instance, instance->x_start, instance->now.d, instance->z_start);
+        if (status != STATUS_OK) return status;
+        status = rodas_step(instance, instance->x_start, instance->now.d, dt, instance->x_trial);
+        if (status != STATUS_OK) return status;
+        status = instance_event_indicators(instance, instance->x_trial, instance->now.d, instance->z_trial);
+        if (status != STATUS_OK) return status;
+
+        for (k = 0; k < info->nz; k++) {
+            if (crossed(instance->z_start[k], instance->z_trial[k])) {
+                double theta;
+                status = locate_crossing(instance, k, dt, &theta);
+                if (status != STATUS_OK) return status;
+                if (theta < first_theta) {
+                    first_theta = theta;
+                    first = k;
+                }
+                /* locate_crossing overwrote the trial state: redo the full step for the next indicator */
+                status = rodas_step(instance, instance->x_start, instance->now.d, dt, instance->x_trial);
+                if (status != STATUS_OK) return status;
+                status = instance_event_indicators(instance, instance->x_trial, instance->now.d, instance->z_trial);
+                if (status != STATUS_OK) return status;
+            }
+        }
+        if (first >= 0) {
+            status = rodas_step(instance, instance->x_start, instance->now.d, first_theta * dt, instance->now.x);
+            if (status != STATUS_OK) return status;
+            instance->now.time += first_theta * dt;
+            instance_invalidate(instance);
+            instance_log(instance, STATUS_OK, "logEvents", "indicator %d crossed zero at t = %.17g", first,
+                         instance->now.time);
+            status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+            if (status != STATUS_OK) return status;
+        } else {
+            memcpy(instance->now.x, instance->x_trial, x_bytes);
+            instance->now.time += dt;
+        }
+        instance_invalidate(instance);
+    }
+    instance->now.time = end_time;
+    instance_invalidate(instance);
+    return STATUS_OK;
+}

@@ -1,0 +1,519 @@
+/* The FMI 2.0 API (model exchange and co-simulation) over the generic instance.
+ * Each function checks the calling sequence of the standard and answers misuse with fmi2Error and a
+ * log message; nothing here knows the model. */
+#include "fmi2Functions.h"
+
+#include <string.h>
+
+#include "instance.h"
+
+typedef struct {
+    Instance *instance;
+    fmi2CallbackFunctions callbacks;
+} Component;
+
+#define ANY_MODE                                                                                               \
+    (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED |   \
+     MODE_ERROR)
+#define AFTER_INSTANTIATION (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED)
+
+static void log_to_importer(void *instance_pointer, Status status, const char *category, const char *message) {
+    Instance *instance = (Instance *)instance_pointer;
+    const fmi2CallbackFunctions *callbacks = (const fmi2CallbackFunctions *)instance->log_context;
+    char safe[1024];
+    size_t i;
+    if (!callbacks || !callbacks->logger) return;
+    /* the logger treats the message as a format string */
+    for (i = 0; message[i] && i + 1 < sizeof(safe); i++) safe[i] = message[i] == '%' ? '_' : message[i];
+    safe[i] = '\0';
+    callbacks->logger(callbacks->componentEnvironment, instance->name, (fmi2Status)status, category, "%s", safe);
+}
+
+static Instance *checked(fmi2Component c, const char *function, int allowed_modes) {
+    Component *component = (Component *)c;
+    Instance *instance;
+    if (!component || !component->instance) return NULL;
+    instance = component->instance;
+    if (!(instance->now.mode & allowed_modes)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s must not be called in the current state",
+                     function);
+        return NULL;
+    }
+    return instance;
+}
+
+static fmi2Status finish(Instance *instance, Status status) {
+    if (status >= STATUS_ERROR) instance->now.mode = MODE_ERROR;
+    return (fmi2Status)status;
+}
+
+/* ---- common functions ----------------------------------------------------------------------- */
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
+                               const fmi2String categories[]) {
+    Instance *instance = checked(c, "fmi2SetDebugLogging", ANY_MODE);
+    (void)nCategories;
+    (void)categories;
+    if (!instance) return fmi2Error;
+    instance->logging_on = loggingOn ? 1 : 0;
+    return fmi2OK;
+}
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn) {
+    Component *component;
+    (void)fmuResourceLocation;
+    (void)visible;
+    if (!functions || !functions->allocateMemory || !functions->freeMemory) return NULL;
+    if (!instanceName || !instanceName[0]) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, "?", fmi2Error, "logStatusError",
+                              "fmi2Instantiate: missing instance name");
+        return NULL;
+    }
+    if (!fmuGUID || strcmp(fmuGUID, model_info.guid) != 0) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "fmi2Instantiate: wrong GUID %s, expected %s", fmuGUID ? fmuGUID : "(null)",
+                              model_info.guid);
+        return NULL;
+    }
+    if (fmuType != fmi2ModelExchange && fmuType != fmi2CoSimulation) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "fmi2Instantiate: unknown fmuType");
+        return NULL;
+    }
+    component = (Component *)functions->allocateMemory(1, sizeof(Component));
+    if (!component) return NULL;
+    component->callbacks = *functions;
+    component->instance = instance_create(&model_info, instanceName, fmuType == fmi2CoSimulation,
+                                          functions->allocateMemory, functions->freeMemory, log_to_importer,
+                                          &component->callbacks);
+    if (!component->instance) {
+        if (functions->logger)
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+                              "fmi2Instantiate: out of memory");
+        functions->freeMemory(component);
+        return NULL;
+    }
+    component->instance->environment = functions->componentEnvironment;
+    component->instance->logging_on = loggingOn ? 1 : 0;
+    return component;
+}
+
+void fmi2FreeInstance(fmi2Component c) {
+    Component *component = (Component *)c;
+    fmi2CallbackFreeMemory release;
+    if (!component) return;
+    release = component->callbacks.freeMemory;
+    instance_free(component->instance);
+    release(component);
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
+                               fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
+    Instance *instance = checked(c, "fmi2SetupExperiment", MODE_INSTANTIATED);
+    (void)toleranceDefined;
+    (void)tolerance;
+    if (!instance) return fmi2Error;
+    instance->start_time = startTime;
+    instance->now.time = startTime;
+    instance->stop_time_defined = stopTimeDefined ? 1 : 0;
+    instance->stop_time = stopTime;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    Instance *instance = checked(c, "fmi2EnterInitializationMode", MODE_INSTANTIATED);
+    if (!instance) return fmi2Error;
+    instance->now.mode = MODE_INITIALIZATION;
+    instance->initial_state_valid = 0;
+    return fmi2OK;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Instance *instance = checked(c, "fmi2ExitInitializationMode", MODE_INITIALIZATION);
+    int states_changed, discrete_changed;
+    Status status;
+    if (!instance) return fmi2Error;
+    status = instance_apply_initial_state(instance);
+    if (status == STATUS_OK) status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    instance->now.mode = instance->is_cosimulation ? MODE_STEP : MODE_EVENT;
+    return finish(instance, status);
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    Instance *instance =
+        checked(c, "fmi2Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_INITIALIZATION);
+    if (!instance) return fmi2Error;
+    instance->now.mode = MODE_TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    Instance *instance = checked(c, "fmi2Reset", ANY_MODE);
+    if (!instance) return fmi2Error;
+    instance_reset(instance);
+    return fmi2OK;
+}
+
+/* ---- variables -------------------------------------------------------------------------------- */
+
+#define GET_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    Instance *instance = checked(c, "fmi2GetReal", GET_MODES);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_get(instance, vr, nvr, KIND_REAL, value);
+}
+
+fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
+    Instance *instance = checked(c, "fmi2GetInteger", GET_MODES);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_get(instance, vr, nvr, KIND_INTEGER, value);
+}
+
+fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
+    Instance *instance = checked(c, "fmi2GetBoolean", GET_MODES);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_get(instance, vr, nvr, KIND_BOOLEAN, value);
+}
+
+fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
+    Instance *instance = checked(c, "fmi2GetString", GET_MODES);
+    (void)vr;
+    (void)value;
+    if (!instance) return fmi2Error;
+    if (nvr == 0) return fmi2OK;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "the model has no String variables");
+    return fmi2Error;
+}
+
+#define SET_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
+    Instance *instance = checked(c, "fmi2SetReal", SET_MODES);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_set(instance, vr, nvr, KIND_REAL, value);
+}
+
+fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
+    Instance *instance = checked(c, "fmi2SetInteger", SET_MODES);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_set(instance, vr, nvr, KIND_INTEGER, value);
+}
+
+fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
+    Instance *instance = checked(c, "fmi2SetBoolean", SET_MODES);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_set(instance, vr, nvr, KIND_BOOLEAN, value);
+}
+
+fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
+    Instance *instance = checked(c, "fmi2SetString", SET_MODES);
+    (void)vr;
+    (void)value;
+    if (!instance) return fmi2Error;
+    if (nvr == 0) return fmi2OK;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "the model has no String variables");
+    return fmi2Error;
+}
+
+/* ---- FMU state -------------------------------------------------------------------------------- */
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    Instance *instance = checked(c, "fmi2GetFMUstate", ANY_MODE & ~MODE_ERROR);
+    Snapshot *snapshot;
+    if (!instance || !FMUstate) return fmi2Error;
+    snapshot = (Snapshot *)*FMUstate;
+    if (!snapshot) snapshot = snapshot_create(instance);
+    if (!snapshot) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2GetFMUstate: out of memory");
+        return fmi2Error;
+    }
+    snapshot_copy(instance, snapshot, &instance->now);
+    *FMUstate = snapshot;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
+    Instance *instance = checked(c, "fmi2SetFMUstate", ANY_MODE);
+    if (!instance) return fmi2Error;
+    if (!FMUstate) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetFMUstate: null state");
+        return fmi2Error;
+    }
+    snapshot_copy(instance, &instance->now, (const Snapshot *)FMUstate);
+    instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
+    instance_invalidate(instance);
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
+    Instance *instance = checked(c, "fmi2FreeFMUstate", ANY_MODE);
+    if (!instance || !FMUstate) return fmi2Error;
+    snapshot_free(instance, (Snapshot *)*FMUstate);
+    *FMUstate = NULL;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
+    Instance *instance = checked(c, "fmi2SerializedFMUstateSize", ANY_MODE);
+    (void)FMUstate;
+    if (!instance || !size) return fmi2Error;
+    *size = snapshot_serialized_size(instance);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
+                                 size_t size) {
+    Instance *instance = checked(c, "fmi2SerializeFMUstate", ANY_MODE);
+    if (!instance || !FMUstate || !serializedState) return fmi2Error;
+    if (size < snapshot_serialized_size(instance)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SerializeFMUstate: buffer too small");
+        return fmi2Error;
+    }
+    snapshot_serialize(instance, (const Snapshot *)FMUstate, serializedState);
+    return fmi2OK;
+}
+
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
+                                   fmi2FMUstate *FMUstate) {
+    Instance *instance = checked(c, "fmi2DeSerializeFMUstate", ANY_MODE);
+    Snapshot *snapshot;
+    if (!instance || !FMUstate) return fmi2Error;
+    snapshot = snapshot_create(instance);
+    if (!snapshot) return fmi2Error;
+    if (snapshot_deserialize(instance, serializedState, size, snapshot) != STATUS_OK) {
+        snapshot_free(instance, snapshot);
+        return fmi2Error;
+    }
+    *FMUstate = snapshot;
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
+                                        const fmi2ValueReference vKnown_ref[], size_t nKnown,
+                                        const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
+    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", ANY_MODE);
+    (void)vUnknown_ref;
+    (void)nUnknown;
+    (void)vKnown_ref;
+    (void)nKnown;
+    (void)dvKnown;
+    (void)dvUnknown;
+    if (!instance) return fmi2Error;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "directional derivatives are not provided");
+    return fmi2Error;
+}
+
+/* ---- model exchange --------------------------------------------------------------------------- */
+
+fmi2Status fmi2EnterEventMode(fmi2Component c) {
+    Instance *instance = checked(c, "fmi2EnterEventMode", MODE_EVENT | MODE_CONTINUOUS_TIME);
+    if (!instance || instance->is_cosimulation) return fmi2Error;
+    instance->now.mode = MODE_EVENT;
+    return fmi2OK;
+}
+
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
+    Instance *instance = checked(c, "fmi2NewDiscreteStates", MODE_EVENT);
+    int states_changed = 0, discrete_changed = 0;
+    Status status;
+    if (!instance || !eventInfo) return fmi2Error;
+    status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    eventInfo->newDiscreteStatesNeeded = fmi2False;
+    eventInfo->terminateSimulation = fmi2False;
+    eventInfo->nominalsOfContinuousStatesChanged = fmi2False;
+    eventInfo->valuesOfContinuousStatesChanged = states_changed ? fmi2True : fmi2False;
+    eventInfo->nextEventTimeDefined = fmi2False;
+    eventInfo->nextEventTime = 0.0;
+    return finish(instance, status);
+}
+
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+    Instance *instance = checked(c, "fmi2EnterContinuousTimeMode", MODE_EVENT);
+    if (!instance) return fmi2Error;
+    instance->now.mode = MODE_CONTINUOUS_TIME;
+    return fmi2OK;
+}
+
+fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation) {
+    Instance *instance = checked(c, "fmi2CompletedIntegratorStep", MODE_CONTINUOUS_TIME);
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (!instance || !enterEventMode || !terminateSimulation) return fmi2Error;
+    *enterEventMode = fmi2False;
+    *terminateSimulation = fmi2False;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
+    Instance *instance = checked(c, "fmi2SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME);
+    if (!instance) return fmi2Error;
+    instance->now.time = time;
+    instance_invalidate(instance);
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
+    Instance *instance = checked(c, "fmi2SetContinuousStates", MODE_CONTINUOUS_TIME);
+    if (!instance) return fmi2Error;
+    if (nx != (size_t)instance->info->nx || (nx > 0 && !x)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetContinuousStates: expected %d states",
+                     instance->info->nx);
+        return fmi2Error;
+    }
+    memcpy(instance->now.x, x, sizeof(double) * nx);
+    instance_invalidate(instance);
+    return fmi2OK;
+}
+
+typedef enum { STATE_VECTOR, INDICATOR_VECTOR } VectorKind;
+
+static Instance *checked_vector(fmi2Component c, const char *function, int allowed_modes, const void *vector,
+                                size_t n, VectorKind kind) {
+    Instance *instance = checked(c, function, allowed_modes);
+    int expected;
+    if (!instance) return NULL;
+    expected = kind == STATE_VECTOR ? instance->info->nx : instance->info->nz;
+    if (n != (size_t)expected || (n > 0 && !vector)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: expected a vector of %d", function, expected);
+        return NULL;
+    }
+    if ((instance->now.mode & MODE_INITIALIZATION) && !instance->initial_state_valid &&
+        instance_apply_initial_state(instance) != STATUS_OK)
+        return NULL;
+    return instance;
+}
+
+#define VECTOR_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+
+fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
+    Instance *instance =
+        checked_vector(c, "fmi2GetDerivatives", VECTOR_MODES, derivatives, nx, STATE_VECTOR);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_derivatives(instance, instance->now.x, instance->now.d, derivatives);
+}
+
+fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
+    Instance *instance = checked_vector(c, "fmi2GetEventIndicators", VECTOR_MODES, eventIndicators, ni, INDICATOR_VECTOR);
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_event_indicators(instance, instance->now.x, instance->now.d, eventIndicators);
+}
+
+fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
+    Instance *instance =
+        checked_vector(c, "fmi2GetContinuousStates", VECTOR_MODES, x, nx, STATE_VECTOR);
+    if (!instance) return fmi2Error;
+    memcpy(x, instance->now.x, sizeof(double) * nx);
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[], size_t nx) {
+    Instance *instance = checked_vector(c, "fmi2GetNominalsOfContinuousStates", ANY_MODE, x_nominal, nx, STATE_VECTOR);
+    if (!instance) return fmi2Error;
+    memcpy(x_nominal, instance->info->state_nominal, sizeof(double) * nx);
+    return fmi2OK;
+}
+
+/* ---- co-simulation ---------------------------------------------------------------------------- */
+
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                       const fmi2Integer order[], const fmi2Real value[]) {
+    Instance *instance = checked(c, "fmi2SetRealInputDerivatives", ANY_MODE);
+    (void)vr;
+    (void)nvr;
+    (void)order;
+    (void)value;
+    if (!instance) return fmi2Error;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "the FMU does not interpolate inputs");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
+                                        const fmi2Integer order[], fmi2Real value[]) {
+    Instance *instance = checked(c, "fmi2GetRealOutputDerivatives", ANY_MODE);
+    (void)vr;
+    (void)nvr;
+    (void)order;
+    (void)value;
+    if (!instance) return fmi2Error;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "the FMU provides no output derivatives");
+    return fmi2Error;
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
+                      fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    Instance *instance = checked(c, "fmi2DoStep", MODE_STEP);
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (!instance) return fmi2Error;
+    if (!instance->is_cosimulation) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep needs a co-simulation instance");
+        return fmi2Error;
+    }
+    if (instance->stop_time_defined &&
+        currentCommunicationPoint + communicationStepSize > instance->stop_time + 1e-9 * (1.0 + instance->stop_time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep would pass the stop time %.17g",
+                     instance->stop_time);
+        return fmi2Error;
+    }
+    return finish(instance, instance_do_step(instance, currentCommunicationPoint, communicationStepSize));
+}
+
+fmi2Status fmi2CancelStep(fmi2Component c) {
+    Instance *instance = checked(c, "fmi2CancelStep", MODE_STEP);
+    if (!instance) return fmi2Error;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep always completes: nothing to cancel");
+    return fmi2Error;
+}
+
+fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
+    Instance *instance = checked(c, "fmi2GetStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    if (!instance || !value) return fmi2Error;
+    if (s == fmi2DoStepStatus) {
+        *value = fmi2OK;
+        return fmi2OK;
+    }
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
+    Instance *instance = checked(c, "fmi2GetRealStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    if (!instance || !value) return fmi2Error;
+    if (s == fmi2LastSuccessfulTime) {
+        *value = instance->now.time;
+        return fmi2OK;
+    }
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
+    Instance *instance = checked(c, "fmi2GetIntegerStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    (void)s;
+    (void)value;
+    return instance ? fmi2Discard : fmi2Error;
+}
+
+fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
+    Instance *instance = checked(c, "fmi2GetBooleanStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    if (!instance || !value) return fmi2Error;
+    if (s == fmi2Terminated) {
+        *value = fmi2False;
+        return fmi2OK;
+    }
+    return fmi2Discard;
+}
+
+fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
+    Instance *instance = checked(c, "fmi2GetStringStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    (void)s;
+    (void)value;
+    return instance ? fmi2Discard : fmi2Error;
+}

@@ -1,0 +1,100 @@
+/* One FMU instance: the generic state the FMI layer works on (no model knowledge here). */
+#ifndef SDL_FMU_INSTANCE_H
+#define SDL_FMU_INSTANCE_H
+
+#include "model.h"
+
+typedef enum {
+    STATUS_OK = 0,
+    STATUS_WARNING = 1,
+    STATUS_DISCARD = 2,
+    STATUS_ERROR = 3,
+    STATUS_FATAL = 4
+} Status;
+
+typedef enum {
+    MODE_INSTANTIATED = 1 << 0,
+    MODE_INITIALIZATION = 1 << 1,
+    MODE_EVENT = 1 << 2,
+    MODE_CONTINUOUS_TIME = 1 << 3,
+    MODE_STEP = 1 << 4,
+    MODE_TERMINATED = 1 << 5,
+    MODE_ERROR = 1 << 6
+} Mode;
+
+typedef void *(*AllocateFn)(size_t count, size_t size);
+typedef void (*FreeFn)(void *pointer);
+/* status, category, message: the FMI layer turns this into the importer's logger call */
+typedef void (*LogFn)(void *instance, Status status, const char *category, const char *message);
+
+/* The part of an instance that fmi2GetFMUstate saves and fmi2SetFMUstate restores. */
+typedef struct {
+    double time;
+    Mode mode;
+    double *x, *d, *u, *p;
+} Snapshot;
+
+typedef struct {
+    const ModelInfo *info;
+    char *name;
+    int is_cosimulation;
+    int logging_on;
+    void *environment;
+    AllocateFn allocate;
+    FreeFn release;
+    LogFn log;
+    void *log_context;
+
+    Snapshot now;          /* time, mode and all values that define the instance */
+    double *y, *z, *xdot;  /* cached results */
+    int outputs_valid, derivatives_valid, initial_state_valid;
+    double start_time;
+    double stop_time;
+    int stop_time_defined;
+
+    /* CasADi work arrays, sized for the largest function */
+    const double **arg;
+    double **res;
+    casadi_int_t *iw;
+    double *w;
+
+    /* solver scratch */
+    double *jac, *matrix, *stage[6], *x_stage, *rhs, *x_start, *x_trial, *z_start, *z_trial, *d_trial;
+    int *pivots;
+    long long steps, event_count;
+} Instance;
+
+Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimulation, AllocateFn allocate,
+                          FreeFn release, LogFn log, void *log_context);
+void instance_free(Instance *instance);
+void instance_reset(Instance *instance);
+void instance_log(Instance *instance, Status status, const char *category, const char *format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+
+/* Variable access by value reference; kind must match the variable's type. */
+Status instance_get(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, void *values);
+Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, const void *values);
+
+/* Equations */
+void instance_invalidate(Instance *instance);
+Status instance_apply_initial_state(Instance *instance);
+Status instance_derivatives(Instance *instance, const double *x, const double *d, double *xdot);
+Status instance_event_indicators(Instance *instance, const double *x, const double *d, double *z);
+/* Applies the discrete update until nothing changes; reports whether x or d changed. */
+Status instance_event_iteration(Instance *instance, int *states_changed, int *discrete_changed);
+
+/* Co-simulation: advance the instance's time by h with its internal solver. */
+Status instance_do_step(Instance *instance, double current_time, double h);
+
+/* FMU state */
+Snapshot *snapshot_create(Instance *instance);
+void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from);
+void snapshot_free(Instance *instance, Snapshot *snapshot);
+size_t snapshot_serialized_size(const Instance *instance);
+void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char *bytes);
+Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, Snapshot *snapshot);
+
+#endif

@@ -1,0 +1,133 @@
+"""FMU interfaces as data: reads modelDescription/<Model>.json, the one source of variable names,
+causalities, units, start values and descriptions (the XML, the C variable table and the CasADi symbols
+are all generated from it)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+REPOSITORY_ROOT = Path(__file__).resolve().parents[1]
+INTERFACE_DIRECTORY = REPOSITORY_ROOT / "modelDescription"
+
+# roles: where a variable lives in the model function arguments (x, d, u, p) or results (y)
+STATE, DISCRETE, INPUT, PARAMETER, OUTPUT = "state", "discrete", "input", "parameter", "output"
+
+
+@dataclass(frozen=True)
+class Variable:
+    name: str
+    causality: str  # input, output, parameter, local
+    type: str  # Real, Integer, Boolean
+    role: str  # state, discrete, input, parameter, output
+    index: int  # position within its role's vector
+    unit: str | None = None
+    start: float | None = None
+    min: float | None = None
+    max: float | None = None
+    nominal: float | None = None
+    variability: str = "continuous"
+    description: str = ""
+
+
+@dataclass
+class Interface:
+    model_name: str
+    description: str
+    default_experiment: dict
+    variables: list[Variable]
+    units: dict = field(default_factory=dict)
+
+    def of_role(self, role: str) -> list[Variable]:
+        return [v for v in self.variables if v.role == role]
+
+    def names(self, role: str) -> list[str]:
+        return [v.name for v in self.of_role(role)]
+
+    def variable(self, name: str) -> Variable:
+        for v in self.variables:
+            if v.name == name:
+                return v
+        raise KeyError(f"{self.model_name} has no variable {name!r}")
+
+
+def _role(entry: dict) -> str:
+    if entry.get("state"):
+        return STATE
+    if entry.get("discrete_state"):
+        return DISCRETE
+    if entry["causality"] == "input":
+        return INPUT
+    if entry["causality"] == "parameter":
+        return PARAMETER
+    return OUTPUT
+
+
+def _variability(entry: dict, role: str, type_: str) -> str:
+    if role == PARAMETER:
+        return entry.get("variability", "fixed")
+    if type_ != "Real" or role == DISCRETE:
+        return "discrete"
+    return "continuous"
+
+
+def load_units(directory: Path = INTERFACE_DIRECTORY) -> dict:
+    return json.loads((directory / "units.json").read_text())["units"]
+
+
+def parse_interface(data: dict, units: dict) -> Interface:
+    """Builds an Interface from its JSON data, checking what the generators rely on."""
+    counters: dict[str, int] = {}
+    variables = []
+    seen = set()
+    for entry in data["variables"]:
+        name = entry["name"]
+        if name in seen:
+            raise ValueError(f"{data['modelName']}: variable {name!r} is declared twice")
+        seen.add(name)
+        type_ = entry.get("type", "Real")
+        role = _role(entry)
+        unit = entry.get("unit")
+        if type_ == "Real" and unit is None:
+            raise ValueError(f"{data['modelName']}: Real variable {name!r} has no unit")
+        if unit is not None and unit not in units:
+            raise ValueError(f"{data['modelName']}: variable {name!r} has unit {unit!r}, not in units.json")
+        if role in (INPUT, PARAMETER) and "start" not in entry:
+            raise ValueError(f"{data['modelName']}: {role} {name!r} needs a start value")
+        index = counters.get(role, 0)
+        counters[role] = index + 1
+        variables.append(
+            Variable(
+                name=name,
+                causality=entry["causality"],
+                type=type_,
+                role=role,
+                index=index,
+                unit=unit,
+                start=entry.get("start"),
+                min=entry.get("min"),
+                max=entry.get("max"),
+                nominal=entry.get("nominal"),
+                variability=_variability(entry, role, type_),
+                description=entry.get("description", ""),
+            )
+        )
+    return Interface(
+        model_name=data["modelName"],
+        description=data.get("description", ""),
+        default_experiment=data.get("defaultExperiment", {}),
+        variables=variables,
+        units=units,
+    )
+
+
+def load_interface(model_name: str, directory: Path = INTERFACE_DIRECTORY) -> Interface:
+    """The interface of one FMU, e.g. load_interface('EgoVehicleSimple')."""
+    path = directory / f"{model_name}.json"
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{path} not found: sdl-fmu reads its FMU interfaces from the repository's modelDescription/ "
+            "folder; install it from a checkout with 'pip install -e .'"
+        )
+    return parse_interface(json.loads(path.read_text()), load_units(directory))

@@ -70,7 +70,7 @@ def build_fmu(dynamics: str = "simple", out_dir: Path = Path("dist"), fmi_versio
         (sources_dir / "buildDescription.xml").write_bytes(build_description(model, sources))
         table = variable_table(equations.interface)
         nz = functions["event_indicators"].size1_out(0)
-        (root / "modelDescription.xml").write_bytes(model_description(equations.interface, table, guid, nz))
+        (root / "modelDescription.xml").write_bytes(model_description(equations.interface, table, guid, nz, sources))
         compile_binary(sources_dir, sources, root / "binaries" / "linux64" / f"{model}.so")
 
         target.parent.mkdir(parents=True, exist_ok=True)

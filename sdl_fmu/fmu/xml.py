@@ -63,7 +63,14 @@ def _scalar_variable(parent: ET.Element, entry: TableEntry, value_reference: int
     ET.SubElement(element, v.type, typed)
 
 
-def model_description(interface: Interface, table: list[TableEntry], guid: str, event_indicators: int) -> bytes:
+def _source_files(parent: ET.Element, sources: list[str]) -> None:
+    files = ET.SubElement(parent, "SourceFiles")
+    for source in sources:
+        ET.SubElement(files, "File", name=source)
+
+
+def model_description(interface: Interface, table: list[TableEntry], guid: str, event_indicators: int,
+                      sources: list[str]) -> bytes:
     model = interface.model_name
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0",
@@ -77,9 +84,13 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
     })
     common = {"modelIdentifier": model, "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
               "canNotUseMemoryManagementFunctions": "false", "providesDirectionalDerivative": "false"}
-    ET.SubElement(root, "ModelExchange", {**common, "completedIntegratorStepNotNeeded": "true"})
-    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
-                                         "canInterpolateInputs": "false", "maxOutputDerivativeOrder": "0"})
+    # FMI 2.0 names the sources in each interface element; buildDescription.xml says the same for FMI 3 tools
+    model_exchange = ET.SubElement(root, "ModelExchange", {**common, "completedIntegratorStepNotNeeded": "true"})
+    _source_files(model_exchange, sources)
+    co_simulation = ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+                                                         "canInterpolateInputs": "false",
+                                                         "maxOutputDerivativeOrder": "0"})
+    _source_files(co_simulation, sources)
     _unit_definitions(root, interface)
     categories = ET.SubElement(root, "LogCategories")
     for name, description in LOG_CATEGORIES.items():

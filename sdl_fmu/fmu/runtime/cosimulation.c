@@ -167,13 +167,8 @@ static Status locate_crossing(Instance *instance, int k, double h, double *theta
     return STATUS_OK;
 }
 
-Status instance_do_step(Instance *instance, double current_time, double h) {
+Status instance_check_step(Instance *instance, double current_time, double h) {
     const ModelInfo *info = instance->info;
-    double end_time = current_time + h, solver_step;
-    size_t x_bytes = sizeof(double) * (size_t)info->nx;
-    int states_changed, discrete_changed;
-    Status status;
-
     if (!(h >= 0.0) || !isfinite(h)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "communication step size %g must be >= 0", h);
         return STATUS_ERROR;
@@ -183,11 +178,22 @@ Status instance_do_step(Instance *instance, double current_time, double h) {
                      "doStep at t = %.17g but the FMU is at t = %.17g", current_time, instance->now.time);
         return STATUS_ERROR;
     }
-    solver_step = info->solver_step_parameter >= 0 ? instance->now.p[info->solver_step_parameter] : 1e-3;
-    if (!(solver_step > 0.0)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "solver_step %g must be > 0", solver_step);
+    if (info->solver_step_parameter >= 0 && !(instance->now.p[info->solver_step_parameter] > 0.0)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "solver_step %g must be > 0",
+                     instance->now.p[info->solver_step_parameter]);
         return STATUS_ERROR;
     }
+    return STATUS_OK;
+}
+
+Status instance_do_step(Instance *instance, double current_time, double h) {
+    const ModelInfo *info = instance->info;
+    double end_time = current_time + h, solver_step;
+    size_t x_bytes = sizeof(double) * (size_t)info->nx;
+    int states_changed, discrete_changed;
+    Status status;
+
+    solver_step = info->solver_step_parameter >= 0 ? instance->now.p[info->solver_step_parameter] : 1e-3;
     /* inputs may have changed since the last step: settle the discrete states first */
     status = instance_event_iteration(instance, &states_changed, &discrete_changed);
     if (status != STATUS_OK) return status;

@@ -458,6 +458,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep needs a co-simulation instance");
         return fmi2Error;
     }
+    /* wrong arguments change nothing, so the instance stays usable */
+    if (instance_check_step(instance, currentCommunicationPoint, communicationStepSize) != STATUS_OK)
+        return fmi2Error;
     if (instance->stop_time_defined &&
         currentCommunicationPoint + communicationStepSize > instance->stop_time + 1e-9 * (1.0 + instance->stop_time)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep would pass the stop time %.17g",

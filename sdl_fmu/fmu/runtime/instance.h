@@ -86,7 +86,9 @@ Status instance_event_indicators(Instance *instance, const double *x, const doub
 /* Applies the discrete update until nothing changes; reports whether x or d changed. */
 Status instance_event_iteration(Instance *instance, int *states_changed, int *discrete_changed);
 
-/* Co-simulation: advance the instance's time by h with its internal solver. */
+/* Co-simulation: check the arguments of a step (nothing changes), then advance the instance's time by h
+ * with its internal solver. */
+Status instance_check_step(Instance *instance, double current_time, double h);
 Status instance_do_step(Instance *instance, double current_time, double h);
 
 /* FMU state */

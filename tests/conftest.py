@@ -1,0 +1,10 @@
+"""Shared fixtures: the real FMUs, built once per test session into a temporary folder."""
+
+import pytest
+
+from sdl_fmu.fmu.package import build_fmu
+
+
+@pytest.fixture(scope="session")
+def simple_fmu(tmp_path_factory):
+    return build_fmu("simple", tmp_path_factory.mktemp("dist"))

@@ -1,0 +1,90 @@
+"""The road: lanes from ROAD, surface sections from RSA, and where each wheel touches them.
+
+Road frame: station = metres along the road from the ego's start, lateral = metres from the dividing
+line, positive to the driver's right. The ego's inertial frame (ISO 8855, x forward, y left) has its
+origin on the dividing line at station 0, so station = x and lateral = -y.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+from ..results import SurfaceSection
+from ..sdl.events import Road, Scenario, SurfaceAttribute
+
+# surface value of a lane nobody set: simple dynamics 10 x mu (nominal mu 0.8), advanced attribute 0
+DEFAULT_SURFACE = {"simple": 8.0, "advanced": 0.0}
+WHEELS = ("fl", "fr", "rl", "rr")
+
+
+@dataclass(frozen=True)
+class SurfaceMap:
+    """Per-lane RSA values along the road: a value holds from its station until the lane is set again."""
+
+    starts: dict  # lane -> sorted stations (m)
+    values: dict  # lane -> values, same order
+    default: float
+
+    def value(self, lane: int, station: float) -> float:
+        starts = self.starts.get(lane)
+        if not starts:
+            return self.default
+        position = bisect.bisect_right(starts, station) - 1
+        return self.values[lane][position] if position >= 0 else self.default
+
+
+def surface_map(scenario: Scenario, dynamics: str) -> SurfaceMap:
+    starts: dict[int, list[float]] = {}
+    values: dict[int, list[float]] = {}
+    for event in scenario.events:
+        if isinstance(event, SurfaceAttribute):
+            for lane, value in event.settings:
+                starts.setdefault(lane, []).append(event.distance)
+                values.setdefault(lane, []).append(float(value))
+    return SurfaceMap(starts, values, DEFAULT_SURFACE[dynamics])
+
+
+def surface_sections(surfaces: SurfaceMap) -> list[SurfaceSection]:
+    sections = []
+    for lane, starts in surfaces.starts.items():
+        values = surfaces.values[lane]
+        for i, (start, value) in enumerate(zip(starts, values)):
+            end = starts[i + 1] if i + 1 < len(starts) else None
+            sections.append(SurfaceSection(lane, start, end, value))
+    return sections
+
+
+@dataclass(frozen=True)
+class WheelGeometry:
+    """Contact points relative to the centre of gravity (m): axles ahead/behind it, half tracks."""
+
+    front: float
+    rear: float
+    half_track_front: float
+    half_track_rear: float
+
+    def contact_points(self, x: float, y: float, psi: float) -> list[tuple[float, float]]:
+        """(station, lateral) of the fl, fr, rl, rr contact points."""
+        cos_psi, sin_psi = math.cos(psi), math.sin(psi)
+        points = []
+        for along, left in ((self.front, self.half_track_front), (self.front, -self.half_track_front),
+                            (-self.rear, self.half_track_rear), (-self.rear, -self.half_track_rear)):
+            points.append((x + along * cos_psi - left * sin_psi, -(y + along * sin_psi + left * cos_psi)))
+        return points
+
+
+def wheel_geometry(parameters: dict[str, float]) -> WheelGeometry:
+    """From the FMU's parameters. The Simple FMU has only a wheelbase and a width: its CG is taken midway
+    between the axles and its wheels 0.1 m inside the body's sides."""
+    if "cg_to_front_axle" in parameters:
+        return WheelGeometry(parameters["cg_to_front_axle"], parameters["cg_to_rear_axle"],
+                             parameters["track_front"] / 2, parameters["track_rear"] / 2)
+    half_track = max(parameters["width"] / 2 - 0.1, 0.0)
+    return WheelGeometry(parameters["wheelbase"] / 2, parameters["wheelbase"] / 2, half_track, half_track)
+
+
+def wheel_surfaces(road: Road, surfaces: SurfaceMap, points: list[tuple[float, float]]) -> tuple[float, ...]:
+    """The surface value under each contact point, from the lane it is in."""
+    return tuple(surfaces.value(road.lane_at(lateral), station) for station, lateral in points)

@@ -1,0 +1,132 @@
+"""The traffic model: approaching vehicles (A events) moving along the road by their actions.
+
+A vehicle moves toward decreasing station at its speed (an approaching vehicle; a negative speed
+moves it the ego's way). Between actions its motion is closed-form: a transition runs lateral
+position and speed linearly over its duration, so the station is quadratic in time. That makes
+its state a pure function of time, so the master can roll back and bisect a step freely.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass
+
+from ..sdl.events import Action, ApproachingVehicle, ClosureTrigger
+from ..sdl.vehicles import VehicleModel
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Motion from t0: lateral and speed move linearly from (lateral0, speed0) to (lateral1, speed1)
+    over `duration`, then hold."""
+
+    t0: float
+    station0: float
+    lateral0: float
+    speed0: float
+    lateral1: float
+    speed1: float
+    duration: float
+
+    def at(self, t: float) -> tuple[float, float, float]:
+        """(station, lateral, speed) at time t >= t0."""
+        elapsed = t - self.t0
+        if elapsed < self.duration:
+            fraction = elapsed / self.duration
+            speed = self.speed0 + (self.speed1 - self.speed0) * fraction
+            travelled = self.speed0 * elapsed + (self.speed1 - self.speed0) * elapsed**2 / (2 * self.duration)
+            return self.station0 - travelled, self.lateral0 + (self.lateral1 - self.lateral0) * fraction, speed
+        travelled = (self.speed0 + self.speed1) / 2 * self.duration + self.speed1 * (elapsed - self.duration)
+        return self.station0 - travelled, self.lateral1, self.speed1
+
+
+def closure_reached(trigger: ClosureTrigger, gap: float, gap_rate: float) -> bool:
+    """Whether an action's closure-time condition holds.
+
+    gap = vehicle station - ego station (> 0: the vehicle is in front), gap_rate = d(gap)/dt.
+    Closing (|gap| shrinking) at speed c: fires when |gap| / c <= T. Separating at speed c: a negative T
+    fires when |gap| / c >= |T|. F / B: only with the vehicle in front of / behind the ego.
+    """
+    if gap == 0.0 or (trigger.where == "F" and gap < 0) or (trigger.where == "B" and gap > 0):
+        return False
+    closing_speed = -gap_rate * math.copysign(1.0, gap)
+    if trigger.seconds > 0:
+        return closing_speed > 0 and abs(gap) <= trigger.seconds * closing_speed
+    return closing_speed < 0 and abs(gap) >= -trigger.seconds * -closing_speed
+
+
+def choose_model(event: ApproachingVehicle, rng: random.Random) -> int:
+    """The model number: fixed, or uniform over the inclusive range (reproducible from the seed)."""
+    return rng.randint(event.model.low, event.model.high) if event.model.is_random else event.model.low
+
+
+@dataclass
+class TrafficVehicle:
+    vehicle: int  # id, 1-based in spawn order
+    event: ApproachingVehicle
+    model: VehicleModel
+    motion: Motion
+    next_action: int = 0  # index into event.actions of the armed action
+    in_contact: bool = False
+    present: bool = True
+
+    def at(self, t: float) -> tuple[float, float, float]:
+        return self.motion.at(t)
+
+    def armed(self) -> Action | None:
+        actions = self.event.actions
+        return actions[self.next_action] if self.next_action < len(actions) else None
+
+    def action_due(self, t: float, ego_station: float, ego_station_rate: float) -> bool:
+        action = self.armed()
+        if action is None:
+            return False
+        station, _, speed = self.at(t)
+        return closure_reached(action.trigger, station - ego_station, -speed - ego_station_rate)
+
+    def start_action(self, t: float, ego_lateral: float, ego_speed: float) -> Action:
+        """Fires the armed action: a new transition from where the vehicle is now (interrupting any)."""
+        action = self.armed()
+        station, lateral, speed = self.at(t)
+        self.motion = Motion(t, station, lateral, speed, action.lateral.resolve(ego_lateral),
+                             action.speed.resolve(ego_speed), action.duration)
+        self.next_action += 1
+        return action
+
+    def may_leave(self, t: float, ego_station: float, ego_station_rate: float, ego_length: float) -> bool:
+        """Wholly behind the ego (its front behind the ego's rear), moving away, and no action left that
+        could still fire (SPEC §3)."""
+        station, _, speed = self.at(t)
+        gap, gap_rate = station - ego_station, -speed - ego_station_rate
+        if not (gap < -(ego_length + self.model.length) / 2 and gap_rate < 0):
+            return False
+        action = self.armed()
+        # while behind and separating only a negative closure time without 'F' can still fire
+        return action is None or action.trigger.seconds > 0 or action.trigger.where == "F"
+
+
+def spawn(vehicle_id: int, event: ApproachingVehicle, model: VehicleModel, t: float, ego_station: float,
+          ego_lateral: float, ego_speed: float) -> TrafficVehicle:
+    speed = event.speed.resolve(ego_speed)
+    lateral = event.lateral.resolve(ego_lateral)
+    motion = Motion(t, ego_station + event.gap, lateral, speed, lateral, speed, 0.0)
+    return TrafficVehicle(vehicle_id, event, model, motion)
+
+
+def footprints_overlap(a_center, a_heading, a_size, b_center, b_heading, b_size) -> bool:
+    """Separating-axis test of two rectangles (centre (x, y), heading rad, (length, width)) in one plane."""
+    corners = []
+    axes = []
+    for (cx, cy), heading, (length, width) in ((a_center, a_heading, a_size), (b_center, b_heading, b_size)):
+        c, s = math.cos(heading), math.sin(heading)
+        axes += [(c, s), (-s, c)]
+        corners.append([(cx + dx * c - dy * s, cy + dx * s + dy * c)
+                        for dx, dy in ((length / 2, width / 2), (length / 2, -width / 2),
+                                       (-length / 2, -width / 2), (-length / 2, width / 2))])
+    for ax, ay in axes:
+        a = [x * ax + y * ay for x, y in corners[0]]
+        b = [x * ax + y * ay for x, y in corners[1]]
+        if max(a) <= min(b) or max(b) <= min(a):
+            return False
+    return True

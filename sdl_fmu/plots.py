@@ -1,0 +1,456 @@
+"""plot.png: one figure that shows a run at a glance (time histories above, the road seen from above below).
+
+The figure is built on a bare matplotlib `Figure` with an explicit Agg canvas: no display is needed and the
+caller's pyplot backend is left alone.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.collections import PolyCollection
+from matplotlib.colors import TwoSlopeNorm
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch, Rectangle
+
+from .units import from_si, length_label, speed_label
+
+if TYPE_CHECKING:
+    from .results import RunResult
+
+LABEL_CHAR_PX = 6.5  # rough width of one 7.5 pt label character at 110 dpi
+LABEL_TOP = 0.97  # axis fraction of the first row of event labels
+LABEL_ROW = 0.075  # axis fraction per row of event labels
+MAX_LABEL_ROWS = 6
+MAX_LINE_POINTS = 4000  # lines are decimated to this many points: the figure is ~1800 px wide anyway
+NOMINAL_MU = 0.8
+WHEELS = ("fl", "fr", "rl", "rr")
+WHEEL_STYLES = {"fl": "-", "fr": "--", "rl": "-.", "rr": ":"}
+TRAFFIC_COLORS = ("tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan",
+                  "tab:gray")
+EVENT_COLORS = {"BRK": "tab:red", "A": "tab:purple", "RSA": "#9a7b00", "ES": "black"}
+ATTRIBUTE_COLORS = ("#ffffff", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+                    "#17becf", "#bcbd22")
+EGO_COLOR = "tab:blue"
+BRK_COLOR = "tab:red"
+LANE_FILL = "#f7f7f7"
+SHOULDER_FILL = "#d9d9d9"
+GROUND_FILL = "#edf4e8"
+
+
+def _stride(samples: int) -> int:
+    """Step that keeps a line under MAX_LINE_POINTS points (spans and markers still use every sample)."""
+    return max(1, math.ceil(samples / MAX_LINE_POINTS))
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) sample indices of each run of True in mask."""
+    padded = np.concatenate(([False], np.asarray(mask, dtype=bool), [False]))
+    edges = np.flatnonzero(np.diff(padded.astype(np.int8)))
+    return [(int(start), int(stop) - 1) for start, stop in zip(edges[::2], edges[1::2])]
+
+
+def _event_label(event: dict) -> str:
+    """Short text for an event marker: 'BRK on', 'A1 spawn', 'A1 m2', 'A1 collision', 'RSA 1=3', 'ES'."""
+    code, action = event.get("code", "?"), event.get("action", "")
+    if code == "A":
+        vehicle = f"A{event.get('vehicle', '?')}"
+        if action == "maneuver":
+            return f"{vehicle} m{event.get('index', '?')}"
+        return f"{vehicle} {action}"
+    if code == "BRK":
+        reason = event.get("reason")
+        return f"BRK {action} ({reason})" if action == "off" and reason else f"BRK {action}"
+    if code == "RSA":
+        return f"RSA {event.get('lane', '?')}={event.get('value', '?')}"
+    return str(code) if code == "ES" or not action else f"{code} {action}"
+
+
+def _event_color(event: dict) -> str:
+    """Red for collisions and braking, one colour per event code otherwise."""
+    if event.get("action") == "collision":
+        return "red"
+    return EVENT_COLORS.get(event.get("code"), "tab:gray")
+
+
+def _timed_events(result: RunResult) -> list[dict]:
+    """Events that carry a finite time, in time order."""
+    timed = [e for e in result.events if isinstance(e.get("time_s"), (int, float)) and math.isfinite(e["time_s"])]
+    return sorted(timed, key=lambda e: e["time_s"])
+
+
+def _mark_events(ax, events: list[dict]) -> None:
+    """Thin vertical lines at event instants (the speed panel adds the labels)."""
+    for event in events:
+        collision = event.get("action") == "collision"
+        ax.axvline(event["time_s"], color=_event_color(event), lw=1.6 if collision else 0.9,
+                   alpha=0.8 if collision else 0.35, ls="-" if collision else "--", zorder=1)
+
+
+def _label_rows(events: list[dict], t0: float, t1: float, axis_px: float) -> list[tuple[dict, int, str]]:
+    """(event, row, alignment) for each event label: greedily packed into rows so that labels do not overlap."""
+    row_ends: list[float] = []  # right end (axis fraction) of the last label in each row
+    placed = []
+    for event in events:
+        x = (event["time_s"] - t0) / (t1 - t0)
+        width = (len(_event_label(event)) + 1) * LABEL_CHAR_PX / axis_px
+        start, end, align = (x, x + width, "left") if x + width <= 1.0 else (x - width, x, "right")
+        row = next((k for k, row_end in enumerate(row_ends) if row_end < start), None)
+        if row is None and len(row_ends) < MAX_LABEL_ROWS:
+            row_ends.append(end)
+            row = len(row_ends) - 1
+        elif row is None:  # out of rows: reuse the one that frees up first
+            row = int(np.argmin(row_ends))
+        row_ends[row] = max(row_ends[row], end)
+        placed.append((event, row, align))
+    return placed
+
+
+def _label_events(ax, events: list[dict], t0: float, t1: float, axis_px: float) -> int:
+    """Event labels in rows at the top of the panel; returns how many rows they take."""
+    placed = _label_rows(events, t0, t1, axis_px)
+    transform = ax.get_xaxis_transform()
+    for event, row, align in placed:
+        color = _event_color(event)
+        ax.text(event["time_s"], LABEL_TOP - row * LABEL_ROW, f" {_event_label(event)} ", transform=transform,
+                ha=align, va="top", fontsize=7.5, color=color, clip_on=True, zorder=3,
+                bbox=dict(boxstyle="square,pad=0.1", facecolor="white", edgecolor="none", alpha=0.8))
+    return 1 + max((row for _, row, _ in placed), default=-1)
+
+
+def _shade_brk(ax, time: np.ndarray, brk_runs: list[tuple[int, int]], label: bool) -> None:
+    """Shade the spans where a BRK event holds the pedals (one artist, however many spans)."""
+    if not brk_runs:
+        return
+    spans = [[(time[first], 0.0), (time[first], 1.0), (time[last], 1.0), (time[last], 0.0)]
+             for first, last in brk_runs]
+    ax.add_collection(PolyCollection(spans, transform=ax.get_xaxis_transform(), facecolor=BRK_COLOR, alpha=0.12,
+                                     lw=0, label="BRK active" if label else None), autolim=False)
+
+
+def _final_text(result: RunResult, time: np.ndarray, distance: np.ndarray) -> str:
+    """'final: 1234.5 ft at t = 20.00 s' from the summary's final entry, else the last sample."""
+    final = result.final or {}
+
+    def number(key: str, fallback: np.ndarray) -> float:
+        value = final.get(key)
+        if isinstance(value, (int, float)):
+            return float(value)
+        return float(fallback[-1]) if len(fallback) else float("nan")
+
+    final_distance, final_time = number("distance", distance), number("time_s", time)
+    final_speed = final.get("speed")
+    text = f"final: {final_distance:.1f} {length_label(result.units)} at t = {final_time:.2f} s"
+    if isinstance(final_speed, (int, float)):
+        text += f", {final_speed:.1f} {speed_label(result.units)}"
+    return text
+
+
+def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs) -> None:
+    """Speed, distance, pedals + steer and friction over time."""
+    units = result.units
+    cols = result.columns
+    step = _stride(len(time))
+    t = time[::step]
+    events = _timed_events(result)
+
+    ax = axes["speed"]
+    speed = from_si(np.asarray(cols["v"], dtype=float), units)
+    _shade_brk(ax, time, brk_runs, label=True)
+    ax.plot(t, speed[::step], color=EGO_COLOR, lw=1.5, label="ego speed")
+    _mark_events(ax, events)
+    t0, t1 = time[0], time[-1] if time[-1] > time[0] else time[0] + 1.0
+    rows = _label_events(ax, events, t0, t1, axis_px=0.42 * 16 * 110)
+    top = np.nanmax(speed) if len(speed) and np.isfinite(speed).any() else 1.0
+    free = LABEL_TOP - rows * LABEL_ROW - 0.03  # axis fraction left below the labels
+    ax.set_ylim(0, max(top, 1e-6) / max(free, 0.5))
+    ax.set_ylabel(f"speed [{speed_label(units)}]")
+    ax.set_title("speed (BRK spans shaded, events marked)", fontsize=10, loc="left")
+    ax.legend(loc="lower left", fontsize=8)
+
+    ax = axes["distance"]
+    distance = from_si(np.asarray(cols["s"], dtype=float), units)
+    _shade_brk(ax, time, brk_runs, label=False)
+    ax.plot(t, distance[::step], color=EGO_COLOR, lw=1.5)
+    _mark_events(ax, events)
+    for event in events:
+        if isinstance(event.get("distance"), (int, float)):
+            ax.plot(event["time_s"], event["distance"], "o", ms=4, color=_event_color(event))
+    ax.set_ylabel(f"distance travelled [{length_label(units)}]")
+    ax.set_title("distance travelled (dots: events)", fontsize=10, loc="left")
+
+    ax = axes["pedals"]
+    _shade_brk(ax, time, brk_runs, label=False)
+    ax.plot(t, np.asarray(cols["throttle"], dtype=float)[::step], color="tab:green", lw=1.3, label="throttle")
+    ax.plot(t, np.asarray(cols["brake"], dtype=float)[::step], color="tab:red", lw=1.3, label="brake")
+    _mark_events(ax, events)
+    ax.set_ylim(-0.05, 1.08)
+    ax.set_ylabel("pedal [1]")
+    ax.set_xlabel("time [s]")
+    steer_ax = ax.twinx()
+    steer = np.asarray(cols["steer"], dtype=float)
+    steer_ax.plot(t, steer[::step], color="tab:purple", lw=1.1, label="steer")
+    limit = max(float(np.nanmax(np.abs(steer))) if np.isfinite(steer).any() else 0.0, 0.01) * 1.2
+    steer_ax.set_ylim(-limit, limit)
+    steer_ax.set_ylabel("steer [rad] (+ left)", color="tab:purple")
+    steer_ax.tick_params(axis="y", colors="tab:purple")
+    handles = ax.get_legend_handles_labels()[0] + steer_ax.get_legend_handles_labels()[0]
+    ax.legend(handles=handles, loc="upper right", fontsize=8, ncols=3)
+    ax.set_title("driver inputs", fontsize=10, loc="left")
+
+    ax = axes["friction"]
+    _mark_events(ax, events)
+    if any(f"mu_{w}" in cols for w in WHEELS):
+        values = []
+        for wheel in WHEELS:
+            if f"mu_{wheel}" in cols:
+                mu = np.asarray(cols[f"mu_{wheel}"], dtype=float)
+                values.append(mu)
+                ax.plot(t, mu[::step], ls=WHEEL_STYLES[wheel], lw=1.4, drawstyle="steps-post", label=wheel)
+        top = max(1.0, float(np.nanmax(values)) if np.isfinite(values).any() else 1.0)
+        ax.set_ylim(0, top * 1.1)
+        ax.set_ylabel("mu [1]")
+        ax.set_title("friction coefficient under each wheel", fontsize=10, loc="left")
+    else:
+        values = []
+        for wheel in WHEELS:
+            if f"surface_{wheel}" in cols:
+                attribute = np.asarray(cols[f"surface_{wheel}"], dtype=float)
+                values.append(attribute)
+                ax.plot(t, attribute[::step], ls=WHEEL_STYLES[wheel], lw=1.4, drawstyle="steps-post", label=wheel)
+        top = float(np.nanmax(values)) if values and np.isfinite(values).any() else 1.0
+        ax.set_ylim(-0.5, top + 0.5)
+        ax.yaxis.get_major_locator().set_params(integer=True)
+        ax.set_ylabel("surface attribute")
+        ax.set_title("road surface attribute under each wheel", fontsize=10, loc="left")
+    if values:
+        ax.legend(loc="lower right", fontsize=8, ncols=4)
+    ax.set_xlabel("time [s]")
+
+
+def _surface_style(result: RunResult):
+    """(colour of a section value, colorbar mappable or None, legend handles) for the RSA patches."""
+    values = [section.value for section in result.surfaces]
+    if result.dynamics == "simple":
+        top = max([NOMINAL_MU * 1.5] + [value / 10 for value in values])
+        norm = TwoSlopeNorm(vmin=0.0, vcenter=NOMINAL_MU, vmax=top)
+        cmap = colormaps["RdBu"]
+        return (lambda value: cmap(norm(value / 10))), ScalarMappable(norm=norm, cmap=cmap), []
+
+    def color(value):
+        return ATTRIBUTE_COLORS[int(value) % len(ATTRIBUTE_COLORS)]
+
+    handles = [Patch(facecolor=color(value), edgecolor="gray", alpha=0.6,
+                     label=f"surface attribute {int(value)}" + (" (standard)" if int(value) == 0 else ""))
+               for value in sorted(set(values))]
+    return color, None, handles
+
+
+def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float, float]:
+    """Lanes, shoulders, lane lines and RSA patches between stations x_min..x_max (scenario units)."""
+    road, units = result.road, result.units
+    width = from_si(road.lane_width, units)
+    left, right = from_si(road.left_edge, units), from_si(road.right_edge, units)
+    span = x_max - x_min
+    ax.set_facecolor(GROUND_FILL)
+    ax.add_patch(Rectangle((x_min - span, left - width), 3 * span, width, color=SHOULDER_FILL, lw=0, zorder=0))
+    ax.add_patch(Rectangle((x_min - span, right), 3 * span, width, color=SHOULDER_FILL, lw=0, zorder=0))
+    ax.add_patch(Rectangle((x_min - span, left), 3 * span, right - left, color=LANE_FILL, lw=0, zorder=0))
+
+    color, _, _ = _surface_style(result)
+    for section in result.surfaces:
+        start = from_si(section.start, units)
+        end = x_max + span if section.end is None else from_si(section.end, units)
+        if end < x_min or start > x_max:
+            continue
+        centre = from_si(road.lane_center(section.lane), units)
+        ax.add_patch(Rectangle((start, centre - width / 2), end - start, width, color=color(section.value),
+                               alpha=0.6, lw=0, zorder=1))
+
+    line = dict(zorder=2, solid_capstyle="butt")
+    for edge in (left, right):
+        ax.axhline(edge, color="black", lw=1.3, **line)
+    for edge in (left - width, right + width):
+        ax.axhline(edge, color="gray", lw=0.6, **line)
+    for k in range(1, road.lanes_right):
+        ax.axhline(k * width, color="dimgray", lw=1.0, ls=(0, (6, 6)), **line)
+    for k in range(1, road.lanes_left):
+        ax.axhline(-k * width, color="dimgray", lw=1.0, ls=(0, (6, 6)), **line)
+    if road.lanes_left and road.lanes_right:  # double yellow: a wide yellow line split by a lane-coloured one
+        ax.axhline(0.0, color="#e6b800", lw=4.0, **line)
+        ax.axhline(0.0, color=LANE_FILL, lw=1.2, **line)
+    return left - width, right + width
+
+
+def _lateral_limits(result: RunResult, outer_left: float, outer_right: float) -> tuple[float, float]:
+    """Lateral range shown: the road with shoulders, widened for any path that leaves it."""
+    lows, highs = [outer_left], [outer_right]
+    for series in [result.columns["lateral"]] + [track.lateral for track in result.vehicles]:
+        values = from_si(np.asarray(series, dtype=float), result.units)
+        if np.isfinite(values).any():
+            lows.append(float(np.nanmin(values)))
+            highs.append(float(np.nanmax(values)))
+    pad = 0.04 * (max(highs) - min(lows))
+    return min(lows) - pad, max(highs) + pad
+
+
+def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, annotate: bool) -> list:
+    """Ego path (red where BRK holds the pedals), traffic paths and collision points; legend handles."""
+    units = result.units
+    station = from_si(np.asarray(result.columns["station"], dtype=float), units)
+    lateral = from_si(np.asarray(result.columns["lateral"], dtype=float), units)
+    visible = (station >= x_min) & (station <= x_max)
+    step = _stride(int(visible.sum()) or 1)
+    handles = []
+    ax.plot(station[::step], lateral[::step], color=EGO_COLOR, lw=1.8, zorder=4)
+    handles.append(Line2D([], [], color=EGO_COLOR, lw=1.8, label="ego"))
+    if brk_runs:
+        braking = np.zeros(len(station), dtype=bool)
+        for first, last in brk_runs:
+            braking[first:last + 1] = True
+        ax.plot(station[::step], np.where(braking, lateral, np.nan)[::step], color=BRK_COLOR, lw=4, alpha=0.45,
+                zorder=3, solid_capstyle="butt")
+        handles.append(Line2D([], [], color=BRK_COLOR, lw=4, alpha=0.45, label="ego, BRK active"))
+    if len(station):
+        ax.plot(station[0], lateral[0], ">", color=EGO_COLOR, ms=8, zorder=5)
+
+    for number, track in enumerate(result.vehicles):
+        color = TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)]
+        x = from_si(np.asarray(track.station, dtype=float), units)
+        y = from_si(np.asarray(track.lateral, dtype=float), units)
+        label = f"A{track.vehicle} {track.name}"
+        ax.plot(x[::step], y[::step], color=color, lw=1.6, zorder=4)
+        handles.append(Line2D([], [], color=color, lw=1.6, label=label))
+        present = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
+        if len(present):
+            spawn = present[0]
+            ax.plot(x[spawn], y[spawn], "o", color=color, ms=6, zorder=5)
+            if annotate and x_min <= x[spawn] <= x_max:
+                ax.annotate(f"A{track.vehicle}", (x[spawn], y[spawn]), xytext=(0, 7), textcoords="offset points",
+                            ha="center", va="bottom", fontsize=8, color=color, fontweight="bold", zorder=6)
+
+    if result.collision_points:
+        points = np.array([(from_si(s, units), from_si(d, units)) for s, d in result.collision_points])
+        ax.plot(points[:, 0], points[:, 1], "X", color="red", mec="darkred", ms=13, zorder=7)
+        handles.append(Line2D([], [], marker="X", ls="", color="red", mec="darkred", ms=10, label="collision"))
+    return handles
+
+
+def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
+    """Sample to zoom on: the first collision, else the closest approach of the first traffic vehicle."""
+    station = np.asarray(result.columns["station"], dtype=float)
+    collisions = [e for e in _timed_events(result) if e.get("action") == "collision"]
+    if collisions and len(time):
+        index = int(np.clip(np.searchsorted(time, collisions[0]["time_s"]), 0, len(time) - 1))
+        who = f" with A{collisions[0]['vehicle']}" if "vehicle" in collisions[0] else ""
+        return index, f"first collision{who}, t = {time[index]:.2f} s"
+    if result.collision_points and len(time):
+        target = result.collision_points[0][0]
+        index = int(np.argmin(np.abs(station - target)))
+        return index, f"first collision, t = {time[index]:.2f} s"
+    for track in result.vehicles:
+        gap = np.abs(np.asarray(track.station, dtype=float) - station)
+        if np.isfinite(gap).any():
+            index = int(np.nanargmin(gap))
+            return index, f"closest approach of A{track.vehicle} {track.name}, t = {time[index]:.2f} s"
+    return None
+
+
+def _draw_footprints(ax, result: RunResult, index: int) -> None:
+    """Traffic vehicles' footprints and the ego's position at one sample (zoom panel)."""
+    units = result.units
+    for number, track in enumerate(result.vehicles):
+        x, y = float(track.station[index]), float(track.lateral[index])
+        if not (math.isfinite(x) and math.isfinite(y)):
+            continue
+        length, width = from_si(track.length, units), from_si(track.width, units)
+        ax.add_patch(Rectangle((from_si(x, units) - length / 2, from_si(y, units) - width / 2), length, width,
+                               facecolor=TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)], edgecolor="black",
+                               alpha=0.8, lw=0.8, zorder=6))
+    ego_x = from_si(float(result.columns["station"][index]), units)
+    ego_y = from_si(float(result.columns["lateral"][index]), units)
+    ax.plot(ego_x, ego_y, "D", color=EGO_COLOR, mec="black", ms=8, zorder=6)
+
+
+def plot_run(result: RunResult, path: Path) -> None:
+    """Write plot.png: speed, distance, inputs and friction over time, and the road seen from above."""
+    units = result.units
+    length = length_label(units)
+    time = np.asarray(result.columns["time"], dtype=float)
+    brk_runs = _runs(np.asarray(result.columns["brk"], dtype=float) > 0.5) if len(time) else []
+    focus = _focus(result, time)
+
+    figure = Figure(figsize=(16, 11), dpi=110, layout="constrained")
+    FigureCanvasAgg(figure)
+    grid = figure.add_gridspec(4, 2, height_ratios=[1.15, 1.0, 1.05, 1.05])
+    axes = {"speed": figure.add_subplot(grid[0, 0])}
+    axes["distance"] = figure.add_subplot(grid[0, 1], sharex=axes["speed"])
+    axes["pedals"] = figure.add_subplot(grid[1, 0], sharex=axes["speed"])
+    axes["friction"] = figure.add_subplot(grid[1, 1], sharex=axes["speed"])
+    road_ax = figure.add_subplot(grid[2, :] if focus else grid[2:, :])
+    zoom_ax = figure.add_subplot(grid[3, :]) if focus else None
+    for ax in axes.values():
+        ax.grid(True, alpha=0.3)
+    if len(time):
+        _plot_time_panels(result, axes, time, brk_runs)
+        axes["speed"].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1)
+
+    # bird's-eye view of the whole run
+    station = from_si(np.asarray(result.columns["station"], dtype=float), units)
+    xs = [station] + [from_si(np.asarray(track.station, dtype=float), units) for track in result.vehicles]
+    finite = np.concatenate([x[np.isfinite(x)] for x in xs] + [np.zeros(1)])
+    x_min, x_max = float(finite.min()), float(finite.max())
+    road_width = from_si(result.road.right_edge - result.road.left_edge + 2 * result.road.lane_width, units)
+    pad = max(0.01 * (x_max - x_min), 2.0 * road_width - 0.5 * (x_max - x_min))  # short runs: show some road
+    x_min, x_max = x_min - pad, x_max + pad
+    outer = _draw_road(road_ax, result, x_min, x_max)
+    handles = _draw_paths(road_ax, result, brk_runs, x_min, x_max, annotate=True)
+    _, mappable, surface_handles = _surface_style(result)
+    low, high = _lateral_limits(result, *outer)
+    road_ax.set_xlim(x_min, x_max)
+    road_ax.set_ylim(high, low)  # + right drawn downward: seen from above, driving left to right
+    road_ax.set_ylabel(f"lateral [{length}]\n(+ right, drawn down)")
+    road_ax.set_xlabel(f"station along the road [{length}]")
+    road_ax.set_title("the road from above (stretched across; shoulders grey, RSA sections coloured per lane)",
+                      fontsize=10, loc="left")
+    road_ax.legend(handles=handles + surface_handles, loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8,
+                   borderaxespad=0)
+
+    if focus:
+        index, what = focus
+        centre = from_si(float(result.columns["station"][index]), units)
+        speed = from_si(abs(float(result.columns["v"][index])), units)
+        half = max(4.0 * (outer[1] - outer[0]), 4.0 * speed)
+        z_min, z_max = centre - half, centre + half
+        _draw_road(zoom_ax, result, z_min, z_max)
+        _draw_paths(zoom_ax, result, brk_runs, z_min, z_max, annotate=True)
+        _draw_footprints(zoom_ax, result, index)
+        zoom_ax.set_xlim(z_min, z_max)
+        zoom_ax.set_ylim(high, low)
+        zoom_ax.set_ylabel(f"lateral [{length}]\n(+ right, drawn down)")
+        zoom_ax.set_xlabel(f"station along the road [{length}]")
+        zoom_ax.set_title(f"zoom: {what} (footprints and ego \u25c6 at that instant)", fontsize=10, loc="left")
+        road_ax.add_patch(Rectangle((z_min, low), z_max - z_min, high - low, fill=False, edgecolor="black",
+                                    lw=1.0, ls="--", zorder=8))
+
+    if mappable is not None and result.surfaces:
+        colorbar_axes = [road_ax, zoom_ax] if zoom_ax is not None else [road_ax]
+        colorbar = figure.colorbar(mappable, ax=colorbar_axes, location="right", fraction=0.02, pad=0.01)
+        colorbar.set_label("mu (RSA value / 10)")
+
+    name = Path(str(result.scenario_path)).stem or "scenario"
+    title = (f"{name} \u2014 {result.dynamics} dynamics \u2014 collisions: {result.collisions} \u2014 "
+             f"{_final_text(result, time, from_si(np.asarray(result.columns['s'], dtype=float), units))}")
+    subtitle = f"{result.scenario_path}  |  {units} units  |  seed {result.seed}"
+    if result.warnings:
+        first = result.warnings[0] if len(result.warnings[0]) <= 90 else result.warnings[0][:87] + "..."
+        subtitle += f"  |  {len(result.warnings)} warning(s): {first}"
+    figure.suptitle(f"{title}\n{subtitle}", fontsize=13)
+    figure.savefig(Path(path), format="png")

@@ -1,0 +1,216 @@
+"""Writing a run's results: timeseries.csv units and cells, summary.json keys, atomic directory, plot.png."""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sdl_fmu import plots
+from sdl_fmu.results import RunResult, SurfaceSection, VehicleTrack, summary, write_results
+from sdl_fmu.sdl.events import Road
+from sdl_fmu.units import from_si
+
+ROAD = Road(line=0, distance=0.0, lane_width=3.6576, lanes=2, lanes_right=1)
+NAN = float("nan")
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+EGO_HEADER = ["time_s", "distance_{L}", "station_{L}", "lateral_{L}", "speed_{V}", "vx_{V}", "vy_{V}", "ax_{L}/s2",
+              "ay_{L}/s2", "yaw_rate_rad/s", "psi_rad", "throttle_1", "brake_1", "steer_rad", "brk_active", "stopped"]
+
+
+def make_result(units="English", dynamics="simple", collision=False) -> RunResult:
+    """Five samples 0.1 s apart at 15.24 m/s (50 ft/s); A1 appears at the third sample."""
+    time = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
+    s = 15.24 * time  # 0, 1.524 m (5 ft), 3.048 m (10 ft), ...
+    n = len(time)
+    columns = {
+        "time": time, "x": s.copy(), "y": np.full(n, -1.8288), "psi": np.zeros(n), "s": s, "v": np.full(n, 15.24),
+        "vx": np.full(n, 15.24), "vy": np.zeros(n), "ax": np.array([0.0, 0.0, -3.048, -3.048, 0.0]),
+        "ay": np.zeros(n), "yaw_rate": np.zeros(n), "stopped": np.zeros(n), "station": s.copy(),
+        "lateral": np.full(n, 1.8288), "throttle": np.array([0.2, 0.2, 0.0, 0.0, 0.2]),
+        "brake": np.array([0.0, 0.0, 1.0, 1.0, 0.0]), "steer": np.zeros(n), "brk": np.array([0, 0, 1, 1, 0.0]),
+    }
+    if dynamics == "simple":
+        columns.update({f"mu_{w}": np.array([0.8, 0.8, 0.3, 0.3, 0.8]) for w in ("fl", "fr", "rl", "rr")})
+    else:
+        columns.update({f"surface_{w}": np.array([0.0, 0.0, 2.0, 2.0, 0.0]) for w in ("fl", "fr", "rl", "rr")})
+    vehicle = VehicleTrack(
+        vehicle=1, model=3, name="Pickup", length=5.3, width=2.0,
+        station=np.array([NAN, NAN, 33.528, 31.0, 28.472]),  # 110 ft at the third sample
+        lateral=np.array([NAN, NAN, -1.8288, -1.8288, -1.8288]),
+        speed=np.array([NAN, NAN, 6.096, 6.096, 6.096]),
+    )
+    events = [
+        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 10.0, "speed": 50.0,
+         "lateral": 6.0},
+        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 10.0, "speed": 50.0, "lateral": 6.0},
+    ]
+    if collision:
+        events.append({"code": "A", "action": "collision", "vehicle": 1, "time_s": 0.3, "distance": 15.0,
+                       "speed": 50.0, "lateral": 6.0})
+    return RunResult(
+        scenario_path="scenarios/example.sdl", units=units, dynamics=dynamics, seed=42, road=ROAD, columns=columns,
+        vehicles=[vehicle], events=events, collisions=int(collision),
+        collision_points=[(4.6, 0.0)] if collision else [],
+        surfaces=[SurfaceSection(lane=1, start=1.0, end=None, value=3 if dynamics == "simple" else 2)],
+        warnings=["a warning"], final={"time_s": 0.4, "distance": 20.0, "speed": 50.0, "lateral": 6.000000000001},
+    )
+
+
+def read_csv(path):
+    with open(path, newline="") as file:
+        rows = list(csv.reader(file))
+    return rows[0], rows[1:]
+
+
+def expected_header(length, speed, wheels):
+    ego = [name.format(L=length, V=speed) for name in EGO_HEADER]
+    vehicle = [f"A1_station_{length}", f"A1_lateral_{length}", f"A1_speed_{speed}", f"A1_gap_{length}"]
+    return ego + wheels + vehicle
+
+
+def test_csv_english_header_and_feet(tmp_path):
+    out = write_results(make_result("English"), tmp_path / "run", plot=False)
+    header, rows = read_csv(out / "timeseries.csv")
+    assert header == expected_header("ft", "ft/s", ["mu_fl_1", "mu_fr_1", "mu_rl_1", "mu_rr_1"])
+    assert len(rows) == 5 and all(len(row) == len(header) for row in rows)
+    row = dict(zip(header, rows[2]))
+    assert row["time_s"] == "0.200000"
+    assert float(row["distance_ft"]) == pytest.approx(10.0)  # 3.048 m / 0.3048 m/ft, by hand
+    assert float(row["speed_ft/s"]) == pytest.approx(50.0)
+    assert float(row["lateral_ft"]) == pytest.approx(6.0)
+    assert float(row["ax_ft/s2"]) == pytest.approx(-10.0)
+    assert float(row["distance_ft"]) == pytest.approx(from_si(3.048, "English"))
+    assert row["brk_active"] == "1" and row["stopped"] == "0"
+    assert float(row["mu_fl_1"]) == pytest.approx(0.3)
+    assert float(row["A1_station_ft"]) == pytest.approx(110.0)
+    assert float(row["A1_speed_ft/s"]) == pytest.approx(20.0)
+    assert float(row["A1_gap_ft"]) == pytest.approx(100.0)  # vehicle station - ego station
+
+
+def test_csv_metric_header_and_metres(tmp_path):
+    out = write_results(make_result("Metric"), tmp_path / "run", plot=False)
+    header, rows = read_csv(out / "timeseries.csv")
+    assert header == expected_header("m", "m/s", ["mu_fl_1", "mu_fr_1", "mu_rl_1", "mu_rr_1"])
+    row = dict(zip(header, rows[2]))
+    assert float(row["distance_m"]) == pytest.approx(3.048)
+    assert float(row["speed_m/s"]) == pytest.approx(15.24)
+    assert float(row["A1_gap_m"]) == pytest.approx(33.528 - 3.048)
+
+
+def test_csv_advanced_surface_columns_are_integers(tmp_path):
+    out = write_results(make_result(dynamics="advanced"), tmp_path / "run", plot=False)
+    header, rows = read_csv(out / "timeseries.csv")
+    assert header == expected_header("ft", "ft/s", ["surface_fl", "surface_fr", "surface_rl", "surface_rr"])
+    assert [dict(zip(header, row))["surface_rr"] for row in rows] == ["0", "0", "2", "2", "0"]
+
+
+def test_csv_cells_empty_while_vehicle_absent(tmp_path):
+    out = write_results(make_result(), tmp_path / "run", plot=False)
+    header, rows = read_csv(out / "timeseries.csv")
+    vehicle_columns = [k for k, name in enumerate(header) if name.startswith("A1_")]
+    for row in rows[:2]:
+        assert [row[k] for k in vehicle_columns] == ["", "", "", ""]
+    for row in rows[2:]:
+        assert all(row[k] != "" for k in vehicle_columns)
+    assert all(cell != "" for row in rows for k, cell in enumerate(row) if k not in vehicle_columns)
+
+
+def test_summary_json_keys_per_spec(tmp_path):
+    result = make_result()
+    out = write_results(result, tmp_path / "run", plot=False)
+    data = json.loads((out / "summary.json").read_text())
+    assert set(data) == {"scenario", "seed", "units", "dynamics", "collisions", "final", "events", "warnings"}
+    assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
+    assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
+    assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}
+    assert data["final"]["lateral"] == 6.0  # rounded to 6 decimals
+    assert data["events"] == result.events
+    assert data["warnings"] == ["a warning"]
+    assert (out / "summary.json").read_text().startswith('{\n  "')  # indent 2
+
+
+def test_summary_is_strict_json():
+    result = make_result()
+    result.final = {"time_s": np.float64(0.4), "distance": NAN, "speed": np.float32(50.0), "lateral": 6.0}
+    data = summary(result)
+    json.dumps(data, allow_nan=False)
+    assert data["final"]["distance"] is None and type(data["final"]["time_s"]) is float
+
+
+def test_failure_leaves_no_directory(tmp_path, monkeypatch):
+    def broken_plot(result, path):
+        path.write_bytes(b"half a png")
+        raise RuntimeError("plot failed")
+
+    monkeypatch.setattr(plots, "plot_run", broken_plot)
+    with pytest.raises(RuntimeError, match="plot failed"):
+        write_results(make_result(), tmp_path / "run")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failure_keeps_old_results_untouched(tmp_path, monkeypatch):
+    old = tmp_path / "run"
+    old.mkdir()
+    (old / "summary.json").write_text("old")
+    monkeypatch.setattr(plots, "plot_run", lambda result, path: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        write_results(make_result(), old)
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+    assert [p.name for p in old.iterdir()] == ["summary.json"]
+    assert (old / "summary.json").read_text() == "old"
+
+
+def test_success_replaces_old_results(tmp_path):
+    old = tmp_path / "run"
+    old.mkdir()
+    (old / "stale.txt").write_text("from an earlier run")
+    out = write_results(make_result(), old, plot=False)
+    assert out == old.absolute()
+    assert sorted(p.name for p in out.iterdir()) == ["summary.json", "timeseries.csv"]
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+
+
+def test_missing_parents_are_created(tmp_path):
+    out = write_results(make_result(), tmp_path / "a" / "b" / "run", plot=False)
+    assert (out / "timeseries.csv").is_file()
+
+
+def test_out_dir_that_is_a_file_is_refused(tmp_path):
+    (tmp_path / "run").write_text("not a directory")
+    with pytest.raises(NotADirectoryError):
+        write_results(make_result(), tmp_path / "run", plot=False)
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+
+
+@pytest.mark.parametrize("dynamics, collision", [("simple", True), ("advanced", False)])
+def test_plot_png_is_written(tmp_path, dynamics, collision):
+    out = write_results(make_result(dynamics=dynamics, collision=collision), tmp_path / "run")
+    assert sorted(p.name for p in out.iterdir()) == ["plot.png", "summary.json", "timeseries.csv"]
+    assert (out / "plot.png").read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_event_labels_do_not_overlap():
+    events = [{"code": "A", "action": "spawn", "vehicle": 1, "time_s": t} for t in (0.0, 0.1, 0.2, 5.0, 9.99)]
+    placed = plots._label_rows(events, 0.0, 10.0, axis_px=700)
+    rows = [row for _, row, _ in placed]
+    assert rows[:3] == [0, 1, 2] and rows[3] == 0  # crowded labels stack, a distant one reuses the first row
+    assert placed[-1][2] == "right"  # a label at the right edge is drawn leftward of its line
+
+
+def test_plot_handles_long_runs(tmp_path):
+    # speed targets live in benchmarks, not in tests: this only checks that a 20 000-sample run plots
+    result = make_result(collision=True)
+    n = 20000
+    t = np.arange(n) * 0.01
+    for name, values in list(result.columns.items()):
+        result.columns[name] = np.resize(values, n)
+    result.columns.update(time=t, s=15.24 * t, station=15.24 * t, x=15.24 * t)
+    for track in result.vehicles:
+        track.station = np.where(t < 10, NAN, 3000 - 6 * t)
+        track.lateral = np.where(t < 10, NAN, -1.8288)
+        track.speed = np.where(t < 10, NAN, 6.0)
+    plots.plot_run(result, tmp_path / "plot.png")
+    assert (tmp_path / "plot.png").read_bytes().startswith(b"\x89PNG")

@@ -20,19 +20,24 @@ def _build(args) -> int:
     return 0
 
 
-def _check(args) -> int:
-    from .sdl import ScenarioError, check_models, default_vehicle_table_path, describe, load_scenario, load_vehicle_table
+def _load_scenario(path: str):
+    """The parsed scenario and the vehicle table; every problem in the file raises ScenarioError."""
+    from .sdl import ScenarioError, check_models, default_vehicle_table_path, load_scenario, load_vehicle_table
 
-    try:
-        scenario = load_scenario(args.scenario)
-    except ScenarioError as error:
-        print(error, file=sys.stderr)
-        return 1
-    problems = check_models(scenario, load_vehicle_table(default_vehicle_table_path()))
+    scenario = load_scenario(path)
+    table = load_vehicle_table(default_vehicle_table_path())
+    problems = check_models(scenario, table)
+    if problems:
+        raise ScenarioError(problems)
+    return scenario, table
+
+
+def _check(args) -> int:
+    from .sdl import describe
+
+    scenario, _ = _load_scenario(args.scenario)
     print(describe(scenario))
-    for problem in problems:
-        print(problem, file=sys.stderr)
-    return 1 if problems else 0
+    return 0
 
 
 def _parse_parameters(assignments: list[str]) -> dict[str, float]:
@@ -65,19 +70,9 @@ def _run(args) -> int:
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
     from .results import write_results
-    from .sdl import ScenarioError, check_models, default_vehicle_table_path, load_scenario, load_vehicle_table
     from .units import speed_label, to_si
 
-    try:
-        scenario = load_scenario(args.scenario)
-    except ScenarioError as error:
-        print(error, file=sys.stderr)
-        return 1
-    table = load_vehicle_table(default_vehicle_table_path())
-    problems = check_models(scenario, table)
-    if problems:
-        print("\n".join(str(p) for p in problems), file=sys.stderr)
-        return 1
+    scenario, table = _load_scenario(args.scenario)
     units = scenario.units
     for name in ("speed", "until_distance", "until_time", "step"):
         value = getattr(args, name)
@@ -170,9 +165,14 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from .sdl import ScenarioError
+
     args = parser().parse_args(argv)
     try:
         return args.handler(args)
+    except ScenarioError as error:
+        print(error, file=sys.stderr)
+        return 1
     except (UsageError, BuildError) as error:
         print(f"sdl-fmu: {error}", file=sys.stderr)
         return 2

@@ -227,6 +227,17 @@ static const char *kind_name(Kind kind) {
     return kind == KIND_REAL ? "Real" : kind == KIND_INTEGER ? "Integer" : "Boolean";
 }
 
+/* The variable of a value reference, if it exists and has the given type (else logs and NULL). */
+static const ModelVariable *typed_variable(Instance *instance, unsigned int vr, Kind kind) {
+    const ModelVariable *variable = find_variable(instance, vr);
+    if (variable && variable->kind != kind) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s (value reference %u) is %s, not %s",
+                     variable->name, vr, kind_name(variable->kind), kind_name(kind));
+        return NULL;
+    }
+    return variable;
+}
+
 static Status ensure_computed(Instance *instance, Store store) {
     Status status = STATUS_OK;
     if ((instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION)) && !instance->initial_state_valid) {
@@ -262,14 +273,9 @@ Status instance_get(Instance *instance, const unsigned int vr[], size_t nvr, Kin
         return STATUS_ERROR;
     }
     for (i = 0; i < nvr; i++) {
-        const ModelVariable *variable = find_variable(instance, vr[i]);
+        const ModelVariable *variable = typed_variable(instance, vr[i], kind);
         double value;
         if (!variable) return STATUS_ERROR;
-        if (variable->kind != kind) {
-            instance_log(instance, STATUS_ERROR, "logStatusError", "%s (value reference %u) is %s, not %s",
-                         variable->name, vr[i], kind_name(variable->kind), kind_name(kind));
-            return STATUS_ERROR;
-        }
         if (ensure_computed(instance, variable->store) != STATUS_OK) return STATUS_ERROR;
         value = stored_value(instance, variable);
         if (kind == KIND_REAL)
@@ -302,14 +308,9 @@ Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kin
         return STATUS_ERROR;
     }
     for (i = 0; i < nvr; i++) {
-        const ModelVariable *variable = find_variable(instance, vr[i]);
+        const ModelVariable *variable = typed_variable(instance, vr[i], kind);
         double value;
         if (!variable) return STATUS_ERROR;
-        if (variable->kind != kind) {
-            instance_log(instance, STATUS_ERROR, "logStatusError", "%s (value reference %u) is %s, not %s",
-                         variable->name, vr[i], kind_name(variable->kind), kind_name(kind));
-            return STATUS_ERROR;
-        }
         if (!may_set(instance, variable->settable)) {
             instance_log(instance, STATUS_ERROR, "logStatusError",
                          variable->settable == SET_NEVER ? "%s (value reference %u) cannot be set"

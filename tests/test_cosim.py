@@ -219,13 +219,12 @@ def test_head_on_collision_counted_once(fmu, defaults_simple):
     # Ego at 88 ft/s, vehicle (model 2) at 40 ft/s in the ego's own lane, 800 ft ahead when the ego has
     # driven 200 ft. Footprints touch when the gap between centres is (L_ego + L_vehicle) / 2; closing
     # at 128 ft/s. The vehicles pass through each other: one contact, one collision.
-    result = run("200,A,40,800,*0,2\n1600,ES", speed_ft=88.0, fmu=fmu, parameters={})
+    result = run("200,A,40,800,*0,2\n1600,ES", speed_ft=88.0, fmu=fmu)
     contact_gap = (defaults_simple["length"] + TABLE[2].length) / 2 / FOOT
     expected = 200 / 88 + (800 - contact_gap) / 128
     assert result.collisions == 1
     collision, = events(result, "A", "collision")
-    # the driver holds ~88 ft/s with drag on, so allow the small speed error of its PI loop
-    assert collision["time_s"] == pytest.approx(expected, abs=0.02)
+    assert collision["time_s"] == pytest.approx(expected, abs=TIME_TOLERANCE)
     assert len(result.collision_points) == 1
 
 

@@ -1,6 +1,13 @@
 """FMU interfaces as data: reads modelDescription/<Model>.json, the one source of variable names,
 causalities, units, start values and descriptions (the XML, the C variable table and the CasADi symbols
-are all generated from it)."""
+are all generated from it).
+
+An entry of "variables" may also be a repeated group, for families of identical variables:
+    {"repeat": {"placeholder": "slot", "count": 8}, "variables": [<variable templates>]}
+expands in place to count copies of the templates (copy 0 first), with "{slot}" in names and
+descriptions replaced by the copy number. Start values that only exist at build time (e.g. read from
+data files) are left out of the JSON and passed to load_interface(..., starts={name: value}).
+"""
 
 from __future__ import annotations
 
@@ -76,12 +83,45 @@ def load_units(directory: Path = INTERFACE_DIRECTORY) -> dict:
     return json.loads((directory / "units.json").read_text())["units"]
 
 
-def parse_interface(data: dict, units: dict) -> Interface:
-    """Builds an Interface from its JSON data, checking what the generators rely on."""
+def _expand_repeats(model: str, entries: list) -> list[dict]:
+    """The variable entries with every repeated group expanded in place."""
+    expanded = []
+    for entry in entries:
+        if "repeat" not in entry:
+            expanded.append(entry)
+            continue
+        repeat = entry["repeat"]
+        placeholder, count = "{" + repeat["placeholder"] + "}", repeat["count"]
+        if not isinstance(count, int) or count < 0:
+            raise ValueError(f"{model}: repeated group count {count!r} must be a whole number >= 0")
+        for template in entry["variables"]:
+            if placeholder not in template["name"]:
+                raise ValueError(f"{model}: repeated variable {template['name']!r} lacks {placeholder} in its name")
+        for copy in range(count):
+            for template in entry["variables"]:
+                variable = dict(template)
+                for key in ("name", "description"):
+                    if key in variable:
+                        variable[key] = variable[key].replace(placeholder, str(copy))
+                expanded.append(variable)
+    return expanded
+
+
+def parse_interface(data: dict, units: dict, starts: dict[str, float] | None = None) -> Interface:
+    """Builds an Interface from its JSON data, checking what the generators rely on.
+
+    starts: start values given at build time, by variable name; they override the JSON's."""
     counters: dict[str, int] = {}
     variables = []
     seen = set()
-    for entry in data["variables"]:
+    entries = _expand_repeats(data["modelName"], data["variables"])
+    if starts:
+        unknown = sorted(set(starts) - {entry["name"] for entry in entries})
+        if unknown:
+            raise ValueError(f"{data['modelName']}: start values given for unknown variables {unknown[:5]}")
+        entries = [{**entry, "start": starts[entry["name"]]} if entry["name"] in starts else entry
+                   for entry in entries]
+    for entry in entries:
         name = entry["name"]
         if name in seen:
             raise ValueError(f"{data['modelName']}: variable {name!r} is declared twice")
@@ -94,7 +134,8 @@ def parse_interface(data: dict, units: dict) -> Interface:
         if unit is not None and unit not in units:
             raise ValueError(f"{data['modelName']}: variable {name!r} has unit {unit!r}, not in units.json")
         if role in (INPUT, PARAMETER) and "start" not in entry:
-            raise ValueError(f"{data['modelName']}: {role} {name!r} needs a start value")
+            raise ValueError(f"{data['modelName']}: {role} {name!r} needs a start value "
+                             "(in the JSON, or given at build time through starts=)")
         index = counters.get(role, 0)
         counters[role] = index + 1
         variables.append(
@@ -122,12 +163,13 @@ def parse_interface(data: dict, units: dict) -> Interface:
     )
 
 
-def load_interface(model_name: str, directory: Path = INTERFACE_DIRECTORY) -> Interface:
-    """The interface of one FMU, e.g. load_interface('EgoVehicleSimple')."""
+def load_interface(model_name: str, directory: Path = INTERFACE_DIRECTORY,
+                   starts: dict[str, float] | None = None) -> Interface:
+    """The interface of one FMU, e.g. load_interface('EgoVehicleSimple'); starts: build-time start values."""
     path = directory / f"{model_name}.json"
     if not path.exists():
         raise FileNotFoundError(
             f"{path} not found: sdl-fmu reads its FMU interfaces from the repository's modelDescription/ "
             "folder; install it from a checkout with 'pip install -e .'"
         )
-    return parse_interface(json.loads(path.read_text()), load_units(directory))
+    return parse_interface(json.loads(path.read_text()), load_units(directory), starts)

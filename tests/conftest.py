@@ -11,6 +11,11 @@ def simple_fmu(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def advanced_fmu(tmp_path_factory):
+    return build_fmu("advanced", tmp_path_factory.mktemp("dist"))
+
+
+@pytest.fixture(scope="session")
 def defaults_simple(simple_fmu):
     from fmpy import read_model_description
 

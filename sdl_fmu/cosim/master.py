@@ -232,7 +232,7 @@ class Cosimulation:
 
     def record(self, state: EgoState) -> None:
         throttle, brake, steer = self.controls
-        surfaces = self.applied_surfaces or self.surfaces_under_wheels(state)
+        surfaces = self.applied_surfaces
         wheel_values = [v / 10 if self.options.dynamics == "simple" else v for v in surfaces]
         self.samples.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
                              state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
@@ -244,8 +244,8 @@ class Cosimulation:
     def run(self) -> RunResult:
         try:
             state = self.ego.read()
-            self.apply_controls(state)
             self.fire_due(state)
+            self.apply_controls(state)
             self.record(state)
             while not self.finished:
                 if state.time >= MAX_TIME:
@@ -254,7 +254,6 @@ class Cosimulation:
                     break
                 until_time = self.options.until_time
                 h = self.options.step if until_time is None else min(self.options.step, until_time - state.time)
-                self.apply_controls(state)
                 fired = step_until(self.ego, h, self.triggered, TIME_TOLERANCE)
                 previous, state = state, self.ego.read()
                 if self.brake_hold is None:
@@ -264,6 +263,7 @@ class Cosimulation:
                 self.leave(state)
                 if until_time is not None and state.time >= until_time - 1e-12:
                     self.finish(state, "until_time")
+                self.apply_controls(state)  # the inputs from this instant on, as recorded with it
                 self.record(state)
             return self.result(state)
         finally:

@@ -1,0 +1,256 @@
+"""SDL "advanced dynamics": a planar two-track vehicle on Pacejka Magic Formula tires.
+
+States: position x, y, yaw psi, path length s, body velocities vx, vy, yaw rate r, the four wheel
+spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8855 axes; wheel i at
+(x_i, y_i) from the centre of gravity: front x = a, rear x = -b, left y = +track/2, right y = -track/2):
+
+  Loads      Fz_i = m g (b or a) / (2 L) -/+ m a_l h / (2 L) -/+ m a_t h k_axle / track_axle,  L = a + b,
+             front -, rear + for the longitudinal term; left -, right + for the lateral term;
+             k_front = roll_stiffness_front_share, k_rear = 1 - k_front; a_l, a_t are the states load_ax,
+             load_ay: d(load_ax)/dt = (ax - load_ax) / tau (same for ay), tau = load_transfer_time_constant.
+             The lag replaces pitch/roll dynamics and breaks the algebraic loop loads -> forces -> a.
+  Kinematics v_i = (vx - r y_i, vy + r x_i) at the contact point, turned into the wheel frame by the steering
+             angle (front wheels, parallel steer): (v_cx, v_cy).
+  Slip       kappa = (omega R - v_cx) / sqrt(v_cx^2 + v_low^2),  alpha = atan(v_cy / sqrt(v_cx^2 + v_low^2))
+             v_low = SLIP_SPEED_FLOOR: the usual 1/|v_cx| with a smooth floor, finite at standstill (there
+             the tire acts as a stiff viscous damper, which the L-stable solver handles).
+  Tires      MF 5.2 pure slip without shifts and camber (Pacejka, Tyre and Vehicle Dynamics, sec. 4.3.2):
+               dfz = (Fz - Fz0') / Fz0',  Fz0' = FNOMIN LFZO
+               Fx0 = mux Fz sin(Cx atan(Bx k - Ex (Bx k - atan(Bx k)))),  mux = |PDX1 + PDX2 dfz| LMUX,
+                 Cx = PCX1, Ex = min(PEX1 + PEX2 dfz + PEX3 dfz^2, 1), Bx = Kx / (Cx mux Fz),
+                 Kx = Fz |PKX1 + PKX2 dfz| exp(PKX3 dfz) LKX
+               Fy0 = -muy Fz sin(Cy atan(By a - Ey (By a - atan(By a)))),  muy = |PDY1 + PDY2 dfz| LMUY,
+                 Cy = PCY1, Ey = min(PEY1 + PEY2 dfz, 1), By = Ky / (Cy muy Fz),
+                 Ky = |PKY1| Fz0' sin(2 atan(Fz / (PKY2 Fz0'))) LKY  (= 2 |PKY1 / PKY2| Fz / (1 + u^2) LKY,
+                 u = Fz / (PKY2 Fz0'), the form used: finite at Fz = 0)
+             Magnitudes make the model independent of the file's sign convention: the lateral force
+             always opposes the lateral slip, the longitudinal force follows kappa.
+             Combined slip (MF 5.2 weighting functions, without shifts), clipped at 0:
+               Fx = Gxa Fx0, Gxa = cos(RCX1 atan(Bxa a - Exa (Bxa a - atan(Bxa a)))),
+                 Bxa = RBX1 cos(atan(RBX2 k)) LXAL, Exa = min(REX1 + REX2 dfz, 1)
+               Fy = Gyk Fy0, Gyk = cos(RCY1 atan(Byk k - Eyk (Byk k - atan(Byk k)))),
+                 Byk = RBY1 cos(atan(RBY2 (a - RBY3))) LYKA, Eyk = min(REY1 + REY2 dfz, 1)
+  Wheels     discrete mode per wheel (wheel_mode_*): +1 rolling forward, 0 locked, -1 rolling backward.
+             rolling: I_w d(omega)/dt = T_net - mode T_brake - f_r Fz R omega / sqrt(omega^2 + w_s^2),
+               T_net = T_drive - Fx R;  locked: omega = 0, held while the brake can: |T_net| < T_brake.
+             A rolling wheel whose spin reaches 0 locks if |T_net| < T_brake, else turns the other way; a
+             locked wheel is released (event) when |T_net| reaches T_brake, in the direction of T_net.
+             Each mode's right-hand side is smooth and is continued past its switching surface, so the
+             solver's stages never straddle a discontinuity; the events switch modes. (The brake's Coulomb
+             friction is exact; a smooth sign of small width would be stepped over by the fixed-step solver
+             and make locked wheels chatter.) Rolling resistance is small enough for a smooth sign of width
+             w_s = SPIN_SMOOTHING.
+             T_drive = throttle min(T_max, P_max / mean omega of the driven wheels), split by
+             drive_front_share and equally left/right (open differentials);
+             T_brake = brake brake_decel_max m R, split by brake_front_share and equally left/right.
+  Body       m (dvx/dt - r vy) = sum Fx_b - rho CdA vx |vx| / 2,  m (dvy/dt + r vx) = sum Fy_b,
+             Iz dr/dt = sum (x_i Fy_b,i - y_i Fx_b,i),  dx/dt = vx cos psi - vy sin psi,
+             dy/dt = vx sin psi + vy cos psi, dpsi/dt = r, ds/dt = speed.
+  Standstill discrete state `stopped` (as in the simple model): when the speed falls to STOP_SPEED and the
+             drive cannot overcome brakes and rolling resistance, an event sets every velocity and wheel
+             spin to 0 (wheel modes 0) and freezes the motion; it ends (event) when the drive force
+             exceeds the holding force, and the wheels are released as their torques demand.
+Tire coefficients per wheel come from the slot chosen by its surface input (tires.slot_of).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from ..interface import DISCRETE, STATE, Interface, load_interface
+from ..units import STANDARD_GRAVITY
+from .equations import Equations, make_symbols
+from .tires import DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, slot_parameter_name, slot_parameters
+
+MODEL_NAME = "EgoVehicleAdvanced"
+WHEELS = ("fl", "fr", "rl", "rr")
+LEFT_SIDE = {"fl": 1, "fr": -1, "rl": 1, "rr": -1}  # +1 left wheel, -1 right wheel
+SLIP_SPEED_FLOOR = 0.1  # m/s, v_low of the slip definitions
+SPIN_SMOOTHING = 0.1  # rad/s, w_s of the rolling-resistance torque
+STOP_SPEED = 0.05  # m/s: below it, with no drive, the vehicle is held (the rest of the stop is < 1 mm)
+START_MARGIN = 1e-6  # m/s2: drive must exceed the holding forces by this to start (as in the simple model)
+SPEED_SMOOTHING = 1e-9  # m/s: ds/dt = sqrt(v^2 + e^2) - e keeps d(ds/dt)/dv finite at v = 0
+POWER_LIMIT_MIN_SPIN = 1e-3  # rad/s: the power limit P / omega is not evaluated below this spin
+TINY = 1e-9  # floor of denominators that are 0 only for meaningless tire data (zero friction)
+
+
+def advanced_interface(attribute_file=DEFAULT_ATTRIBUTE_FILE) -> Interface:
+    """The FMU interface with the tire slot start values built in from a Tire Attribute File."""
+    starts, _, warnings = slot_parameters(attribute_file)
+    if warnings:
+        raise ValueError(f"the FMU's built-in tires must come from a clean attribute file: {warnings}")
+    return load_interface(MODEL_NAME, starts=starts)
+
+
+def wheel_coefficients(s, wheel: str) -> dict:
+    """The Magic Formula coefficients under one wheel: the slot picked by its surface attribute input."""
+    surface = s[f"surface_{wheel}"]
+    return {
+        key: ca.conditional(surface, [s[slot_parameter_name(k, key)] for k in range(SLOT_COUNT)],
+                            s[slot_parameter_name(0, key)])
+        for key in SLOT_KEYS
+    }
+
+
+def _magic_formula(b, c, e, slip):
+    """sin(C atan(B s - E (B s - atan(B s)))), the Magic Formula without its peak factor."""
+    bs = b * slip
+    return ca.sin(c * ca.atan(bs - e * (bs - ca.atan(bs))))
+
+
+def _weighting(b, c, e, slip):
+    """MF 5.2 combined-slip weighting cos(C atan(B s - E (B s - atan(B s)))), clipped at 0."""
+    bs = b * slip
+    return ca.fmax(ca.cos(c * ca.atan(bs - e * (bs - ca.atan(bs)))), 0)
+
+
+def tire_forces(c: dict, fz, kappa, alpha):
+    """Combined-slip Magic Formula forces (Fx, Fy) in the wheel frame and the friction coefficients (mux, muy)."""
+    fz0 = c["FNOMIN"] * c["LFZO"]
+    dfz = (fz - fz0) / fz0
+    mux = ca.fabs((c["PDX1"] + c["PDX2"] * dfz) * c["LMUX"])
+    ex = ca.fmin(c["PEX1"] + c["PEX2"] * dfz + c["PEX3"] * dfz**2, 1)
+    kx_per_fz = ca.fabs((c["PKX1"] + c["PKX2"] * dfz) * ca.exp(c["PKX3"] * dfz) * c["LKX"])
+    bx = kx_per_fz / ca.fmax(c["PCX1"] * mux, TINY)
+    fx0 = mux * fz * _magic_formula(bx, c["PCX1"], ex, kappa)
+
+    muy = ca.fabs((c["PDY1"] + c["PDY2"] * dfz) * c["LMUY"])
+    ey = ca.fmin(c["PEY1"] + c["PEY2"] * dfz, 1)
+    u = fz / (c["PKY2"] * fz0)
+    ky_per_fz = ca.fabs(2 * c["PKY1"] / (c["PKY2"] * (1 + u**2)) * c["LKY"])
+    by = ky_per_fz / ca.fmax(c["PCY1"] * muy, TINY)
+    fy0 = -muy * fz * _magic_formula(by, c["PCY1"], ey, alpha)
+
+    bxa = c["RBX1"] * ca.cos(ca.atan(c["RBX2"] * kappa)) * c["LXAL"]
+    gxa = _weighting(bxa, c["RCX1"], ca.fmin(c["REX1"] + c["REX2"] * dfz, 1), alpha)
+    byk = c["RBY1"] * ca.cos(ca.atan(c["RBY2"] * (alpha - c["RBY3"]))) * c["LYKA"]
+    gyk = _weighting(byk, c["RCY1"], ca.fmin(c["REY1"] + c["REY2"] * dfz, 1), kappa)
+    return gxa * fx0, gyk * fy0, mux, muy
+
+
+def smooth_sign(value, width):
+    """value / sqrt(value^2 + width^2): a differentiable sign for Coulomb friction."""
+    return value / ca.sqrt(value**2 + width**2)
+
+
+def equations() -> Equations:
+    interface = advanced_interface()
+    s = make_symbols(interface)
+    g = STANDARD_GRAVITY
+    m, radius = s["mass"], s["wheel_radius"]
+    a, b, h = s["cg_to_front_axle"], s["cg_to_rear_axle"], s["cg_height"]
+    wheelbase = a + b
+    vx, vy, r, psi, stopped = s["vx"], s["vy"], s["yaw_rate"], s["psi"], s["stopped"]
+    moving = 1 - stopped
+
+    position = {"fl": (a, s["track_front"] / 2), "fr": (a, -s["track_front"] / 2),
+                "rl": (-b, s["track_rear"] / 2), "rr": (-b, -s["track_rear"] / 2)}
+    front = {"fl": True, "fr": True, "rl": False, "rr": False}
+    static = {True: m * g * b / (2 * wheelbase), False: m * g * a / (2 * wheelbase)}
+    longitudinal_transfer = m * s["load_ax"] * h / (2 * wheelbase)  # per wheel, to the front when braking
+    roll_share = {True: s["roll_stiffness_front_share"], False: 1 - s["roll_stiffness_front_share"]}
+    track = {True: s["track_front"], False: s["track_rear"]}
+
+    # drive: power-limited total torque, split front/rear, equal left/right
+    drive_share = {True: s["drive_front_share"], False: 1 - s["drive_front_share"]}
+    driven_spin = sum(drive_share[front[w]] * s[f"wheel_speed_{w}"] / 2 for w in WHEELS)
+    drive_torque = s["throttle"] * ca.fmin(
+        s["drive_torque_max"], s["drive_power_max"] / ca.fmax(driven_spin, POWER_LIMIT_MIN_SPIN))
+    brake_torque = s["brake"] * s["brake_decel_max"] * m * radius
+    brake_share = {True: s["brake_front_share"], False: 1 - s["brake_front_share"]}
+
+    force_x = force_y = yaw_moment = 0
+    friction_used = 0
+    spin_derivatives, wheel_indicators, wheel_modes = [], [], []
+    for w in WHEELS:
+        x_i, y_i = position[w]
+        is_front = front[w]
+        side = LEFT_SIDE[w]
+        fz = (static[is_front] + (-1 if is_front else 1) * longitudinal_transfer
+              - side * m * s["load_ay"] * h * roll_share[is_front] / track[is_front])
+        fz = ca.fmax(fz, 0)  # a lifted wheel carries no load
+        delta = s["steer"] if is_front else 0
+        contact_x, contact_y = vx - r * y_i, vy + r * x_i
+        wheel_x = contact_x * ca.cos(delta) + contact_y * ca.sin(delta)
+        wheel_y = -contact_x * ca.sin(delta) + contact_y * ca.cos(delta)
+        omega, mode = s[f"wheel_speed_{w}"], s[f"wheel_mode_{w}"]
+        slip_speed = ca.sqrt(wheel_x**2 + SLIP_SPEED_FLOOR**2)
+        kappa = (omega * radius - wheel_x) / slip_speed
+        alpha = ca.atan(wheel_y / slip_speed)
+        fx, fy, mux, muy = tire_forces(wheel_coefficients(s, w), fz, kappa, alpha)
+
+        body_x = fx * ca.cos(delta) - fy * ca.sin(delta)
+        body_y = fx * ca.sin(delta) + fy * ca.cos(delta)
+        force_x += body_x
+        force_y += body_y
+        yaw_moment += x_i * body_y - y_i * body_x
+
+        wheel_brake = brake_share[is_front] * brake_torque / 2
+        net_torque = drive_share[is_front] * drive_torque / 2 - fx * radius
+        spin_torque = (net_torque - mode * wheel_brake
+                       - s["rolling_resistance"] * fz * radius * smooth_sign(omega, SPIN_SMOOTHING))
+        spin_derivatives.append(moving * mode**2 * spin_torque / s["wheel_inertia"])
+        # locked: event when the brake can no longer hold; rolling: event when the spin reaches 0
+        hold_margin = wheel_brake - ca.fabs(net_torque)
+        holds = hold_margin > 0
+        wheel_indicators.append(ca.if_else(mode == 0, hold_margin, mode * omega))
+        forward = ca.if_else(holds * (omega <= 0), 0, ca.if_else(omega < 0, -1, 1))
+        backward = ca.if_else(holds * (omega >= 0), 0, ca.if_else(omega > 0, 1, -1))
+        released = ca.if_else(holds, 0, ca.if_else(net_torque >= 0, 1, -1))
+        wheel_modes.append(ca.if_else(mode > 0, forward, ca.if_else(mode < 0, backward, released)))
+        friction_used += ca.sqrt((fx / ca.fmax(mux * fz, TINY)) ** 2 + (fy / ca.fmax(muy * fz, TINY)) ** 2) / 4
+
+    drag = -0.5 * s["air_density"] * s["drag_area"] * vx * ca.fabs(vx)
+    ax = moving * (force_x + drag) / m
+    ay = moving * force_y / m
+    speed = ca.sqrt(vx**2 + vy**2)
+    smooth_speed = ca.sqrt(vx**2 + vy**2 + SPEED_SMOOTHING**2) - SPEED_SMOOTHING
+    tau = s["load_transfer_time_constant"]
+    derivative = {
+        "x": moving * (vx * ca.cos(psi) - vy * ca.sin(psi)),
+        "y": moving * (vx * ca.sin(psi) + vy * ca.cos(psi)),
+        "psi": moving * r,
+        "s": moving * smooth_speed,
+        "vx": ax + moving * r * vy,
+        "vy": ay - moving * r * vx,
+        "yaw_rate": moving * yaw_moment / s["yaw_inertia"],
+        **{f"wheel_speed_{w}": spin for w, spin in zip(WHEELS, spin_derivatives)},
+        "load_ax": (ax - s["load_ax"]) / tau,
+        "load_ay": (ay - s["load_ay"]) / tau,
+    }
+
+    # Standstill: the drive force at rest against what brakes and rolling resistance can hold (m/s2).
+    # It depends on inputs and parameters only, so it is constant inside a communication step.
+    launch_force = s["throttle"] * s["drive_torque_max"] / radius
+    holding_force = brake_torque / radius + s["rolling_resistance"] * m * g
+    drive_excess = (launch_force - holding_force) / m - START_MARGIN
+    # moving: event when the speed has fallen to STOP_SPEED and the drive cannot keep it going;
+    # held: event when the drive exceeds the holding forces
+    moving_indicator = ca.fmax(speed - STOP_SPEED, drive_excess)
+    indicator = ca.if_else(stopped, drive_excess, moving_indicator)
+    next_stopped = ca.if_else(stopped, drive_excess <= 0, moving_indicator <= 0)
+    # at rest every wheel is still (mode 0); a locked wheel's spin is held at 0
+    next_mode = {w: (1 - next_stopped) * mode for w, mode in zip(WHEELS, wheel_modes)}
+    next_discrete = {"stopped": next_stopped, **{f"wheel_mode_{w}": next_mode[w] for w in WHEELS}}
+    zeroed = {name: next_stopped for name in ("vx", "vy", "yaw_rate")}
+    zeroed.update({f"wheel_speed_{w}": next_mode[w] == 0 for w in WHEELS})
+    states = interface.names(STATE)
+    # a vehicle that starts slower than STOP_SPEED with no drive starts held
+    starts_held = (s["v0"] <= STOP_SPEED) * (drive_excess <= 0)
+    initial = {name: 0 for name in states}
+    initial.update({"x": s["x0"], "y": s["y0"], "psi": s["psi0"], "vx": (1 - starts_held) * s["v0"],
+                    **{f"wheel_speed_{w}": (1 - starts_held) * s["v0"] / radius for w in WHEELS}})
+    initial_discrete = {"stopped": starts_held, **{f"wheel_mode_{w}": 1 - starts_held for w in WHEELS}}
+
+    return Equations(
+        interface=interface,
+        symbols=s,
+        derivatives=ca.vertcat(*[derivative[name] for name in states]),
+        outputs={"v": speed, "ax": ax, "ay": ay, "friction_used": moving * friction_used},
+        event_indicators=ca.vertcat(indicator, *wheel_indicators),
+        state_update=ca.vertcat(*[ca.if_else(zeroed[name], 0, s[name]) if name in zeroed else s[name]
+                                  for name in states]),
+        discrete_update=ca.vertcat(*[next_discrete[name] for name in interface.names(DISCRETE)]),
+        initial_states=ca.vertcat(*[initial[name] for name in states]),
+        initial_discrete=ca.vertcat(*[initial_discrete[name] for name in interface.names(DISCRETE)]),
+    )

@@ -1,0 +1,317 @@
+"""The Advanced ego FMU (two-track vehicle on Magic Formula tires), loaded through fmpy, against analytic
+references computed here from the FMU's own parameters (its tire slots come from scenarios/tires/)."""
+
+import math
+import subprocess
+import zipfile
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.validation import validate_fmu
+
+from sdl_fmu.dynamics import advanced
+from sdl_fmu.units import STANDARD_GRAVITY as G
+
+WHEELS = ("fl", "fr", "rl", "rr")
+ICE = 3  # attribute of ice in scenarios/tires/attributes.txt
+NO_RESISTANCES = {"drag_area": 0.0, "rolling_resistance": 0.0}
+
+
+@pytest.fixture(scope="module")
+def defaults(advanced_fmu):
+    return {v.name: float(v.start) for v in read_model_description(str(advanced_fmu)).modelVariables
+            if v.causality == "parameter"}
+
+
+def simulate(fmu, stop_time, start, step=0.01, inputs=None, output=("s", "vx", "y", "psi", "yaw_rate", "stopped")):
+    return simulate_fmu(str(fmu), stop_time=stop_time, output_interval=step, start_values=start, input=inputs,
+                        output=list(output), fmi_type="CoSimulation")
+
+
+def input_table(time, **signals):
+    return np.array(list(zip(time, *signals.values())), dtype=[("time", float)] + [(n, float) for n in signals])
+
+
+# --- Magic Formula, written out again from Pacejka (MF 5.2, no shifts, no camber) ------------------------
+
+
+def tire(defaults, slot=0):
+    key_start = f"tire{slot}_"
+    return {name[len(key_start):]: value for name, value in defaults.items() if name.startswith(key_start)}
+
+
+def load_increment(c, fz):
+    fz0 = c["FNOMIN"] * c["LFZO"]
+    return fz0, (fz - fz0) / fz0
+
+
+def longitudinal_force(c, fz, kappa):
+    """Pure-slip Fx = D sin(C atan(B k - E (B k - atan(B k)))), D = mux Fz, B = Kx / (C D)."""
+    _, dfz = load_increment(c, fz)
+    mu = abs(c["PDX1"] + c["PDX2"] * dfz) * c["LMUX"]
+    shape, peak = c["PCX1"], mu * fz
+    curvature = min(c["PEX1"] + c["PEX2"] * dfz + c["PEX3"] * dfz**2, 1.0)
+    stiffness = fz * abs(c["PKX1"] + c["PKX2"] * dfz) * math.exp(c["PKX3"] * dfz) * c["LKX"]
+    bk = stiffness / (shape * peak) * kappa
+    return peak * math.sin(shape * math.atan(bk - curvature * (bk - math.atan(bk))))
+
+
+def peak_longitudinal_friction(c, fz):
+    return abs(c["PDX1"] + c["PDX2"] * load_increment(c, fz)[1]) * c["LMUX"]
+
+
+def cornering_stiffness(c, fz):
+    """K_y = B C D = |PKY1| Fz0 sin(2 atan(Fz / (PKY2 Fz0))) LKY (N/rad)."""
+    fz0, _ = load_increment(c, fz)
+    return abs(c["PKY1"]) * fz0 * math.sin(2 * math.atan(fz / (c["PKY2"] * fz0))) * c["LKY"]
+
+
+def lateral_force(c, fz, alpha):
+    """Magnitude of the pure-slip Fy at slip angle alpha > 0."""
+    _, dfz = load_increment(c, fz)
+    shape, peak = c["PCY1"], abs(c["PDY1"] + c["PDY2"] * dfz) * c["LMUY"] * fz
+    curvature = min(c["PEY1"] + c["PEY2"] * dfz, 1.0)
+    ba = cornering_stiffness(c, fz) / (shape * peak) * alpha
+    return peak * math.sin(shape * math.atan(ba - curvature * (ba - math.atan(ba))))
+
+
+def bisect(function, low, high, iterations=200):
+    for _ in range(iterations):
+        middle = 0.5 * (low + high)
+        if function(low) * function(middle) <= 0:
+            high = middle
+        else:
+            low = middle
+    return 0.5 * (low + high)
+
+
+def geometry(p):
+    a, b = p["cg_to_front_axle"], p["cg_to_rear_axle"]
+    wheelbase = a + b
+    return a, b, wheelbase, p["mass"] * G * b / (2 * wheelbase), p["mass"] * G * a / (2 * wheelbase)
+
+
+# --- steady-state cornering -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("speed", [10.0, 25.0])
+def test_steady_state_cornering_matches_linear_bicycle_model(advanced_fmu, defaults, speed):
+    # Linear bicycle model (Milliken & Milliken, RCVD ch. 5; Gillespie ch. 6): in steady state
+    #   delta = L / R + K_us a_y,  a_y = v r,  R = v / r   =>   r / delta = v / (L + K_us v^2),
+    #   K_us = m_f / C_f - m_r / C_r = (m / L) (b / C_f - a / C_r),
+    # with axle cornering stiffness C = 2 B C D = 2 K_y(Fz) at the static wheel load Fz.
+    p, c = defaults, tire(defaults)
+    m = p["mass"]
+    a, b, wheelbase, fz_front, fz_rear = geometry(p)
+    c_front, c_rear = 2 * cornering_stiffness(c, fz_front), 2 * cornering_stiffness(c, fz_rear)
+    understeer = m / wheelbase * (b / c_front - a / c_rear)
+    lateral_acceleration = 0.5  # m/s2
+    steer = lateral_acceleration * (wheelbase + understeer * speed**2) / speed**2
+
+    result = simulate(advanced_fmu, 6.0, {"v0": speed, "steer": steer, **NO_RESISTANCES}, step=0.1)
+    # the cornering drag slows the car by ~1e-4 v per second: compare with the gain at the current speed
+    vx, yaw_rate = result["vx"], result["yaw_rate"]
+    linear_gains = vx / (wheelbase + understeer * vx**2)
+    relative = yaw_rate / steer / linear_gains
+    assert abs(relative[-1] - relative[-11]) < 1e-5  # settled
+    gain, linear_gain, vx = yaw_rate[-1] / steer, linear_gains[-1], vx[-1]
+
+    # Tolerance: what the linear model leaves out at this a_y. Each axle's secant stiffness F / alpha, with
+    # the Magic Formula's curvature and the lateral load transfer dFz = m a_y h k / track (k: roll stiffness
+    # share), is lower than its C by eps = 1 - F / (C alpha); the bicycle gain with those secant stiffnesses
+    # differs from the linear one by d_nl. Allowed: 2 |d_nl| (the rest, e.g. two-track kinematics, is
+    # smaller); the solver's error (< 1e-9) does not count.
+    def secant_stiffness(fz, axle_mass, share, track):
+        force = axle_mass * lateral_acceleration
+        transfer = m * lateral_acceleration * p["cg_height"] * share / track
+        alpha = bisect(lambda al: lateral_force(c, fz + transfer, al) + lateral_force(c, fz - transfer, al) - force,
+                       0.0, 0.2)
+        return force / alpha
+
+    k_front = p["roll_stiffness_front_share"]
+    s_front = secant_stiffness(fz_front, m * b / wheelbase, k_front, p["track_front"])
+    s_rear = secant_stiffness(fz_rear, m * a / wheelbase, 1 - k_front, p["track_rear"])
+    nonlinear_gain = vx / (wheelbase + m / wheelbase * (b / s_front - a / s_rear) * vx**2)
+    nonlinearity = abs(nonlinear_gain / linear_gain - 1)
+    error = gain / linear_gain - 1
+    print(f"v = {speed} m/s: r/delta = {gain:.6f} 1/s, linear {linear_gain:.6f}, relative error {error:.2e}, "
+          f"nonlinearity {nonlinearity:.2e}")
+    assert abs(error) <= 2 * nonlinearity
+    assert 0 < nonlinearity < 1e-3  # the reference is meaningful: a_y is small
+
+
+# --- braking -------------------------------------------------------------------------------------------
+
+
+def test_locked_wheel_braking_matches_sliding_friction(advanced_fmu, defaults):
+    # Brake torque far above what the tires can carry: the wheels lock at once and each tire slides at
+    # kappa = -1 with Fx = mu_slide(Fz) Fz (Magic Formula at kappa = -1). No load transfer (cg_height 0),
+    # no drag, no rolling resistance: constant deceleration a = sum Fx / m = mu_slide g, so
+    # s = v0^2 / (2 mu_slide g).
+    p, c = defaults, tire(defaults)
+    m, v0 = p["mass"], 20.0
+    _, _, _, fz_front, fz_rear = geometry(p)
+    sliding = -2 * (longitudinal_force(c, fz_front, -1.0) + longitudinal_force(c, fz_rear, -1.0))
+    mu_slide = sliding / (m * G)
+    reference = v0**2 / (2 * mu_slide * G)
+    brake_decel_max = 1e4
+    start = {"v0": v0, "brake": 1.0, "brake_decel_max": brake_decel_max, "cg_height": 0.0, **NO_RESISTANCES}
+    distance = simulate(advanced_fmu, 4.0, start)["s"][-1]
+
+    # Error budget (all terms shorten the stop), from the model's definitions:
+    # 1. slip floor: kappa = -v / sqrt(v^2 + v_low^2) nears the friction peak below ~1 m/s:
+    #    ds = integral over v of v (1 / a(v) - 1 / a_slide) dv;
+    # 2. the stop is declared at STOP_SPEED: ds = -v_stop^2 / (2 a(v_stop));
+    # 3. lock-up: each wheel spins down in t = I omega0 / (T_brake - mu_peak Fz R), taking at most
+    #    (mu_peak + mu_slide) Fz more than sliding meanwhile: ds <= v0 dp / (m a_slide).
+    def deceleration(v):
+        kappa = -v / math.hypot(v, advanced.SLIP_SPEED_FLOOR)
+        return -2 * (longitudinal_force(c, fz_front, kappa) + longitudinal_force(c, fz_rear, kappa)) / m
+
+    a_slide = sliding / m
+    speeds = np.geomspace(advanced.STOP_SPEED, v0, 20001)
+    floor = np.trapezoid([v * (1 / deceleration(v) - 1 / a_slide) for v in speeds], speeds)
+    stop = -advanced.STOP_SPEED**2 / (2 * deceleration(advanced.STOP_SPEED))
+    omega0, radius = v0 / p["wheel_radius"], p["wheel_radius"]
+    lock_momentum = 0.0
+    for fz, share in ((fz_front, p["brake_front_share"]), (fz_rear, 1 - p["brake_front_share"])):
+        torque = share * brake_decel_max * m * radius / 2
+        lock_time = p["wheel_inertia"] * omega0 / (torque - peak_longitudinal_friction(c, fz) * fz * radius)
+        lock_momentum += 2 * (peak_longitudinal_friction(c, fz) * fz + longitudinal_force(c, fz, -1.0)) * lock_time
+    lock = -v0 * lock_momentum / (m * a_slide)
+    budget = floor + stop + lock
+    error = distance - reference
+    print(f"mu_slide {mu_slide:.6f}: distance {distance:.6f} m, reference {reference:.6f} m, error {error:.2e} m; "
+          f"budget: slip floor {floor:.2e}, stop {stop:.2e}, lock-up >= {lock:.2e}")
+    assert budget - 1e-6 <= error <= 1e-6
+    assert abs(budget) < 1e-4 * reference  # the reference is the point, not the budget
+
+
+def test_full_braking_on_dry_asphalt_stops_between_sliding_and_peak_distances(advanced_fmu, defaults):
+    # Without ABS the stop lies between the locked-wheel distance v0^2 / (2 mu_slide g) and the ideal
+    # v0^2 / (2 mu_peak g). Both coefficients vary with the wheel load (PDX2 etc.), so the bounds use the
+    # most favourable values over the loads the load transfer can produce (decelerations up to mu_peak g).
+    p, c = defaults, tire(defaults)
+    m, v0 = p["mass"], 20.0
+    _, _, wheelbase, fz_front, fz_rear = geometry(p)
+    transfer = m * 1.3 * G * p["cg_height"] / (2 * wheelbase)
+    loads = np.linspace(max(fz_rear - transfer, 1.0), fz_front + transfer, 200)
+    mu_peak = max(peak_longitudinal_friction(c, fz) for fz in loads)
+    mu_slide = min(-longitudinal_force(c, fz, -1.0) / fz for fz in loads)
+    shortest, longest = v0**2 / (2 * mu_peak * G), v0**2 / (2 * mu_slide * G)
+    distance = simulate(advanced_fmu, 5.0, {"v0": v0, "brake": 1.0, **NO_RESISTANCES})["s"][-1]
+    print(f"distance {distance:.4f} m in [{shortest:.4f}, {longest:.4f}] (mu_peak {mu_peak:.4f}, "
+          f"mu_slide {mu_slide:.4f})")
+    assert shortest < distance < longest
+
+
+def test_split_mu_braking_yaws_toward_the_high_friction_side(advanced_fmu):
+    # Left wheels on ice, right wheels on dry asphalt, full brake: the right tires brake harder, so the
+    # yaw moment sum(-y_i Fx_i) with y_right < 0 and Fx < 0 is negative (ISO 8855: clockwise, to the right).
+    start = {"v0": 20.0, "brake": 1.0, "surface_fl": ICE, "surface_rl": ICE}
+    result = simulate(advanced_fmu, 0.5, start, step=0.01)
+    assert np.all(result["yaw_rate"][1:] < 0)
+    assert result["psi"][-1] < -0.01
+    symmetric = simulate(advanced_fmu, 0.5, {"v0": 20.0, "brake": 1.0}, step=0.01)
+    assert np.all(np.abs(symmetric["yaw_rate"]) < 1e-9)
+
+
+# --- numerics -------------------------------------------------------------------------------------------
+
+
+def test_halving_the_solver_step_converges_at_fourth_order(advanced_fmu):
+    # RODAS4 has order 4: the global error is e(h) ~ C h^4, so the change on halving the step,
+    # d(h) = e(h) - e(h/2), shrinks by 2^4 = 16 per halving. Required: d(1 ms -> 0.5 ms) <= d(2 ms -> 1 ms) / 8,
+    # i.e. an observed order >= 3 (one order of slack for the events and the kinks of max/min in the
+    # equations), plus 1e-10 m of round-off; and below the Simple FMU's 1e-6 m.
+    # Measured: stop distance d = 1.0e-7, 2.6e-9 m; lane change end y d = 3.8e-11, 8e-13 m.
+    time = np.arange(0.0, 6.0 + 1e-9, 0.01)
+    steer = np.where(time < 3.0, 0.03 * np.sin(2 * np.pi * time / 3.0), 0.0)  # one-period sine: a lane change
+    lane_change = input_table(time, steer=steer)
+    stops, lateral = [], []
+    for solver_step in (2e-3, 1e-3, 5e-4):
+        stops.append(simulate(advanced_fmu, 4.0, {"v0": 20.0, "brake": 1.0, "solver_step": solver_step})["s"][-1])
+        lateral.append(simulate(advanced_fmu, 6.0, {"v0": 20.0, "solver_step": solver_step},
+                                inputs=lane_change)["y"][-1])
+    for name, values in (("stop distance", stops), ("lane change y", lateral)):
+        coarse, fine = abs(values[0] - values[1]), abs(values[1] - values[2])
+        print(f"{name}: {values[2]:.12f} m; change on halving 2->1 ms {coarse:.2e} m, 1->0.5 ms {fine:.2e} m")
+        assert fine <= coarse / 8 + 1e-10
+        assert fine < 1e-6
+    assert 1.0 < abs(lateral[-1]) < 10.0  # it was a lane change
+
+
+def test_communication_steps_give_the_same_stop(advanced_fmu):
+    # The internal step stays solver_step (1 ms) whatever the communication step (1, 10, 100 ms all
+    # divide into whole solver steps), and the stop is an event located to 1e-12 s inside a step: only
+    # round-off of the time grid differs, ~1e4 steps x 1e-16 x 20 m; allowed 1e-9 m.
+    distances = [simulate(advanced_fmu, 4.0, {"v0": 20.0, "brake": 1.0}, step=step)["s"][-1]
+                 for step in (0.001, 0.01, 0.1)]
+    print("stop distances", distances)
+    assert max(distances) - min(distances) < 1e-9
+
+
+# --- standstill -----------------------------------------------------------------------------------------
+
+
+def test_holds_at_rest_under_brake_without_creep(advanced_fmu):
+    result = simulate(advanced_fmu, 12.0, {"v0": 10.0, "brake": 1.0}, step=0.01)
+    stopped = result["stopped"]
+    first = int(np.argmax(stopped))
+    assert 0 < first and result["time"][first] < 2.0
+    assert np.all(stopped[first:])  # held, no chatter
+    assert result["time"][-1] - result["time"][first] >= 10.0
+    assert np.ptp(result["s"][first:]) < 1e-9
+    assert np.all(result["vx"][first:] == 0)
+
+
+def test_holds_at_rest_with_no_pedal_and_starts_on_throttle(advanced_fmu):
+    assert_rest = simulate(advanced_fmu, 10.0, {"v0": 0.0}, step=0.1)
+    assert np.all(assert_rest["stopped"]) and np.all(assert_rest["s"] == 0)
+    # coasting on rolling resistance (f_r g = 0.12 m/s2) from 1 m/s stops after ~8.5 s, is held, and starts
+    # again once the throttle exceeds the holding force
+    time = np.arange(0.0, 25.0 + 1e-9, 0.1)
+    result = simulate(advanced_fmu, 25.0, {"v0": 1.0}, step=0.1,
+                      inputs=input_table(time, throttle=np.where(time >= 20.0, 0.2, 0.0)))
+    held = (result["time"] > 10.0) & (result["time"] < 20.0)
+    assert np.all(result["stopped"][held]) and np.ptp(result["s"][held]) < 1e-9
+    assert not result["stopped"][-1] and result["s"][-1] > result["s"][held][-1] + 1.0
+
+
+def test_jacobian_is_finite_at_standstill_and_low_speed():
+    equations = advanced.equations()
+    functions = equations.functions()
+    interface = equations.interface
+    states, inputs = interface.names("state"), interface.names("input")
+    parameters = np.array([v.start for v in interface.of_role("parameter")], dtype=float)
+    rng = np.random.default_rng(1)
+    for stopped in (0, 1):
+        for mode in (-1, 0, 1):
+            for speed in (0.0, 1e-9, 1e-3, 0.05, 0.3, 5.0):
+                x = np.zeros(len(states))
+                x[states.index("vx")] = speed
+                x[states.index("vy")] = rng.uniform(-1, 1) * speed
+                for w in WHEELS:
+                    x[states.index(f"wheel_speed_{w}")] = 0.0 if mode == 0 else mode * rng.uniform(0, 1) * speed
+                d = np.array([stopped] + [mode] * 4, dtype=float)
+                u = np.zeros(len(inputs))
+                u[inputs.index("throttle")], u[inputs.index("brake")] = rng.uniform(0, 1, 2)
+                u[inputs.index("surface_fl")] = ICE
+                for name in ("derivatives", "jacobian", "event_indicators", "outputs"):
+                    assert np.all(np.isfinite(np.array(functions[name](x, d, u, parameters)))), (name, x, d)
+
+
+# --- the binary ---------------------------------------------------------------------------------------
+
+
+def test_fmu_validates(advanced_fmu):
+    assert validate_fmu(str(advanced_fmu)) == []
+
+
+def test_binary_links_no_python_or_casadi(advanced_fmu, tmp_path):
+    with zipfile.ZipFile(advanced_fmu) as archive:
+        archive.extractall(tmp_path)
+    linked = subprocess.run(["ldd", str(tmp_path / "binaries/linux64/EgoVehicleAdvanced.so")],
+                            capture_output=True, text=True, check=True).stdout
+    assert "python" not in linked.lower() and "casadi" not in linked.lower()

@@ -7,7 +7,9 @@ from dataclasses import dataclass
 from itertools import product
 from pathlib import Path
 
-from .cosim.ego import EgoFMU, step_until
+from fmpy import read_model_description
+
+from .cosim.ego import EgoFMU, parameter_defaults, step_until
 from .units import STANDARD_GRAVITY
 
 WHEELS = ("fl", "fr", "rl", "rr")
@@ -74,15 +76,8 @@ def simulate_stop(fmu: Path, case: BrakingCase, step: float = 0.1) -> tuple[floa
         ego.close()
 
 
-def fmu_parameters(fmu: Path) -> dict[str, float]:
-    from fmpy import read_model_description
-
-    return {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
-            if v.causality == "parameter"}
-
-
 def verify(fmu: Path, cases: list[BrakingCase] | None = None) -> list[BrakingResult]:
-    parameters = fmu_parameters(fmu)
+    parameters = parameter_defaults(read_model_description(str(fmu)))
     results = []
     for case in cases or default_cases():
         expected_distance, expected_time = closed_form(case, parameters)

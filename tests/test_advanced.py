@@ -2,13 +2,10 @@
 references computed here from the FMU's own parameters (its tire slots come from scenarios/tires/)."""
 
 import math
-import subprocess
-import zipfile
 
 import numpy as np
 import pytest
 from fmpy import read_model_description, simulate_fmu
-from fmpy.validation import validate_fmu
 
 from sdl_fmu.dynamics import advanced
 from sdl_fmu.units import STANDARD_GRAVITY as G
@@ -300,18 +297,3 @@ def test_jacobian_is_finite_at_standstill_and_low_speed():
                 u[inputs.index("surface_fl")] = ICE
                 for name in ("derivatives", "jacobian", "event_indicators", "outputs"):
                     assert np.all(np.isfinite(np.array(functions[name](x, d, u, parameters)))), (name, x, d)
-
-
-# --- the binary ---------------------------------------------------------------------------------------
-
-
-def test_fmu_validates(advanced_fmu):
-    assert validate_fmu(str(advanced_fmu)) == []
-
-
-def test_binary_links_no_python_or_casadi(advanced_fmu, tmp_path):
-    with zipfile.ZipFile(advanced_fmu) as archive:
-        archive.extractall(tmp_path)
-    linked = subprocess.run(["ldd", str(tmp_path / "binaries/linux64/EgoVehicleAdvanced.so")],
-                            capture_output=True, text=True, check=True).stdout
-    assert "python" not in linked.lower() and "casadi" not in linked.lower()

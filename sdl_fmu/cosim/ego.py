@@ -30,6 +30,12 @@ class EgoState:
     stopped: bool
 
 
+def parameter_defaults(model_description) -> dict[str, float]:
+    """Start values of the FMU's Real parameters, by name (SI)."""
+    return {v.name: float(v.start) for v in model_description.modelVariables
+            if v.causality == "parameter" and v.type == "Real"}
+
+
 class FmuError(RuntimeError):
     """The FMU refused a call or could not be loaded."""
 

@@ -22,7 +22,7 @@ from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
 from .driver import make_driver
-from .ego import EgoFMU, EgoState, step_until
+from .ego import EgoFMU, EgoState, parameter_defaults, step_until
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import TrafficVehicle, choose_model, footprints_overlap, spawn
 
@@ -45,13 +45,6 @@ class RunOptions:
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
 
 
-def fmu_parameters(ego: EgoFMU, overrides: dict[str, float]) -> dict[str, float]:
-    parameters = {name: float(v.start) for name, v in ego.variables.items()
-                  if v.causality == "parameter" and v.type == "Real"}
-    parameters.update(overrides)
-    return parameters
-
-
 class Cosimulation:
     """One run of a scenario against one ego FMU."""
 
@@ -67,7 +60,7 @@ class Cosimulation:
         start = {"v0": self.speed, "x0": 0.0, "y0": -start_lateral, "psi0": 0.0,
                  **options.tire_parameters, **options.parameters}
         self.ego = EgoFMU(fmu, start)
-        parameters = fmu_parameters(self.ego, start)
+        parameters = {**parameter_defaults(self.ego.model_description), **start}
         self.geometry = wheel_geometry(parameters)
         self.ego_size = (parameters["length"], parameters["width"])
         self.driver = make_driver(self.speed, start_lateral, parameters)

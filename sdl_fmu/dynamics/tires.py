@@ -220,14 +220,17 @@ def parse_tir(text: str, path: Path | str = "<text>") -> TireFile:
     return tire
 
 
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8", errors="replace")
+    except OSError as error:
+        raise TireFileError(path, None, "file", f"cannot be read: {error.strerror or error}") from None
+
+
 def read_tir(path: Path | str) -> TireFile:
     """Reads a .tir property file."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as error:
-        raise TireFileError(path, None, "file", f"cannot be read: {error.strerror or error}") from None
-    return parse_tir(text, path)
+    return parse_tir(_read_text(path), path)
 
 
 def mf_coefficients(tire: TireFile) -> dict[str, float]:
@@ -289,11 +292,7 @@ def parse_attribute_file(text: str, path: Path | str = "<text>") -> list[Attribu
 def read_attribute_file(path: Path | str) -> list[AttributeEntry]:
     """Reads a Tire Attribute File (see parse_attribute_file)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as error:
-        raise TireFileError(path, None, "file", f"cannot be read: {error.strerror or error}") from None
-    return parse_attribute_file(text, path)
+    return parse_attribute_file(_read_text(path), path)
 
 
 def default_attribute_file() -> Path:

@@ -70,7 +70,7 @@ def _run(args) -> int:
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
     from .results import write_results
-    from .units import speed_label, to_si
+    from .units import length_label, speed_label, to_si
 
     scenario, table = _load_scenario(args.scenario)
     units = scenario.units
@@ -109,7 +109,7 @@ def _run(args) -> int:
     write_results(result, out)
     final = result.final
     print(f"{Path(args.scenario).name}: {args.dynamics} dynamics, {result.collisions} collision(s), "
-          f"ended at {final['time_s']:.2f} s, distance {final['distance']:.1f} {units == 'English' and 'ft' or 'm'}, "
+          f"ended at {final['time_s']:.2f} s, distance {final['distance']:.1f} {length_label(units)}, "
           f"speed {final['speed']:.1f} {speed_label(units)}")
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)

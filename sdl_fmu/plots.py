@@ -207,25 +207,20 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
 
     ax = axes["friction"]
     _mark_events(ax, events)
-    if any(f"mu_{w}" in cols for w in WHEELS):
-        values = []
-        for wheel in WHEELS:
-            if f"mu_{wheel}" in cols:
-                mu = np.asarray(cols[f"mu_{wheel}"], dtype=float)
-                values.append(mu)
-                ax.plot(t, mu[::step], ls=WHEEL_STYLES[wheel], lw=1.4, drawstyle="steps-post", label=wheel)
-        top = max(1.0, float(np.nanmax(values)) if np.isfinite(values).any() else 1.0)
-        ax.set_ylim(0, top * 1.1)
+    simple = any(f"mu_{w}" in cols for w in WHEELS)
+    prefix = "mu" if simple else "surface"
+    values = []
+    for wheel in WHEELS:
+        if f"{prefix}_{wheel}" in cols:
+            value = np.asarray(cols[f"{prefix}_{wheel}"], dtype=float)
+            values.append(value)
+            ax.plot(t, value[::step], ls=WHEEL_STYLES[wheel], lw=1.4, drawstyle="steps-post", label=wheel)
+    top = float(np.nanmax(values)) if values and np.isfinite(values).any() else 1.0
+    if simple:
+        ax.set_ylim(0, max(1.0, top) * 1.1)
         ax.set_ylabel("mu [1]")
         ax.set_title("friction coefficient under each wheel", fontsize=10, loc="left")
     else:
-        values = []
-        for wheel in WHEELS:
-            if f"surface_{wheel}" in cols:
-                attribute = np.asarray(cols[f"surface_{wheel}"], dtype=float)
-                values.append(attribute)
-                ax.plot(t, attribute[::step], ls=WHEEL_STYLES[wheel], lw=1.4, drawstyle="steps-post", label=wheel)
-        top = float(np.nanmax(values)) if values and np.isfinite(values).any() else 1.0
         ax.set_ylim(-0.5, top + 0.5)
         ax.yaxis.get_major_locator().set_params(integer=True)
         ax.set_ylabel("surface attribute")

@@ -65,10 +65,11 @@ class Cosimulation:
         self.ego_size = (parameters["length"], parameters["width"])
         self.driver = make_driver(self.speed, start_lateral, parameters)
         self.wheel_inputs = [f"mu_{w}" if options.dynamics == "simple" else f"surface_{w}" for w in WHEELS]
-        self.pending = [e for e in scenario.events]
+        self.pending = list(scenario.events)
         self.traffic: list[TrafficVehicle] = []
         self.brake_hold: BrakeHold | None = None
         self.applied_surfaces: tuple[float, ...] | None = None
+        self.wheel_values: list[float] = []  # the FMU's wheel inputs for the applied surfaces
         self.controls = (0.0, 0.0, 0.0)
         self.events: list[dict] = []
         self.warnings: list[str] = []
@@ -220,16 +221,14 @@ class Cosimulation:
         surfaces = self.surfaces_under_wheels(state)
         self.applied_surfaces = surfaces
         self.controls = (throttle, brake, steer)
-        wheel_values = [value / 10 if self.options.dynamics == "simple" else int(value) for value in surfaces]
-        self.ego.set(throttle=throttle, brake=brake, steer=steer, **dict(zip(self.wheel_inputs, wheel_values)))
+        self.wheel_values = [value / 10 if self.options.dynamics == "simple" else int(value) for value in surfaces]
+        self.ego.set(throttle=throttle, brake=brake, steer=steer, **dict(zip(self.wheel_inputs, self.wheel_values)))
 
     def record(self, state: EgoState) -> None:
         throttle, brake, steer = self.controls
-        surfaces = self.applied_surfaces
-        wheel_values = [v / 10 if self.options.dynamics == "simple" else v for v in surfaces]
         self.samples.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
                              state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
-                             throttle, brake, steer, float(self.brake_hold is not None), *wheel_values))
+                             throttle, brake, steer, float(self.brake_hold is not None), *self.wheel_values))
         self.traffic_samples.append({v.vehicle: v.at(state.time) for v in self.traffic if v.present})
 
     # ---- the loop -------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""FMU interfaces as data: reads modelDescription/<Model>.json, the one source of variable names,
+"""FMU interfaces as data: reads sdl_fmu/interfaces/<Model>.json, the one source of variable names,
 causalities, units, start values and descriptions (the XML, the C variable table and the CasADi symbols
 are all generated from it).
 
@@ -15,8 +15,9 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-REPOSITORY_ROOT = Path(__file__).resolve().parents[1]
-INTERFACE_DIRECTORY = REPOSITORY_ROOT / "modelDescription"
+PACKAGE_DIRECTORY = Path(__file__).resolve().parent
+INTERFACE_DIRECTORY = PACKAGE_DIRECTORY / "interfaces"
+SCENARIO_DIRECTORY = PACKAGE_DIRECTORY / "scenarios"  # shipped examples, vehicle table, tire files
 
 # roles: where a variable lives in the model function arguments (x, d, u, p) or results (y)
 STATE, DISCRETE, INPUT, PARAMETER, OUTPUT = "state", "discrete", "input", "parameter", "output"
@@ -168,8 +169,5 @@ def load_interface(model_name: str, directory: Path = INTERFACE_DIRECTORY,
     """The interface of one FMU, e.g. load_interface('EgoVehicleSimple'); starts: build-time start values."""
     path = directory / f"{model_name}.json"
     if not path.exists():
-        raise FileNotFoundError(
-            f"{path} not found: sdl-fmu reads its FMU interfaces from the repository's modelDescription/ "
-            "folder; install it from a checkout with 'pip install -e .'"
-        )
+        raise FileNotFoundError(f"{path} not found: no interface data for model {model_name!r}")
     return parse_interface(json.loads(path.read_text()), load_units(directory), starts)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
+from sdl_fmu.interface import SCENARIO_DIRECTORY
 from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT
@@ -26,7 +27,7 @@ def test_rsa_example_sets_attribute_numbers_under_each_wheel(advanced_fmu):
     # Advanced FMU sit cg_to_front_axle ahead of and cg_to_rear_axle behind the CG, so the front-left
     # wheel reads attribute 1 while its station is in [1000, 1100) ft, i.e. while the CG station is in
     # [1000 ft - a, 1100 ft - a); the rear wheels while it is in [1000 ft + b, 1100 ft + b).
-    scenario = load_scenario("scenarios/road_surface_advanced.sdl")
+    scenario = load_scenario(SCENARIO_DIRECTORY / "road_surface_advanced.sdl")
     result = run_scenario(scenario, advanced_fmu, options(until_distance=1300 * FOOT), TABLE)
     assert result.warnings == []
     sets = [(e["lane"], e["value"]) for e in result.events if e["code"] == "RSA"]
@@ -64,7 +65,7 @@ def test_approaching_vehicle_example_runs_with_advanced_dynamics(advanced_fmu):
     # The seed's A example at 60 ft/s with drag and rolling resistance off: the driver holds the speed, so
     # the hand computation of the simple-dynamics test holds: closing at 80 ft/s, spawn at 100/60 s,
     # action 1 at gap 800 ft (2.5 s later), action 2 at gap 400 ft (7.5 s after the spawn).
-    scenario = load_scenario("scenarios/approaching_vehicle.sdl")
+    scenario = load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl")
     result = run_scenario(scenario, advanced_fmu, options(speed=60 * FOOT, parameters=dict(NO_RESISTANCE)), TABLE)
     times = {(e["action"], e.get("index")): e["time_s"] for e in result.events if e["code"] == "A"}
     spawn = 100 / 60

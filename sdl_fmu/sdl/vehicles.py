@@ -25,8 +25,8 @@ class VehicleModel:
 
 
 def default_vehicle_table_path() -> Path:
-    """The table shipped with the scenarios: <repo>/scenarios/vehicles.csv."""
-    return Path(__file__).resolve().parents[2] / "scenarios" / "vehicles.csv"
+    """The table shipped with the scenarios: sdl_fmu/scenarios/vehicles.csv."""
+    return Path(__file__).resolve().parents[1] / "scenarios" / "vehicles.csv"
 
 
 def _positive(text: str) -> float:

@@ -92,17 +92,6 @@ def test_braking_distance_model_exchange(simple_fmu, defaults, resistances):
     assert abs(result["s"][-1] - expected) / expected < MODEL_EXCHANGE_TOLERANCE
 
 
-def test_split_friction_uses_each_wheels_limit(simple_fmu, defaults):
-    # each wheel carries a quarter of the weight and brakes at most mu_i g:
-    # deceleration = mean_i min(b a_max, mu_i g) = (0.2 + 0.8) / 2 g with full pedal
-    values, brake = start_values(False)
-    values.update(mu_fl=0.2, mu_rl=0.2, mu_fr=0.8, mu_rr=0.8)
-    result = simulate_fmu(simple_fmu, fmi_type="CoSimulation", start_values=values, input=brake,
-                          output=["s", "psi"], stop_time=10.0, output_interval=0.01)
-    expected = braking_distance(V0, 0.5 * G, 0.0, 0.0)
-    assert abs(result["s"][-1] - expected) / expected < COSIM_TOLERANCE
-
-
 def test_partial_pedal_below_friction_limit(simple_fmu, defaults):
     # 25 % pedal demands 0.25 * brake_decel_max < mu g, so the pedal sets the deceleration
     values, brake = start_values(False, brake=0.25)
@@ -159,27 +148,6 @@ def test_no_steering_authority_under_full_braking(simple_fmu):
     result = simulate_fmu(simple_fmu, fmi_type="CoSimulation", start_values=values, input=brake,
                           output=["psi", "yaw_rate"], stop_time=1.0, output_interval=0.01)
     assert np.abs(result["yaw_rate"]).max() < 1e-4 and abs(result["psi"][-1]) < 1e-4
-
-
-def test_kinematic_yaw_rate_within_the_friction_limit(simple_fmu, defaults):
-    # coasting with drag off: v constant; a_lat = v^2 tan(delta) / L = 100 * tan(0.01) / 2.7 = 0.37 m/s2
-    # < mu g, so yaw_rate = v tan(delta) / L exactly
-    values, _ = start_values(False, v0=10.0)
-    values["steer"] = 0.01
-    result = simulate_fmu(simple_fmu, fmi_type="CoSimulation", start_values=values, output=["yaw_rate", "psi"],
-                          stop_time=2.0, output_interval=0.01)
-    expected = 10.0 * math.tan(0.01) / defaults["wheelbase"]
-    assert result["yaw_rate"][-1] == pytest.approx(expected, rel=1e-12)
-    assert result["psi"][-1] == pytest.approx(expected * 2.0, rel=1e-9)
-
-
-def test_lateral_acceleration_saturates_at_mu_g(simple_fmu):
-    # tan(0.3) * 20^2 / 2.7 = 45.7 m/s2 demanded, far above mu g: the wheels give mu g
-    values, _ = start_values(False, v0=20.0)
-    values["steer"] = 0.3
-    result = simulate_fmu(simple_fmu, fmi_type="CoSimulation", start_values=values, output=["ay"],
-                          stop_time=0.5, output_interval=0.01)
-    assert result["ay"][-1] == pytest.approx(MU * G, rel=1e-3)
 
 
 def _run(fmu, instances=1, steps=500):

@@ -76,13 +76,12 @@ class WheelGeometry:
 
 
 def wheel_geometry(parameters: dict[str, float]) -> WheelGeometry:
-    """From the FMU's parameters. The Simple FMU has only a wheelbase and a width: its CG is taken midway
-    between the axles and its wheels 0.1 m inside the body's sides."""
+    """From the FMU's parameters. The Simple FMU has its CG midway between the axles and one track."""
     if "cg_to_front_axle" in parameters:
         return WheelGeometry(parameters["cg_to_front_axle"], parameters["cg_to_rear_axle"],
                              parameters["track_front"] / 2, parameters["track_rear"] / 2)
-    half_track = max(parameters["width"] / 2 - 0.1, 0.0)
-    return WheelGeometry(parameters["wheelbase"] / 2, parameters["wheelbase"] / 2, half_track, half_track)
+    return WheelGeometry(parameters["wheelbase"] / 2, parameters["wheelbase"] / 2, parameters["track"] / 2,
+                         parameters["track"] / 2)
 
 
 def wheel_surfaces(road: Road, surfaces: SurfaceMap, points: list[tuple[float, float]]) -> tuple[float, ...]:

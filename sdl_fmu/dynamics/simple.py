@@ -1,19 +1,38 @@
-"""SDL "simple dynamics": a planar point-mass vehicle on friction-limited tires.
+"""SDL "simple dynamics": a planar vehicle with side slip and yaw on four friction-limited wheels.
 
-Each wheel carries a quarter of the weight (no load transfer) and gives at most mu_i * g per unit
-mass. Longitudinal demand (drive minus brake) is served first, up to each wheel's limit; cornering
-gets what is left of that wheel's friction circle, so under full braking no steering authority is
-left. Drag and rolling resistance act on top of the tire forces, as in the closed form
-dv/dt = -(min(brake * brake_decel_max, mu g) + f_r g + rho CdA v^2 / (2 m)).
-The vehicle only drives forward: when it comes to rest it is held (discrete state `stopped`) until
-the tire force exceeds the holding forces.
+States: x, y, psi, s, body velocities vx, vy and the yaw rate r. The centre of gravity lies midway
+between the axles (a = b = wheelbase / 2) and each wheel carries a quarter of the weight, Fz = m g / 4
+(no load transfer), so on uniform mu straight-line braking meets SPEC section 2's closed forms exactly.
+Wheel i sits at (x_i, y_i): front x = +a, rear x = -b, left y = +track / 2, right y = -track / 2; the
+front wheels are steered by `steer` (parallel steer). Per wheel, with the contact-point velocity
+(vx - r y_i, vy + r x_i), in the wheel frame (u_i, w_i):
+
+  rolling   (brake demand m a_b / 4 <= mu_i Fz): the wheel delivers its share of the pedal demand,
+            longitudinal first, within its friction circle, and the lateral force from the lateral slip
+            s_i = w_i / sqrt(u_i^2 + v_low^2) with the cornering stiffness C_i, within what is left:
+              F_u = clamp(m (a_drive - sigma_i a_brake) / 4, -mu_i Fz, mu_i Fz) - sigma_i f_r Fz
+              F_w = clamp(-C_i s_i, -sqrt((mu_i Fz)^2 - F_u^2), +sqrt(...))
+  sliding   (brake demand > mu_i Fz: the brake locks the wheel): it slides; its force opposes its
+            contact point's sliding velocity c_i, with no lateral guidance left:
+              F = -(mu_i + f_r) Fz c_i / |c_i|
+  sigma_i = +1 while the wheel rolls (slides) forward, -1 backward: a discrete state switched by an event
+            when the longitudinal contact velocity crosses 0, so that brake and rolling resistance
+            oppose the motion exactly (Coulomb friction) and the right-hand side is continued smoothly
+            past the crossing inside a solver step.
+  Body      m (dvx/dt - r vy) = sum F_x - rho CdA |v| vx / 2,  m (dvy/dt + r vx) = sum F_y - rho CdA |v| vy / 2
+            Iz dr/dt = sum (x_i F_y,i - y_i F_x,i)
+            dx/dt = vx cos psi - vy sin psi, dy/dt = vx sin psi + vy cos psi, dpsi/dt = r, ds/dt = |v|.
+
+The vehicle does not drive backwards: when it comes to rest (the forward speed reaches 0, or any motion
+falls below STOP_SPEED while not moving forward) it is held (discrete state `stopped`) until the drive
+exceeds the holding forces.
 """
 
 from __future__ import annotations
 
 import casadi as ca
 
-from ..interface import load_interface
+from ..interface import DISCRETE, STATE, load_interface
 from ..units import STANDARD_GRAVITY
 from .equations import Equations, make_symbols
 
@@ -24,66 +43,148 @@ WHEELS = ("fl", "fr", "rl", "rr")
 START_MARGIN = 1e-6
 # Speed below which the power limit of the drive is not evaluated (m/s), to avoid P / 0.
 POWER_LIMIT_MIN_SPEED = 1e-3
+# v_low of the lateral slip w / sqrt(u^2 + v_low^2) (m/s): finite at standstill, where the tire acts as
+# a stiff viscous damper (time constant m v_low / (4 C) ~ 1 ms, which the L-stable solver handles).
+SLIP_SPEED_FLOOR = 0.1
+# A vehicle whose forward speed is not positive is held once its motion (speed and yaw rate times half
+# the wheelbase) falls below this (m/s); what is left of such a stop is < STOP_SPEED^2 / (2 mu g).
+STOP_SPEED = 0.01
+# Smoothing of |v| at v = 0 (m/s): keeps derivatives finite; it changes |v| by < 1e-12 m/s.
+SPEED_SMOOTHING = 1e-12
+# Radius of the contact patch (m): a sliding wheel whose contact point turns about a centre closer than
+# this gives less than mu Fz (see sliding_norm).
+CONTACT_PATCH_RADIUS = 0.1
+TINY = 1e-30  # floor of denominators that vanish only at exact rest
 
 
-def friction_limited_accelerations(s, v):
-    """Per-unit-mass tire accelerations (longitudinal, lateral scale) under each wheel's friction circle."""
-    g = STANDARD_GRAVITY
-    drive_demand = s["throttle"] * ca.fmin(
-        s["drive_accel_max"], s["drive_power_max"] / (s["mass"] * ca.fmax(v, POWER_LIMIT_MIN_SPEED))
-    )
-    longitudinal_demand = drive_demand - s["brake"] * s["brake_decel_max"]
-    lateral_demand = v**2 * ca.tan(s["steer"]) / s["wheelbase"]
-    longitudinal, lateral_scale = [], []
-    for wheel in WHEELS:
-        limit = s[f"mu_{wheel}"] * g
-        along = ca.fmin(ca.fmax(longitudinal_demand, -limit), limit)
-        # what the friction circle leaves for cornering; the floor keeps d/dx sqrt finite at the limit
-        available = ca.sqrt(ca.fmax(limit**2 - along**2, 1e-12))
-        longitudinal.append(along)
-        lateral_scale.append(available / ca.fmax(ca.fmax(ca.fabs(lateral_demand), available), 1e-9))
-    return sum(longitudinal) / 4, sum(lateral_scale) / 4
+def clamp(value, low, high):
+    return ca.fmin(ca.fmax(value, low), high)
+
+
+def smooth_norm(a, b):
+    """sqrt(a^2 + b^2) with finite derivatives at 0 (exact to round-off elsewhere)."""
+    return ca.sqrt(a**2 + b**2 + SPEED_SMOOTHING**2) - SPEED_SMOOTHING
+
+
+def sliding_norm(sigma, u, w, spin):
+    """|(u, w)| of a sliding contact point, regularised by its patch and continued past u = 0.
+
+    With q^2 = u^2 + w^2 + spin^2 (spin = CONTACT_PATCH_RADIUS * yaw rate: when the instantaneous centre
+    of rotation comes within the contact patch, part of the patch sticks and the force drops below
+    mu Fz instead of turning infinitely fast), q = |u| + (w^2 + spin^2) / (q + |u|). Replacing |u| by
+    sigma u changes nothing on the side sigma describes and makes the sliding direction constant through
+    u = 0 in straight-line motion (w = spin = 0): the locked wheel keeps pushing against the motion up
+    to the stop, which an event then locates. Past u = 0 with w or spin != 0 (only inside the solver
+    step before the event switches sigma), the norm is kept >= |c| / 2 so the force stays bounded.
+    """
+    lateral = w**2 + spin**2
+    length = ca.sqrt(u**2 + lateral + TINY**2)
+    norm = sigma * u + lateral / ca.fmax(length + ca.fabs(u), TINY)
+    bound = ca.fmax(ca.sqrt(u**2 + w**2 + TINY**2) / 2, TINY)
+    return ca.if_else(ca.fabs(norm) >= bound, norm, ca.if_else(norm < 0, -bound, bound))
+
+
+def wheel_positions(s):
+    half_wheelbase, half_track = s["wheelbase"] / 2, s["track"] / 2
+    return {"fl": (half_wheelbase, half_track), "fr": (half_wheelbase, -half_track),
+            "rl": (-half_wheelbase, half_track), "rr": (-half_wheelbase, -half_track)}
 
 
 def equations() -> Equations:
     interface = load_interface(MODEL_NAME)
     s = make_symbols(interface)
     g = STANDARD_GRAVITY
-    v, psi, stopped = s["v"], s["psi"], s["stopped"]
-
-    tire_acceleration, lateral_scale = friction_limited_accelerations(s, v)
-    drag_factor = s["air_density"] * s["drag_area"] / (2 * s["mass"])  # K in dv/dt = -(A + K v^2)
-    net_acceleration = tire_acceleration - s["rolling_resistance"] * g - drag_factor * v**2
-    yaw_rate = v * ca.tan(s["steer"]) / s["wheelbase"] * lateral_scale
+    m = s["mass"]
+    vx, vy, r, psi, stopped = s["vx"], s["vy"], s["yaw_rate"], s["psi"], s["stopped"]
     moving = 1 - stopped
-    dv = moving * net_acceleration
+    speed = smooth_norm(vx, vy)
 
-    derivatives = ca.vertcat(v * ca.cos(psi), v * ca.sin(psi), yaw_rate, v, dv)
-    wants_to_move = net_acceleration > START_MARGIN
-    # moving: event when v reaches 0; at rest: event when the net force could start the vehicle
-    indicator = ca.if_else(stopped, net_acceleration - START_MARGIN, v)
-    next_stopped = ca.if_else(stopped, 1 - wants_to_move, (v <= 0) * (1 - wants_to_move))
-    next_v = ca.if_else(next_stopped, 0, ca.fmax(v, 0))
-    mean_mu = sum(s[f"mu_{w}"] for w in WHEELS) / 4
-    lateral_acceleration = v * yaw_rate
+    drive_accel = s["throttle"] * ca.fmin(
+        s["drive_accel_max"], s["drive_power_max"] / (m * ca.fmax(speed, POWER_LIMIT_MIN_SPEED)))
+    brake_accel = s["brake"] * s["brake_decel_max"]
+    load = m * g / 4
+    rolling = s["rolling_resistance"] * load
+
+    force_x = force_y = yaw_moment = friction_used = 0
+    wheel_indicators, next_sigma = [], {}
+    for w, (x_i, y_i) in wheel_positions(s).items():
+        sigma = s[f"direction_{w}"]
+        limit = s[f"mu_{w}"] * load
+        delta = s["steer"] if w.startswith("f") else 0
+        stiffness = s["cornering_stiffness_front"] if w.startswith("f") else s["cornering_stiffness_rear"]
+        contact_x, contact_y = vx - r * y_i, vy + r * x_i
+        cos_d, sin_d = ca.cos(delta), ca.sin(delta)
+        along = contact_x * cos_d + contact_y * sin_d  # wheel frame
+        across = -contact_x * sin_d + contact_y * cos_d
+
+        # rolling: demand first, lateral slip force within what the friction circle leaves
+        longitudinal = clamp(m * (drive_accel - sigma * brake_accel) / 4, -limit, limit)
+        available = ca.sqrt(ca.fmax(limit**2 - longitudinal**2, 1e-12))
+        lateral_slip = across / ca.sqrt(along**2 + SLIP_SPEED_FLOOR**2)
+        lateral = clamp(-stiffness * lateral_slip, -available, available)
+        roll_u = longitudinal - sigma * rolling
+        roll_x, roll_y = roll_u * cos_d - lateral * sin_d, roll_u * sin_d + lateral * cos_d
+
+        # locked: sliding against the contact point's velocity, whatever the steering
+        locked = m * brake_accel / 4 > limit
+        scale = -(limit + rolling) / sliding_norm(sigma, contact_x, contact_y, CONTACT_PATCH_RADIUS * r)
+        slide_x, slide_y = scale * contact_x, scale * contact_y
+
+        f_x = ca.if_else(locked, slide_x, roll_x)
+        f_y = ca.if_else(locked, slide_y, roll_y)
+        force_x += f_x
+        force_y += f_y
+        yaw_moment += x_i * f_y - y_i * f_x
+        tire_force = ca.if_else(locked, limit, ca.sqrt(longitudinal**2 + lateral**2 + TINY**2))
+        friction_used += tire_force / ca.fmax(limit, TINY) / 4
+
+        # direction of motion of the wheel: rolling along its own axis, sliding along the body axis
+        indicator = ca.if_else(locked, contact_x, along)
+        wheel_indicators.append(indicator)
+        next_sigma[w] = ca.if_else(indicator > 0, 1, ca.if_else(indicator < 0, -1, sigma))
+
+    drag = s["air_density"] * s["drag_area"] / 2 * speed
+    ax = moving * (force_x - drag * vx) / m
+    ay = moving * (force_y - drag * vy) / m
+    derivative = {
+        "x": moving * (vx * ca.cos(psi) - vy * ca.sin(psi)),
+        "y": moving * (vx * ca.sin(psi) + vy * ca.cos(psi)),
+        "psi": moving * r,
+        "s": moving * speed,
+        "vx": ax + moving * r * vy,
+        "vy": ay - moving * r * vx,
+        "yaw_rate": moving * yaw_moment / s["yaw_inertia"],
+    }
+
+    # Standstill. The net force at rest (per unit mass) that could start the vehicle forward:
+    start_drive = s["throttle"] * ca.fmin(s["drive_accel_max"],
+                                          s["drive_power_max"] / (m * POWER_LIMIT_MIN_SPEED))
+    start_force = sum(clamp(start_drive - brake_accel, -s[f"mu_{w}"] * g, s[f"mu_{w}"] * g) for w in WHEELS) / 4
+    net_start = start_force - s["rolling_resistance"] * g
+    wants_to_move = net_start > START_MARGIN
+    # moving: event when the forward speed reaches 0 (straight-line stops: exact), or when a vehicle that
+    # is not moving forward has almost no motion left; held: event when the drive could start it
+    motion = ca.sqrt(vx**2 + vy**2 + (r * s["wheelbase"] / 2) ** 2 + TINY**2)
+    moving_indicator = ca.fmax(vx, motion - STOP_SPEED)
+    indicator = ca.if_else(stopped, net_start - START_MARGIN, moving_indicator)
+    next_stopped = ca.if_else(stopped, 1 - wants_to_move, (moving_indicator <= 0) * (1 - wants_to_move))
+
+    states = interface.names(STATE)
+    velocity = {"vx", "vy", "yaw_rate"}
+    next_state = [ca.if_else(next_stopped, 0, s[name]) if name in velocity else s[name] for name in states]
+    next_discrete = {"stopped": next_stopped,
+                     **{f"direction_{w}": ca.if_else(next_stopped, 1, next_sigma[w]) for w in WHEELS}}
+    initial = {"x": s["x0"], "y": s["y0"], "psi": s["psi0"], "s": 0, "vx": s["v0"], "vy": 0, "yaw_rate": 0}
+    initial_discrete = {"stopped": 0, **{f"direction_{w}": 1 for w in WHEELS}}
 
     return Equations(
         interface=interface,
         symbols=s,
-        derivatives=derivatives,
-        outputs={
-            "vx": v,
-            "vy": ca.SX(0),
-            "ax": dv,
-            "ay": lateral_acceleration,
-            "yaw_rate": yaw_rate,
-            "friction_used": moving
-            * ca.sqrt(tire_acceleration**2 + lateral_acceleration**2)
-            / (g * ca.fmax(mean_mu, 1e-9)),
-        },
-        event_indicators=indicator,
-        state_update=ca.vertcat(s["x"], s["y"], psi, s["s"], next_v),
-        discrete_update=next_stopped,
-        initial_states=ca.vertcat(s["x0"], s["y0"], s["psi0"], 0, s["v0"]),
-        initial_discrete=ca.SX(0),
+        derivatives=ca.vertcat(*[derivative[name] for name in states]),
+        outputs={"v": moving * speed, "ax": ax, "ay": ay, "friction_used": moving * friction_used},
+        event_indicators=ca.vertcat(indicator, *wheel_indicators),
+        state_update=ca.vertcat(*next_state),
+        discrete_update=ca.vertcat(*[next_discrete[name] for name in interface.names(DISCRETE)]),
+        initial_states=ca.vertcat(*[initial[name] for name in states]),
+        initial_discrete=ca.vertcat(*[initial_discrete[name] for name in interface.names(DISCRETE)]),
     )

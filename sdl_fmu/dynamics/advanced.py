@@ -10,7 +10,8 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
              load_ay: d(load_ax)/dt = (ax - load_ax) / tau (same for ay), tau = load_transfer_time_constant.
              The lag replaces pitch/roll dynamics and breaks the algebraic loop loads -> forces -> a.
   Kinematics v_i = (vx - r y_i, vy + r x_i) at the contact point, turned into the wheel frame by the steering
-             angle (front wheels, parallel steer): (v_cx, v_cy).
+             angle (front wheels, parallel steer): (v_cx, v_cy). Front road-wheel angle = steer - D_f m a_t b / L
+             (lateral-force compliance steer D_f = steer_compliance; a_t = load_ay, the lagged a_y).
   Slip       kappa = (omega R - v_cx) / sqrt(v_cx^2 + v_low^2),  alpha = atan(v_cy / sqrt(v_cx^2 + v_low^2))
              v_low = SLIP_SPEED_FLOOR: the usual 1/|v_cx| with a smooth floor, finite at standstill (there
              the tire acts as a stiff viscous damper, which the L-stable solver handles).
@@ -25,7 +26,9 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
                  u = Fz / (PKY2 Fz0'), the form used: finite at Fz = 0)
              Magnitudes make the model independent of the file's sign convention: the lateral force
              always opposes the lateral slip, the longitudinal force follows kappa.
-             Combined slip (MF 5.2 weighting functions, without shifts), clipped at 0:
+             Combined slip (MF 5.2 weighting functions, without shifts, clipped at 0), then turned toward
+             the sliding velocity as the tire slides (sliding_blend): a locked tire pushes against its
+             contact point's sliding velocity; pure slip and small combined slip stay MF 5.2:
                Fx = Gxa Fx0, Gxa = cos(RCX1 atan(Bxa a - Exa (Bxa a - atan(Bxa a)))),
                  Bxa = RBX1 cos(atan(RBX2 k)) LXAL, Exa = min(REX1 + REX2 dfz, 1)
                Fy = Gyk Fy0, Gyk = cos(RCY1 atan(Byk k - Eyk (Byk k - atan(Byk k)))),
@@ -128,6 +131,36 @@ def tire_forces(c: dict, fz, kappa, alpha):
     return gxa * fx0, gyk * fy0, mux, muy
 
 
+def sliding_blend(fx, fy, slide_x, slide_y, reference_speed):
+    """The Magic Formula force turned toward the sliding velocity as the tire slides (wheel frame).
+
+    MF 5.2's combined-slip weighting does not make a sliding tire push against its sliding velocity: a
+    locked, steered tire keeps a force along its own axis and steers the car. With the sliding velocity
+    V_s = (v_cx - omega R, v_cy) and the sliding share s = |V_s| / sqrt(v_cx^2 + v_cy^2 + v_low^2) (0 rolling
+    freely, 1 locked), lambda = min(s, 1)^4 and
+        F = (1 - lambda) F_MF + lambda |F_MF| (-V_s / |V_s|).
+    In pure slip (v_cy = 0, or omega R = v_cx) -V_s is along F_MF, so F = F_MF exactly; at small combined
+    slip F differs from MF 5.2 by O(s^4); a locked tire (s -> 1) pushes exactly against its sliding velocity
+    with the MF magnitude."""
+    slide = ca.sqrt(slide_x**2 + slide_y**2 + TINY**2)
+    share = ca.fmin(slide / reference_speed, 1) ** 4
+    magnitude = ca.sqrt(fx**2 + fy**2 + TINY**2)
+    return ((1 - share) * fx - share * magnitude * slide_x / slide,
+            (1 - share) * fy - share * magnitude * slide_y / slide)
+
+
+def wheel_forces(c: dict, fz, wheel_x, wheel_y, surface_speed):
+    """Tire forces (Fx, Fy) in the wheel frame and (mux, muy) from the contact-point velocity in the wheel
+    frame (wheel_x, wheel_y) and the wheel's surface speed omega R: slip, MF 5.2, sliding blend."""
+    slip_speed = ca.sqrt(wheel_x**2 + SLIP_SPEED_FLOOR**2)
+    kappa = (surface_speed - wheel_x) / slip_speed
+    alpha = ca.atan(wheel_y / slip_speed)
+    fx, fy, mux, muy = tire_forces(c, fz, kappa, alpha)
+    fx, fy = sliding_blend(fx, fy, wheel_x - surface_speed, wheel_y,
+                           ca.sqrt(wheel_x**2 + wheel_y**2 + SLIP_SPEED_FLOOR**2))
+    return fx, fy, mux, muy
+
+
 def smooth_sign(value, width):
     """value / sqrt(value^2 + width^2): a differentiable sign for Coulomb friction."""
     return value / ca.sqrt(value**2 + width**2)
@@ -159,6 +192,9 @@ def equations() -> Equations:
     brake_torque = s["brake"] * s["brake_decel_max"] * m * radius
     brake_share = {True: s["brake_front_share"], False: 1 - s["brake_front_share"]}
 
+    # lateral-force compliance steer of the front wheels (steering system and suspension): the front axle
+    # carries m a_y b / L in steady state; a_y lagged as for the load transfer (no algebraic loop)
+    steer_front = s["steer"] - s["steer_compliance"] * m * s["load_ay"] * b / wheelbase
     force_x = force_y = yaw_moment = 0
     friction_used = 0
     spin_derivatives, wheel_indicators, wheel_modes = [], [], []
@@ -169,15 +205,12 @@ def equations() -> Equations:
         fz = (static[is_front] + (-1 if is_front else 1) * longitudinal_transfer
               - side * m * s["load_ay"] * h * roll_share[is_front] / track[is_front])
         fz = ca.fmax(fz, 0)  # a lifted wheel carries no load
-        delta = s["steer"] if is_front else 0
+        delta = steer_front if is_front else 0
         contact_x, contact_y = vx - r * y_i, vy + r * x_i
         wheel_x = contact_x * ca.cos(delta) + contact_y * ca.sin(delta)
         wheel_y = -contact_x * ca.sin(delta) + contact_y * ca.cos(delta)
         omega, mode = s[f"wheel_speed_{w}"], s[f"wheel_mode_{w}"]
-        slip_speed = ca.sqrt(wheel_x**2 + SLIP_SPEED_FLOOR**2)
-        kappa = (omega * radius - wheel_x) / slip_speed
-        alpha = ca.atan(wheel_y / slip_speed)
-        fx, fy, mux, muy = tire_forces(wheel_coefficients(s, w), fz, kappa, alpha)
+        fx, fy, mux, muy = wheel_forces(wheel_coefficients(s, w), fz, wheel_x, wheel_y, omega * radius)
 
         body_x = fx * ca.cos(delta) - fy * ca.sin(delta)
         body_y = fx * ca.sin(delta) + fy * ca.cos(delta)

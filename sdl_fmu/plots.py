@@ -230,6 +230,38 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
     ax.set_xlabel("time [s]")
 
 
+def _plot_yaw_panel(result: RunResult, ax, time: np.ndarray, brk_runs) -> None:
+    """Heading, side slip and road-wheel steer (deg, left axis) and yaw rate (deg/s, right axis): a skid or
+    spin and the driver's counter-steer at a glance. ISO 8855 signs: + left (counter-clockwise)."""
+    cols = result.columns
+    step = _stride(len(time))
+    t = time[::step]
+    _shade_brk(ax, time, brk_runs, label=False)
+    _mark_events(ax, _timed_events(result))
+    heading = np.degrees(np.asarray(cols["psi"], dtype=float))
+    sideslip = np.degrees(np.arctan2(np.asarray(cols["vy"], dtype=float), np.asarray(cols["vx"], dtype=float)))
+    steer = np.degrees(np.asarray(cols["steer"], dtype=float))
+    ax.plot(t, heading[::step], color="tab:blue", lw=1.5, label="heading psi")
+    ax.plot(t, sideslip[::step], color="tab:orange", lw=1.2, label="side slip beta")
+    ax.plot(t, steer[::step], color="tab:purple", lw=1.2, label="steer (road wheels)")
+    ax.set_ylabel("angle [deg] (+ left)")
+    rate_ax = ax.twinx()
+    yaw_rate = np.degrees(np.asarray(cols["yaw_rate"], dtype=float))
+    rate_ax.plot(t, yaw_rate[::step], color="tab:red", lw=1.0, ls="--", label="yaw rate")
+    limit = max(float(np.nanmax(np.abs(yaw_rate))) if np.isfinite(yaw_rate).any() else 0.0, 1.0) * 1.15
+    rate_ax.set_ylim(-limit, limit)
+    rate_ax.set_ylabel("yaw rate [deg/s]", color="tab:red")
+    rate_ax.tick_params(axis="y", colors="tab:red")
+    angles = np.concatenate([heading, sideslip, steer])
+    angle_limit = max(float(np.nanmax(np.abs(angles))) if np.isfinite(angles).any() else 0.0, 1.0) * 1.15
+    ax.set_ylim(-angle_limit, angle_limit)  # zero of both axes on one line
+    handles = ax.get_legend_handles_labels()[0] + rate_ax.get_legend_handles_labels()[0]
+    ax.legend(handles=handles, loc="upper right", fontsize=8, ncols=4)
+    ax.set_title("heading, side slip, steering and yaw rate (a skid: heading and yaw rate away from 0, "
+                 "counter-steer opposite)", fontsize=10, loc="left")
+    ax.set_xlabel("time [s]")
+
+
 def _surface_style(result: RunResult):
     """(colour of a section value, colorbar mappable or None, legend handles) for the RSA patches."""
     values = [section.value for section in result.surfaces]
@@ -375,26 +407,28 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
 
 
 def plot_run(result: RunResult, path: Path) -> None:
-    """Write plot.png: speed, distance, inputs and friction over time, and the road seen from above."""
+    """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above."""
     units = result.units
     length = length_label(units)
     time = np.asarray(result.columns["time"], dtype=float)
     brk_runs = _runs(np.asarray(result.columns["brk"], dtype=float) > 0.5) if len(time) else []
     focus = _focus(result, time)
 
-    figure = Figure(figsize=(16, 11), dpi=110, layout="constrained")
+    figure = Figure(figsize=(16, 13.5), dpi=110, layout="constrained")
     FigureCanvasAgg(figure)
-    grid = figure.add_gridspec(4, 2, height_ratios=[1.15, 1.0, 1.05, 1.05])
+    grid = figure.add_gridspec(5, 2, height_ratios=[1.15, 1.0, 0.95, 1.05, 1.05])
     axes = {"speed": figure.add_subplot(grid[0, 0])}
     axes["distance"] = figure.add_subplot(grid[0, 1], sharex=axes["speed"])
     axes["pedals"] = figure.add_subplot(grid[1, 0], sharex=axes["speed"])
     axes["friction"] = figure.add_subplot(grid[1, 1], sharex=axes["speed"])
-    road_ax = figure.add_subplot(grid[2, :] if focus else grid[2:, :])
-    zoom_ax = figure.add_subplot(grid[3, :]) if focus else None
+    axes["yaw"] = figure.add_subplot(grid[2, :], sharex=axes["speed"])
+    road_ax = figure.add_subplot(grid[3, :] if focus else grid[3:, :])
+    zoom_ax = figure.add_subplot(grid[4, :]) if focus else None
     for ax in axes.values():
         ax.grid(True, alpha=0.3)
     if len(time):
         _plot_time_panels(result, axes, time, brk_runs)
+        _plot_yaw_panel(result, axes["yaw"], time, brk_runs)
         axes["speed"].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1)
 
     # bird's-eye view of the whole run

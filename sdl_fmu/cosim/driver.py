@@ -1,6 +1,7 @@
 """The driver model: the ego's controller whenever no event overrides it. Holds the start speed
 (PI on speed with a feedforward of the rolling and air resistance) and the centre of its lane
-(pure pursuit of a point one preview distance ahead on the lane centre)."""
+(pure pursuit of a point one preview distance ahead on the lane centre, plus yaw-rate feedback: when the
+car yaws faster than the path asks for, as in a skid, the driver counter-steers, within MAX_STEER)."""
 
 from __future__ import annotations
 
@@ -16,6 +17,9 @@ BRAKE_DEADBAND = 0.5  # m/s2: the driver coasts for smaller decelerations and br
 PREVIEW_TIME = 1.0  # s
 MIN_PREVIEW = 5.0  # m
 MAX_STEER = 0.5  # rad
+# s: road-wheel angle per rad/s of yaw rate beyond the pure-pursuit path's (v tan(steer) / L). Counter-steer
+# of 0.3 rad for a 1 rad/s skid; in steady lane keeping the two yaw rates agree and it adds nothing.
+YAW_RATE_GAIN = 0.3
 
 
 @dataclass
@@ -35,6 +39,8 @@ class Driver:
         preview = max(PREVIEW_TIME * state.v, MIN_PREVIEW)
         alpha = math.atan2(-self.target_lateral - state.y, preview) - state.psi
         steer = math.atan(2 * self.wheelbase * math.sin(alpha) / preview)
+        path_yaw_rate = state.vx * math.tan(steer) / self.wheelbase
+        steer += YAW_RATE_GAIN * (path_yaw_rate - state.yaw_rate)
         return min(max(steer, -MAX_STEER), MAX_STEER)
 
     def pedals(self, state: EgoState) -> tuple[float, float]:

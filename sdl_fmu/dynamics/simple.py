@@ -14,7 +14,7 @@ front wheels are steered by `steer` (parallel steer). Per wheel, with the contac
               F_w = clamp(-C_i s_i, -sqrt((mu_i Fz)^2 - F_u^2), +sqrt(...))
   sliding   (brake demand > mu_i Fz: the brake locks the wheel): it slides; its force opposes its
             contact point's sliding velocity c_i, with no lateral guidance left:
-              F = -(mu_i + f_r) Fz c_i / |c_i|
+              F = -(mu_i + f_r) Fz c_i / sqrt(|c_i|^2 + (rho_p r)^2)   (rho_p: CONTACT_PATCH_RADIUS)
   sigma_i = +1 while the wheel rolls (slides) forward, -1 backward: a discrete state switched by an event
             when the longitudinal contact velocity crosses 0, so that brake and rolling resistance
             oppose the motion exactly (Coulomb friction) and the right-hand side is continued smoothly

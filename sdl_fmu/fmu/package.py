@@ -25,6 +25,10 @@ WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
 FMI_VERSIONS = (2, 3)
 # binaries/<platform>/ of this machine's binary, as each FMI version names the platform
 LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
+# the standard's headers (BSD-2-Clause, shipped with fmpy), copied into sources/ so that one compiler line
+# rebuilds the binary anywhere, without an FMI SDK
+FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+               3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
 
 
 class BuildError(RuntimeError):
@@ -113,6 +117,8 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
             shutil.copytree(generated, sources_dir)
             for name in runtime_sources(version):
                 shutil.copy(RUNTIME_DIRECTORY / name, sources_dir / name)
+            for name in FMI_HEADERS[version]:
+                shutil.copy(fmi_headers() / name, sources_dir / name)
             sources = [*runtime_sources(version), model_source.name]
             (sources_dir / "buildDescription.xml").write_bytes(build_description(model, sources))
             if version == 2:

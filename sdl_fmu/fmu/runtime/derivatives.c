@@ -185,8 +185,8 @@ static Status partial_derivative(Instance *instance, Direction direction, const 
         for (i = 0; i < n; i++)
             if (!isfinite(sensitivity[i])) {
                 instance_log(instance, STATUS_WARNING, "logStatusWarning",
-                             "partial derivative: the %s sensitivity %zu is not finite at t = %.17g",
-                             direction == FORWARD ? "directional" : "adjoint", i, instance->now.time);
+                             "partial derivative: the %s sensitivity %lu is not finite at t = %.17g",
+                             direction == FORWARD ? "directional" : "adjoint", (unsigned long)i, instance->now.time);
                 status = STATUS_WARNING;
                 break;
             }

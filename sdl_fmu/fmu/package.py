@@ -11,8 +11,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_model_source,
-                      model_guid, runtime_sources, variable_table)
+from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
+                      generate_model_source, model_guid, runtime_sources, variable_table)
 from .structure import declared_dependencies, reinitialized_states
 from .xml import build_description, model_description, model_description_fmi3
 
@@ -63,12 +63,25 @@ def _compile_flags(sources_dir: Path) -> list[str]:
             f"-I{sources_dir}"]
 
 
-def compile_object(sources_dir: Path, source: str, output: Path, compiler: str | None = None) -> None:
-    """Compiles one source into an object, e.g. the model code that FMI 2.0 and 3.0 binaries share."""
+def compile_objects(sources_dir: Path, sources: list[str], directory: Path, compiler: str | None = None) -> list[Path]:
+    """Compiles sources into objects side by side (one compiler process each), e.g. the model code that the
+    FMI 2.0 and 3.0 binaries share."""
     compiler = _compiler(compiler)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    _run_compiler([compiler, *_compile_flags(sources_dir), "-c", str(sources_dir / source), "-o", str(output)],
-                  output)
+    directory.mkdir(parents=True, exist_ok=True)
+    jobs = []
+    for source in sources:
+        output = directory / (Path(source).stem + ".o")
+        command = [compiler, *_compile_flags(sources_dir), "-c", str(sources_dir / source), "-o", str(output)]
+        jobs.append((command, output, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                                        text=True)))
+    failures = []
+    for command, output, process in jobs:
+        _, errors = process.communicate()
+        if process.returncode != 0:
+            failures.append(f"compiling {output.name} failed:\n{' '.join(command)}\n{errors}")
+    if failures:
+        raise BuildError("\n".join(failures))
+    return [output for _, output, _ in jobs]
 
 
 def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
@@ -102,11 +115,11 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
         generated.mkdir()
         functions, casadi_source = generate_casadi(equations, generated)
         guid = model_guid(equations.interface, casadi_source)
-        model_source = generate_model_source(equations, functions, guid, generated)
+        model_sources = [generate_model_source(equations, functions, guid, generated).name,
+                         generate_derivatives_source(equations, generated).name]
         for name in RUNTIME_HEADERS:
             shutil.copy(RUNTIME_DIRECTORY / name, generated / name)
-        model_object = Path(work) / f"{model}_model.o"
-        compile_object(generated, model_source.name, model_object)
+        model_objects = compile_objects(generated, model_sources, Path(work) / "objects")
         nz = functions["event_indicators"].size1_out(0)
         table = variable_table(equations.interface, nz)
         dependencies = declared_dependencies(equations, table)
@@ -119,7 +132,7 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
                 shutil.copy(RUNTIME_DIRECTORY / name, sources_dir / name)
             for name in FMI_HEADERS[version]:
                 shutil.copy(fmi_headers() / name, sources_dir / name)
-            sources = [*runtime_sources(version), model_source.name]
+            sources = [*runtime_sources(version), *model_sources]
             (sources_dir / "buildDescription.xml").write_bytes(build_description(model, sources))
             if version == 2:
                 description = model_description(equations.interface, table, guid, nz, sources, dependencies)
@@ -128,7 +141,8 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
                                                      reinitialized_states(equations))
             (root / "modelDescription.xml").write_bytes(description)
             compile_binary(sources_dir, list(runtime_sources(version)),
-                           root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so", objects=(model_object,))
+                           root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
+                           objects=tuple(model_objects))
             targets.append(_zip_fmu(root, fmu_path(out_dir, dynamics, version)))
     return targets
 

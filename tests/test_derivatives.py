@@ -5,7 +5,6 @@ against the declared dependencies, co-simulation against model exchange, and ini
 with respect to parameters and inputs)."""
 
 import ctypes
-import math
 
 import numpy as np
 import pytest

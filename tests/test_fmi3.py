@@ -12,7 +12,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from test_simple_fmu import (COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, MU, V0, expected_distance, start_values)
+from test_simple_fmu import COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, expected_distance, start_values
 
 MODELS = {"simple": "EgoVehicleSimple", "advanced": "EgoVehicleAdvanced"}
 

@@ -5,6 +5,7 @@
 
 #include <string.h>
 
+#include "derivatives.h"
 #include "instance.h"
 
 typedef struct {
@@ -301,16 +302,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", ANY_MODE);
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
+    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", GET_MODES);
     if (!instance) return fmi2Error;
-    instance_log(instance, STATUS_ERROR, "logStatusError", "directional derivatives are not provided");
-    return fmi2Error;
+    return (fmi2Status)instance_directional_derivative(instance, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
+                                                       dvUnknown);
 }
 
 /* ---- model exchange --------------------------------------------------------------------------- */

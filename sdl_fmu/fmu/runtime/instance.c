@@ -250,6 +250,8 @@ static Status ensure_computed(Instance *instance, Store store) {
     } else if (store == STORE_DERIVATIVE && !instance->derivatives_valid) {
         status = instance_derivatives(instance, instance->now.x, instance->now.d, instance->xdot);
         instance->derivatives_valid = status == STATUS_OK;
+    } else if (store == STORE_EVENT_INDICATOR) {
+        status = instance_event_indicators(instance, instance->now.x, instance->now.d, instance->z);
     }
     return status;
 }
@@ -262,6 +264,7 @@ static double stored_value(const Instance *instance, const ModelVariable *variab
     case STORE_DERIVATIVE: return instance->xdot[variable->index];
     case STORE_DISCRETE: return instance->now.d[variable->index];
     case STORE_OUTPUT: return instance->y[variable->index];
+    case STORE_EVENT_INDICATOR: return instance->z[variable->index];
     }
     return 0.0;
 }

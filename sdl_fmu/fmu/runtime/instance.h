@@ -27,8 +27,11 @@ typedef void (*FreeFn)(void *pointer);
 /* status, category, message: the FMI layer turns this into the importer's logger call */
 typedef void (*LogFn)(void *instance, Status status, const char *category, const char *message);
 
+#define SNAPSHOT_TAG 0x53444c46u /* "SDLF": marks memory that snapshot_create made */
+
 /* The part of an instance that fmi2GetFMUstate saves and fmi2SetFMUstate restores. */
 typedef struct {
+    unsigned int tag; /* set by snapshot_create: SetFMUstate refuses anything else */
     double time;
     Mode mode;
     double *x, *d, *u, *p;
@@ -97,6 +100,9 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
 void snapshot_free(Instance *instance, Snapshot *snapshot);
 size_t snapshot_serialized_size(const Instance *instance);
 void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char *bytes);
+/* Checks a state field by field (mode word, finite time and values, inputs and parameters in range) before
+ * it may touch an instance; deserialize also checks size, GUID hash and checksum. */
+Status snapshot_check(Instance *instance, const Snapshot *snapshot);
 Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, Snapshot *snapshot);
 
 #endif

@@ -1,4 +1,4 @@
-"""Builds the ego-vehicle FMUs into dist/fmi2/ (same as `sdl-fmu build`)."""
+"""Builds the ego-vehicle FMUs into dist/fmi2/ and dist/fmi3/ (same as `sdl-fmu build`)."""
 
 import sys
 

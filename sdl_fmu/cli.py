@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .fmu.package import MODELS, BuildError, build_fmu, fmu_path
+from .fmu.package import FMI_VERSIONS, MODELS, BuildError, build_fmu, build_fmus, fmu_path
 
 
 class UsageError(Exception):
@@ -15,8 +15,10 @@ class UsageError(Exception):
 
 def _build(args) -> int:
     names = list(MODELS) if args.dynamics == "all" else [args.dynamics]
+    versions = list(FMI_VERSIONS) if args.fmi_version == "all" else [int(args.fmi_version)]
     for dynamics in names:
-        print(build_fmu(dynamics, Path(args.out), args.fmi_version))
+        for path in build_fmus(dynamics, Path(args.out), tuple(versions)):
+            print(path)
     return 0
 
 
@@ -135,7 +137,8 @@ def parser() -> argparse.ArgumentParser:
 
     build = commands.add_parser("build", help="build the ego-vehicle FMUs")
     build.add_argument("--dynamics", choices=[*MODELS, "all"], default="all")
-    build.add_argument("--fmi-version", type=int, choices=[2, 3], default=2)
+    build.add_argument("--fmi-version", choices=[*map(str, FMI_VERSIONS), "all"], default="all",
+                       help="FMI version of the FMUs: 2, 3 or all (default: all, into OUT/fmi2/ and OUT/fmi3/)")
     build.add_argument("--out", default="dist", help="output folder (default: dist)")
     build.set_defaults(handler=_build)
 

@@ -1,4 +1,5 @@
-"""Shared fixtures: the real FMUs, built once per test session into a temporary folder; wine, started once."""
+"""Shared fixtures: the real FMUs, built once per test session into a temporary folder (FMI 2.0 and 3.0 of
+each model from one code generation and one compilation of the model code); wine, started once."""
 
 import os
 import shutil
@@ -7,17 +8,29 @@ from pathlib import Path
 
 import pytest
 
-from sdl_fmu.fmu.package import build_fmu
+from sdl_fmu.fmu.package import FMI_VERSIONS, build_fmus
 
 
 @pytest.fixture(scope="session")
-def simple_fmu(tmp_path_factory):
-    return build_fmu("simple", tmp_path_factory.mktemp("dist"))
+def simple_fmus(tmp_path_factory):
+    """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of the Simple model."""
+    return dict(zip(FMI_VERSIONS, build_fmus("simple", tmp_path_factory.mktemp("dist"), FMI_VERSIONS)))
 
 
 @pytest.fixture(scope="session")
-def advanced_fmu(tmp_path_factory):
-    return build_fmu("advanced", tmp_path_factory.mktemp("dist"))
+def advanced_fmus(tmp_path_factory):
+    """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of the Advanced model."""
+    return dict(zip(FMI_VERSIONS, build_fmus("advanced", tmp_path_factory.mktemp("dist"), FMI_VERSIONS)))
+
+
+@pytest.fixture(scope="session")
+def simple_fmu(simple_fmus):
+    return simple_fmus[2]
+
+
+@pytest.fixture(scope="session")
+def advanced_fmu(advanced_fmus):
+    return advanced_fmus[2]
 
 
 @pytest.fixture(scope="session")

@@ -11,11 +11,19 @@ import casadi as ca
 
 from ..dynamics.equations import Equations
 from ..interface import DISCRETE, INPUT, OUTPUT, PARAMETER, STATE, Interface, Variable
+from .structure import DERIVATIVE_FUNCTIONS, derivative_functions
 
 RUNTIME_DIRECTORY = Path(__file__).parent / "runtime"
-RUNTIME_SOURCES = ("instance.c", "cosimulation.c", "fmi2Functions.c")
-RUNTIME_HEADERS = ("model.h", "instance.h")
-FUNCTION_ORDER = ("derivatives", "jacobian", "outputs", "event_indicators", "discrete_update", "initial_state")
+RUNTIME_SOURCES = ("instance.c", "cosimulation.c", "derivatives.c")  # shared by FMI 2.0 and 3.0
+FMI_SOURCES = {2: "fmi2Functions.c", 3: "fmi3Functions.c"}  # the FMI layer of each version
+RUNTIME_HEADERS = ("model.h", "instance.h", "derivatives.h")
+FUNCTION_ORDER = ("derivatives", "jacobian", "outputs", "event_indicators", "discrete_update", "initial_state",
+                  *DERIVATIVE_FUNCTIONS)
+
+
+def runtime_sources(fmi_version: int) -> tuple[str, ...]:
+    """The runtime's C files that an FMU of this FMI version compiles."""
+    return (*RUNTIME_SOURCES, FMI_SOURCES[fmi_version])
 
 _STORE = {STATE: "STORE_STATE", DISCRETE: "STORE_DISCRETE", INPUT: "STORE_INPUT", PARAMETER: "STORE_PARAMETER",
           OUTPUT: "STORE_OUTPUT"}
@@ -31,11 +39,18 @@ class TableEntry:
     store: str
     index: int
     settable: str
-    variable: Variable | None  # None for the der(...) variables
+    variable: Variable | None  # None for the der(...) and event indicator variables
     derivative_of: int | None = None  # value reference of the state, for der(...)
+    event_indicator: int | None = None  # position in z, for the event indicator variables
 
 
-def variable_table(interface: Interface) -> list[TableEntry]:
+def event_indicator_name(index: int) -> str:
+    return f"event_indicator_{index + 1}"
+
+
+def variable_table(interface: Interface, event_indicators: int = 0) -> list[TableEntry]:
+    """Interface variables, then der(state) per state, then one Real local per event indicator (FMI 3.0's
+    ModelStructure names event indicators by variable; FMI 2.0 FMUs carry the same table)."""
     entries = []
     for v in interface.variables:
         if v.role == INPUT:
@@ -51,6 +66,9 @@ def variable_table(interface: Interface) -> list[TableEntry]:
             TableEntry(f"der({state.name})", "KIND_REAL", "STORE_DERIVATIVE", state.index, "SET_NEVER", None,
                        derivative_of=state_references[state.index])
         )
+    for k in range(event_indicators):
+        entries.append(TableEntry(event_indicator_name(k), "KIND_REAL", "STORE_EVENT_INDICATOR", k, "SET_NEVER", None,
+                                  event_indicator=k))
     return entries
 
 
@@ -81,8 +99,8 @@ def model_guid(interface: Interface, casadi_source: str) -> str:
 
 def generate_casadi(equations: Equations, directory: Path) -> tuple[dict, str]:
     """Writes <Model>_casadi.c/.h; returns the functions and the C source."""
-    functions = equations.functions()
     model = equations.interface.model_name
+    functions = {**equations.functions(), **derivative_functions(equations, model)}
     generator = ca.CodeGenerator(f"{model}_casadi.c", {"with_header": True, "casadi_int": "long long int"})
     for key in FUNCTION_ORDER:
         generator.add(functions[key])
@@ -94,8 +112,8 @@ def generate_model_source(equations: Equations, functions: dict, guid: str, dire
     """Writes <Model>_model.c: the variable table and ModelInfo around CasADi's functions."""
     interface = equations.interface
     model = interface.model_name
-    table = variable_table(interface)
     nz = functions["event_indicators"].size1_out(0)
+    table = variable_table(interface, nz)
     inputs = interface.of_role(INPUT)
     parameters = interface.of_role(PARAMETER)
     states = interface.of_role(STATE)

@@ -1,5 +1,5 @@
-"""Builds an FMU: CasADi C code + generated table + generic runtime, compiled by gcc, zipped with its
-modelDescription.xml and its sources (so any platform can rebuild it)."""
+"""Builds an FMU: CasADi C code + generated table + generic runtime, compiled by gcc (Linux) and mingw-w64
+(Windows), zipped with its modelDescription.xml and its sources (so any platform can rebuild it)."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, RUNTIME_SOURCES, generate_casadi, generate_model_source,
-                      model_guid, variable_table)
-from .xml import build_description, model_description
+from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_model_source,
+                      model_guid, runtime_sources, variable_table)
+from .structure import declared_dependencies, reinitialized_states
+from .xml import build_description, model_description, model_description_fmi3
 
 # dynamics name -> (model name, module with equations())
 MODELS = {
@@ -26,8 +27,10 @@ WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
 EXPORT_FLAGS = ["-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
 # mingw-w64 cross compiler (Debian gcc-mingw-w64-x86-64); override with SDL_FMU_MINGW_CC
 MINGW_COMPILER = "x86_64-w64-mingw32-gcc"
-# binaries/<platform>/ per FMI version: (Linux, Windows)
-PLATFORMS = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
+FMI_VERSIONS = (2, 3)
+# binaries/<platform>/ of each binary, as each FMI version names the platform
+LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
+WINDOWS_BINARY_DIRECTORY = {2: "win64", 3: "x86_64-windows"}
 
 
 class BuildError(RuntimeError):
@@ -50,76 +53,137 @@ def mingw_compiler() -> str | None:
     return compiler if shutil.which(compiler) else None
 
 
-def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
-                   windows: bool = False, extra_flags: tuple[str, ...] = ()) -> None:
-    """Compiles the FMU's sources into one shared library: a Linux .so with gcc, or (windows=True) a Windows
-    DLL with mingw-w64 whose runtime libraries are linked statically, so that it needs system DLLs only."""
-    compile_binaries([dict(sources_dir=sources_dir, sources=sources, output=output, compiler=compiler,
-                           windows=windows, extra_flags=extra_flags)])
+def _compiler(compiler: str | None) -> str:
+    compiler = compiler or os.environ.get("CC", "gcc")
+    if shutil.which(compiler) is None:
+        raise BuildError(f"C compiler {compiler!r} not found: install gcc (Debian: apt-get install gcc)")
+    return compiler
 
 
-def compile_binaries(jobs: list[dict]) -> None:
-    """Runs several compile_binary jobs side by side (the Linux and the Windows binary of one FMU)."""
-    running = []
-    for job in jobs:
-        compiler = job.get("compiler") or os.environ.get("CC", "gcc")
-        if shutil.which(compiler) is None:
-            raise BuildError(f"C compiler {compiler!r} not found: install gcc (Debian: apt-get install gcc)")
-        sources_dir, output = job["sources_dir"], job["output"]
-        output.parent.mkdir(parents=True, exist_ok=True)
-        platform_flags = ["-static-libgcc", "-Wl,--no-insert-timestamp"] if job.get("windows") else ["-fPIC"]
-        command = [compiler, "-std=c99", "-O2", *platform_flags, "-shared", *EXPORT_FLAGS, *WARNING_FLAGS,
-                   *job.get("extra_flags", ()), f"-I{fmi_headers()}", f"-I{sources_dir}",
-                   *[str(sources_dir / s) for s in job["sources"]], "-o", str(output), "-lm"]
-        running.append((command, output, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                                          text=True)))
+def _compile_flags(sources_dir: Path, windows: bool, extra_flags: tuple[str, ...]) -> list[str]:
+    position_independent = [] if windows else ["-fPIC"]  # Windows code is always position independent
+    return ["-std=c99", "-O2", *position_independent, *EXPORT_FLAGS, *WARNING_FLAGS, *extra_flags,
+            f"-I{fmi_headers()}", f"-I{sources_dir}"]
+
+
+def _object_command(sources_dir: Path, source: str, output: Path, compiler: str | None = None,
+                    windows: bool = False, extra_flags: tuple[str, ...] = ()) -> list[str]:
+    output.parent.mkdir(parents=True, exist_ok=True)
+    return [_compiler(compiler), *_compile_flags(sources_dir, windows, extra_flags), "-c", str(sources_dir / source),
+            "-o", str(output)]
+
+
+def _binary_command(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
+                    objects: tuple[Path, ...] = (), windows: bool = False,
+                    extra_flags: tuple[str, ...] = ()) -> list[str]:
+    # a Windows DLL links libgcc statically, so that it needs system DLLs only (KERNEL32, msvcrt)
+    link_flags = ["-static-libgcc", "-Wl,--no-insert-timestamp"] if windows else []
+    output.parent.mkdir(parents=True, exist_ok=True)
+    return [_compiler(compiler), *_compile_flags(sources_dir, windows, extra_flags), "-shared", *link_flags,
+            *[str(sources_dir / s) for s in sources], *map(str, objects), "-o", str(output), "-lm"]
+
+
+def _run_compilers(commands: list[list[str]]) -> None:
+    """Runs compiler commands side by side (gcc and mingw-w64 at once); raises BuildError naming each failure."""
+    running = [(command, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+               for command in commands]
     failures = []
-    for command, output, process in running:
+    for command, process in running:
         _, stderr = process.communicate()
         if process.returncode != 0:
-            failures.append(f"compiling {output.name} failed:\n{' '.join(command)}\n{stderr}")
+            failures.append(f"compiling {Path(command[-1]).name} failed:\n{' '.join(command)}\n{stderr}")
     if failures:
         raise BuildError("\n".join(failures))
 
 
+def compile_object(sources_dir: Path, source: str, output: Path, compiler: str | None = None,
+                   windows: bool = False) -> None:
+    """Compiles one source into an object, e.g. the model code that FMI 2.0 and 3.0 binaries share."""
+    _run_compilers([_object_command(sources_dir, source, output, compiler, windows)])
+
+
+def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
+                   objects: tuple[Path, ...] = (), windows: bool = False, extra_flags: tuple[str, ...] = ()) -> None:
+    """Compiles and links the FMU's shared library (a Linux .so, or with windows=True and mingw-w64 a DLL);
+    -lm last, so libm is a dependency of the binary itself."""
+    _run_compilers([_binary_command(sources_dir, sources, output, compiler, objects, windows, extra_flags)])
+
+
 def build_fmu(dynamics: str = "simple", out_dir: Path = Path("dist"), fmi_version: int = 2) -> Path:
-    """Builds dist/fmi<version>/<Model>.fmu for one dynamics model and returns its path."""
-    if fmi_version != 2:
-        raise BuildError("only FMI 2.0 FMUs can be built so far")
+    """Builds dist/fmi<version>/<Model>.fmu (FMI 2.0 or 3.0) for one dynamics model and returns its path."""
+    return build_fmus(dynamics, out_dir, (fmi_version,))[0]
+
+
+def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
+               fmi_versions: tuple[int, ...] = FMI_VERSIONS) -> list[Path]:
+    """Builds the FMUs of one dynamics model in several FMI versions from one code generation; the model
+    code (CasADi's C and the variable table) is compiled once per platform and linked into each version's
+    binaries. Without mingw-w64, one line on stderr says so and the FMUs carry the Linux binary only."""
+    for version in fmi_versions:
+        if version not in FMI_VERSIONS:
+            raise BuildError(f"FMI version {version!r} is not supported: choose one of "
+                             f"{', '.join(map(str, FMI_VERSIONS))}")
     model, module = MODELS[dynamics]
     equations = importlib.import_module(module).equations()
-    target = fmu_path(out_dir, dynamics, fmi_version)
+    cross = mingw_compiler()
+    if cross is None:
+        wanted = os.environ.get("SDL_FMU_MINGW_CC", MINGW_COMPILER)
+        print(f"sdl-fmu: {wanted} not found: the {model} FMUs get no Windows binary (Debian: apt-get install "
+              f"gcc-mingw-w64-x86-64)", file=sys.stderr)
+    targets = []
     with tempfile.TemporaryDirectory(prefix=f"{model}-") as work:
-        root = Path(work) / "fmu"
-        sources_dir = root / "sources"
-        sources_dir.mkdir(parents=True)
-        for name in RUNTIME_SOURCES + RUNTIME_HEADERS:
-            shutil.copy(RUNTIME_DIRECTORY / name, sources_dir / name)
-        functions, casadi_source = generate_casadi(equations, sources_dir)
+        generated = Path(work) / "generated"
+        generated.mkdir()
+        functions, casadi_source = generate_casadi(equations, generated)
         guid = model_guid(equations.interface, casadi_source)
-        model_source = generate_model_source(equations, functions, guid, sources_dir)
-        sources = [*RUNTIME_SOURCES, model_source.name]
-        (sources_dir / "buildDescription.xml").write_bytes(build_description(model, sources))
-        table = variable_table(equations.interface)
-        nz = functions["event_indicators"].size1_out(0)
-        (root / "modelDescription.xml").write_bytes(model_description(equations.interface, table, guid, nz, sources))
-        linux, windows = PLATFORMS[fmi_version]
-        jobs = [dict(sources_dir=sources_dir, sources=sources, output=root / "binaries" / linux / f"{model}.so")]
-        cross = mingw_compiler()
+        model_source = generate_model_source(equations, functions, guid, generated)
+        for name in RUNTIME_HEADERS:
+            shutil.copy(RUNTIME_DIRECTORY / name, generated / name)
+        linux_object = Path(work) / f"{model}_model.o"
+        windows_object = Path(work) / f"{model}_model.win64.o"
+        objects = [_object_command(generated, model_source.name, linux_object)]
         if cross:
-            jobs.append(dict(sources_dir=sources_dir, sources=sources, compiler=cross, windows=True,
-                             output=root / "binaries" / windows / f"{model}.dll"))
-        else:
-            wanted = os.environ.get("SDL_FMU_MINGW_CC", MINGW_COMPILER)
-            print(f"sdl-fmu: {wanted} not found: {target.name} gets no Windows binary (Debian: apt-get install "
-                  f"gcc-mingw-w64-x86-64)", file=sys.stderr)
-        compile_binaries(jobs)
+            objects.append(_object_command(generated, model_source.name, windows_object, cross, windows=True))
+        _run_compilers(objects)
+        nz = functions["event_indicators"].size1_out(0)
+        table = variable_table(equations.interface, nz)
+        dependencies = declared_dependencies(equations, table)
 
-        target.parent.mkdir(parents=True, exist_ok=True)
-        partial = target.with_suffix(".fmu.partial")
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            for path in sorted(root.rglob("*")):
-                if path.is_file():
-                    archive.write(path, path.relative_to(root).as_posix())
-        partial.replace(target)  # atomic: a failed build never leaves a half-written FMU
+        roots, links = [], []
+        for version in fmi_versions:
+            root = Path(work) / f"fmi{version}"
+            sources_dir = root / "sources"
+            shutil.copytree(generated, sources_dir)
+            for name in runtime_sources(version):
+                shutil.copy(RUNTIME_DIRECTORY / name, sources_dir / name)
+            sources = [*runtime_sources(version), model_source.name]
+            (sources_dir / "buildDescription.xml").write_bytes(build_description(model, sources))
+            if version == 2:
+                description = model_description(equations.interface, table, guid, nz, sources, dependencies)
+            else:
+                description = model_description_fmi3(equations.interface, table, guid, dependencies,
+                                                     reinitialized_states(equations))
+            (root / "modelDescription.xml").write_bytes(description)
+            runtime = list(runtime_sources(version))
+            links.append(_binary_command(sources_dir, runtime,
+                                         root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
+                                         objects=(linux_object,)))
+            if cross:
+                links.append(_binary_command(sources_dir, runtime,
+                                             root / "binaries" / WINDOWS_BINARY_DIRECTORY[version] / f"{model}.dll",
+                                             cross, objects=(windows_object,), windows=True))
+            roots.append((root, fmu_path(out_dir, dynamics, version)))
+        _run_compilers(links)
+        targets = [_zip_fmu(root, target) for root, target in roots]
+    return targets
+
+
+def _zip_fmu(root: Path, target: Path) -> Path:
+    target.parent.mkdir(parents=True, exist_ok=True)
+    partial = target.with_suffix(".fmu.partial")
+    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
+        for path in sorted(root.rglob("*")):
+            if path.is_file():
+                archive.write(path, path.relative_to(root).as_posix())
+    partial.replace(target)  # atomic: a failed build never leaves a half-written FMU
     return target

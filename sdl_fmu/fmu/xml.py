@@ -8,6 +8,7 @@ import xml.etree.ElementTree as ET
 from .. import __version__
 from ..interface import INPUT, OUTPUT, PARAMETER, STATE, DISCRETE, Interface
 from .codegen import TableEntry
+from .structure import DeclaredDependencies
 
 LOG_CATEGORIES = {
     "logEvents": "Events located by the FMU: stops, starts, mode changes (debug logging)",
@@ -20,8 +21,8 @@ def _number(value) -> str:
     return str(int(number)) if number.is_integer() and abs(number) < 1e15 else repr(number)
 
 
-def _unit_definitions(parent: ET.Element, interface: Interface) -> None:
-    used = sorted({v.unit for v in interface.variables if v.unit is not None})
+def _unit_definitions(parent: ET.Element, interface: Interface, extra: tuple[str, ...] = ()) -> None:
+    used = sorted({v.unit for v in interface.variables if v.unit is not None} | set(extra))
     definitions = ET.SubElement(parent, "UnitDefinitions")
     for name in used:
         unit = interface.units[name]
@@ -34,12 +35,19 @@ def _unit_definitions(parent: ET.Element, interface: Interface) -> None:
             ET.SubElement(element, "DisplayUnit", attributes)
 
 
+EVENT_INDICATOR_DESCRIPTION = "Event indicator {}: the model's discrete update happens where it changes sign"
+
+
 def _scalar_variable(parent: ET.Element, entry: TableEntry, value_reference: int) -> None:
     v = entry.variable
-    if v is None:  # der(state)
+    if v is None:  # der(state) or an event indicator
         element = ET.SubElement(parent, "ScalarVariable", name=entry.name, valueReference=str(value_reference),
                                 causality="local", variability="continuous")
-        ET.SubElement(element, "Real", derivative=str(entry.derivative_of))
+        if entry.event_indicator is not None:
+            element.set("description", EVENT_INDICATOR_DESCRIPTION.format(entry.event_indicator + 1))
+            ET.SubElement(element, "Real")
+        else:
+            ET.SubElement(element, "Real", derivative=str(entry.derivative_of))
         return
     attributes = {"name": v.name, "valueReference": str(value_reference), "causality": v.causality,
                   "variability": v.variability}
@@ -69,8 +77,26 @@ def _source_files(parent: ET.Element, sources: list[str]) -> None:
         ET.SubElement(files, "File", name=source)
 
 
+def _dependency_attributes(dependencies: list[tuple[int, str]]) -> dict:
+    """dependencies / dependenciesKind of one unknown (empty lists: it depends on no known)."""
+    return {"dependencies": " ".join(str(vr) for vr, _ in dependencies),
+            "dependenciesKind": " ".join(kind for _, kind in dependencies)}
+
+
+def _structure_lists(table: list[TableEntry]) -> tuple[list[int], list[int], list[int], list[int]]:
+    """Value references of the outputs, derivatives, initial unknowns and event indicators (table order)."""
+    outputs = [i for i, e in enumerate(table, 1) if e.variable is not None and e.variable.causality == "output"]
+    derivatives = [i for i, e in enumerate(table, 1) if e.derivative_of is not None]
+    local_states = [i for i, e in enumerate(table, 1)
+                    if e.variable is not None and e.variable.causality == "local" and e.variable.role == STATE]
+    initial = sorted(set(outputs + derivatives + local_states))
+    indicators = [i for i, e in enumerate(table, 1) if e.event_indicator is not None]
+    return outputs, derivatives, initial, indicators
+
+
 def model_description(interface: Interface, table: list[TableEntry], guid: str, event_indicators: int,
-                      sources: list[str]) -> bytes:
+                      sources: list[str], dependencies: DeclaredDependencies) -> bytes:
+    """FMI 2.0 modelDescription.xml."""
     model = interface.model_name
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0",
@@ -83,7 +109,7 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
         "numberOfEventIndicators": str(event_indicators),
     })
     common = {"modelIdentifier": model, "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
-              "canNotUseMemoryManagementFunctions": "false", "providesDirectionalDerivative": "false"}
+              "canNotUseMemoryManagementFunctions": "false", "providesDirectionalDerivative": "true"}
     # FMI 2.0 names the sources in each interface element; buildDescription.xml says the same for FMI 3 tools
     model_exchange = ET.SubElement(root, "ModelExchange", {**common, "completedIntegratorStepNotNeeded": "true"})
     _source_files(model_exchange, sources)
@@ -103,23 +129,93 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
         _scalar_variable(variables, entry, position)
 
     structure = ET.SubElement(root, "ModelStructure")
-    outputs = [i for i, e in enumerate(table, 1) if e.variable is not None and e.variable.causality == "output"]
-    derivatives = [i for i, e in enumerate(table, 1) if e.variable is None]
-    local_states = [i for i, e in enumerate(table, 1)
-                    if e.variable is not None and e.variable.causality == "local" and e.variable.role == STATE]
-    if outputs:
-        element = ET.SubElement(structure, "Outputs")
-        for i in outputs:
-            ET.SubElement(element, "Unknown", index=str(i))
-    if derivatives:
-        element = ET.SubElement(structure, "Derivatives")
-        for i in derivatives:
-            ET.SubElement(element, "Unknown", index=str(i))
-    initial = sorted(set(outputs + derivatives + local_states))
-    if initial:
-        element = ET.SubElement(structure, "InitialUnknowns")
-        for i in initial:
-            ET.SubElement(element, "Unknown", index=str(i))
+    outputs, derivatives, initial, _ = _structure_lists(table)
+    for name, unknowns, declared in (("Outputs", outputs, dependencies.continuous),
+                                     ("Derivatives", derivatives, dependencies.continuous),
+                                     ("InitialUnknowns", initial, dependencies.initial)):
+        if unknowns:
+            element = ET.SubElement(structure, name)
+            for i in unknowns:
+                ET.SubElement(element, "Unknown", {"index": str(i), **_dependency_attributes(declared[i])})
+    ET.indent(root)
+    return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+_FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
+
+
+def _fmi3_variable(parent: ET.Element, entry: TableEntry, value_reference: int, reinit: set[int]) -> None:
+    v = entry.variable
+    attributes = {"name": entry.name, "valueReference": str(value_reference)}
+    if v is None:  # der(state) or an event indicator
+        attributes.update(causality="local", variability="continuous")
+        if entry.event_indicator is not None:
+            attributes["description"] = EVENT_INDICATOR_DESCRIPTION.format(entry.event_indicator + 1)
+        else:
+            attributes["derivative"] = str(entry.derivative_of)
+        ET.SubElement(parent, "Float64", attributes)
+        return
+    if v.description:
+        attributes["description"] = v.description
+    attributes.update(causality=v.causality, variability=v.variability)
+    if v.role in (STATE, DISCRETE, OUTPUT):
+        attributes["initial"] = "calculated"
+    if v.type == "Real":
+        attributes["unit"] = v.unit
+        if v.nominal is not None:
+            attributes["nominal"] = _number(v.nominal)
+    if v.type in ("Real", "Integer"):
+        if v.min is not None:
+            attributes["min"] = _number(v.min)
+        if v.max is not None:
+            attributes["max"] = _number(v.max)
+    if v.role in (INPUT, PARAMETER):
+        attributes["start"] = _number(v.start) if v.type != "Boolean" else ("true" if v.start else "false")
+    if v.role == STATE and v.index in reinit:
+        attributes["reinit"] = "true"  # the discrete update may set it at an event
+    ET.SubElement(parent, _FMI3_TYPE[v.type], attributes)
+
+
+def model_description_fmi3(interface: Interface, table: list[TableEntry], guid: str,
+                           dependencies: DeclaredDependencies, reinit: set[int]) -> bytes:
+    """FMI 3.0 modelDescription.xml: the same variables (value references 1..n) plus the independent
+    variable time (value reference 0); the sources are named by sources/buildDescription.xml."""
+    model = interface.model_name
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "3.0",
+        "modelName": model,
+        "instantiationToken": guid,
+        "description": interface.description,
+        "generationTool": f"sdl-fmu {__version__} (CasADi code generation)",
+        "generationDateAndTime": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "variableNamingConvention": "structured",
+    })
+    common = {"modelIdentifier": model, "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
+              "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "true"}
+    ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "false"})
+    ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
+                                         "hasEventMode": "false", "maxOutputDerivativeOrder": "0"})
+    _unit_definitions(root, interface, extra=("s",))  # time
+    categories = ET.SubElement(root, "LogCategories")
+    for name, description in LOG_CATEGORIES.items():
+        ET.SubElement(categories, "Category", name=name, description=description)
+    experiment = interface.default_experiment
+    if experiment:
+        ET.SubElement(root, "DefaultExperiment", {k: _number(v) for k, v in experiment.items()})
+    variables = ET.SubElement(root, "ModelVariables")
+    ET.SubElement(variables, "Float64", name="time", valueReference="0", causality="independent",
+                  variability="continuous", unit="s", description="Simulation time")
+    for position, entry in enumerate(table, start=1):
+        _fmi3_variable(variables, entry, position, reinit)
+
+    structure = ET.SubElement(root, "ModelStructure")
+    outputs, derivatives, initial, indicators = _structure_lists(table)
+    for name, unknowns, declared in (("Output", outputs, dependencies.continuous),
+                                     ("ContinuousStateDerivative", derivatives, dependencies.continuous),
+                                     ("InitialUnknown", initial, dependencies.initial),
+                                     ("EventIndicator", indicators, dependencies.continuous)):
+        for i in unknowns:
+            ET.SubElement(structure, name, {"valueReference": str(i), **_dependency_attributes(declared[i])})
     ET.indent(root)
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 

@@ -6,6 +6,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "derivatives.h"
 #include "instance.h"
 
 typedef struct {
@@ -65,12 +66,6 @@ static Instance *checked_cs(fmi2Component c, const char *function, int allowed_m
     return checked_type(c, function, allowed_modes, CO_SIMULATION_ONLY);
 }
 
-/* A state handle from the importer: refused unless snapshot_create made it (for this model). */
-static int valid_snapshot(Instance *instance, const void *state, const char *function) {
-    if (state && ((const Snapshot *)state)->tag == SNAPSHOT_TAG) return 1;
-    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: not an FMU state of this FMU", function);
-    return 0;
-}
 
 static fmi2Status finish(Instance *instance, Status status) {
     if (status >= STATUS_ERROR) instance->now.mode = MODE_ERROR;
@@ -268,7 +263,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Snapshot *snapshot;
     if (!instance || !FMUstate) return fmi2Error;
     snapshot = (Snapshot *)*FMUstate;
-    if (snapshot && !valid_snapshot(instance, snapshot, "fmi2GetFMUstate")) return fmi2Error;
+    if (snapshot && !snapshot_handle_valid(instance, snapshot, "fmi2GetFMUstate")) return fmi2Error;
     if (!snapshot) snapshot = snapshot_create(instance);
     if (!snapshot) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2GetFMUstate: out of memory");
@@ -282,7 +277,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     Instance *instance = checked(c, "fmi2SetFMUstate", ANY_MODE);
     if (!instance) return fmi2Error;
-    if (!valid_snapshot(instance, FMUstate, "fmi2SetFMUstate") ||
+    if (!snapshot_handle_valid(instance, FMUstate, "fmi2SetFMUstate") ||
         snapshot_check(instance, (const Snapshot *)FMUstate) != STATUS_OK)
         return fmi2Error;
     snapshot_copy(instance, &instance->now, (const Snapshot *)FMUstate);
@@ -294,7 +289,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *instance = checked(c, "fmi2FreeFMUstate", ANY_MODE);
     if (!instance || !FMUstate) return fmi2Error;
-    if (*FMUstate && !valid_snapshot(instance, *FMUstate, "fmi2FreeFMUstate")) return fmi2Error;
+    if (*FMUstate && !snapshot_handle_valid(instance, *FMUstate, "fmi2FreeFMUstate")) return fmi2Error;
     snapshot_free(instance, (Snapshot *)*FMUstate);
     *FMUstate = NULL;
     return fmi2OK;
@@ -311,7 +306,7 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
     Instance *instance = checked(c, "fmi2SerializeFMUstate", ANY_MODE);
-    if (!instance || !serializedState || !valid_snapshot(instance, FMUstate, "fmi2SerializeFMUstate"))
+    if (!instance || !serializedState || !snapshot_handle_valid(instance, FMUstate, "fmi2SerializeFMUstate"))
         return fmi2Error;
     if (size < snapshot_serialized_size(instance)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SerializeFMUstate: buffer too small");
@@ -339,16 +334,10 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", ANY_MODE);
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
+    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", GET_MODES);
     if (!instance) return fmi2Error;
-    instance_log(instance, STATUS_ERROR, "logStatusError", "directional derivatives are not provided");
-    return fmi2Error;
+    return (fmi2Status)instance_directional_derivative(instance, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
+                                                       dvUnknown);
 }
 
 /* ---- model exchange --------------------------------------------------------------------------- */
@@ -395,33 +384,13 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStat
 fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
     Instance *instance = checked_me(c, "fmi2SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME);
     if (!instance) return fmi2Error;
-    if (!isfinite(time)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetTime: time %g is not finite", time);
-        return fmi2Error;
-    }
-    instance->now.time = time;
-    instance_invalidate(instance);
-    return fmi2OK;
+    return (fmi2Status)instance_set_time(instance, time);
 }
 
 fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
     Instance *instance = checked_me(c, "fmi2SetContinuousStates", MODE_CONTINUOUS_TIME);
-    size_t i;
     if (!instance) return fmi2Error;
-    if (nx != (size_t)instance->info->nx || (nx > 0 && !x)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetContinuousStates: expected %d states",
-                     instance->info->nx);
-        return fmi2Error;
-    }
-    for (i = 0; i < nx; i++)
-        if (!isfinite(x[i])) {
-            instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetContinuousStates: x[%lu] is not finite",
-                         (unsigned long)i);
-            return fmi2Error;
-        }
-    memcpy(instance->now.x, x, sizeof(double) * nx);
-    instance_invalidate(instance);
-    return fmi2OK;
+    return (fmi2Status)instance_set_states(instance, x, nx);
 }
 
 typedef enum { STATE_VECTOR, INDICATOR_VECTOR } VectorKind;

@@ -1,5 +1,8 @@
 /* Generic instance handling: memory, variable access, evaluation of the model's functions, events,
  * FMU state. Knows the model only through ModelInfo (model.h). */
+#if defined(__MINGW32__) && !defined(__USE_MINGW_ANSI_STDIO)
+#define __USE_MINGW_ANSI_STDIO 1 /* Windows: mingw-w64's C99 vsnprintf (static), not msvcrt's: %zu in messages */
+#endif
 #include "instance.h"
 
 #include <math.h>
@@ -250,6 +253,8 @@ static Status ensure_computed(Instance *instance, Store store) {
     } else if (store == STORE_DERIVATIVE && !instance->derivatives_valid) {
         status = instance_derivatives(instance, instance->now.x, instance->now.d, instance->xdot);
         instance->derivatives_valid = status == STATUS_OK;
+    } else if (store == STORE_EVENT_INDICATOR) {
+        status = instance_event_indicators(instance, instance->now.x, instance->now.d, instance->z);
     }
     return status;
 }
@@ -262,6 +267,7 @@ static double stored_value(const Instance *instance, const ModelVariable *variab
     case STORE_DERIVATIVE: return instance->xdot[variable->index];
     case STORE_DISCRETE: return instance->now.d[variable->index];
     case STORE_OUTPUT: return instance->y[variable->index];
+    case STORE_EVENT_INDICATOR: return instance->z[variable->index];
     }
     return 0.0;
 }
@@ -354,6 +360,34 @@ Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kin
     return STATUS_OK;
 }
 
+Status instance_set_time(Instance *instance, double time) {
+    if (!isfinite(time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "SetTime: time %g is not finite", time);
+        return STATUS_ERROR;
+    }
+    instance->now.time = time;
+    instance_invalidate(instance);
+    return STATUS_OK;
+}
+
+Status instance_set_states(Instance *instance, const double x[], size_t nx) {
+    size_t i;
+    if (nx != (size_t)instance->info->nx || (nx > 0 && !x)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "SetContinuousStates: expected %d states",
+                     instance->info->nx);
+        return STATUS_ERROR;
+    }
+    for (i = 0; i < nx; i++)
+        if (!isfinite(x[i])) {
+            instance_log(instance, STATUS_ERROR, "logStatusError", "SetContinuousStates: x[%lu] is not finite",
+                         (unsigned long)i);
+            return STATUS_ERROR;
+        }
+    memcpy(instance->now.x, x, sizeof(double) * nx);
+    instance_invalidate(instance);
+    return STATUS_OK;
+}
+
 /* ---- FMU state ---------------------------------------------------------------------------- */
 
 Snapshot *snapshot_create(Instance *instance) {
@@ -390,6 +424,12 @@ void snapshot_free(Instance *instance, Snapshot *snapshot) {
     instance->release(snapshot->u);
     instance->release(snapshot->p);
     instance->release(snapshot);
+}
+
+int snapshot_handle_valid(Instance *instance, const void *state, const char *function) {
+    if (state && ((const Snapshot *)state)->tag == SNAPSHOT_TAG) return 1;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: not an FMU state of this FMU", function);
+    return 0;
 }
 
 /* The modes an instance of this interface type can be saved in (never the error state). */

@@ -72,7 +72,9 @@ Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimu
 void instance_free(Instance *instance);
 void instance_reset(Instance *instance);
 void instance_log(Instance *instance, Status status, const char *category, const char *format, ...)
-#if defined(__GNUC__)
+#if defined(__MINGW32__)
+    __attribute__((format(gnu_printf, 4, 5))) /* instance.c formats with mingw-w64's C99 printf */
+#elif defined(__GNUC__)
     __attribute__((format(printf, 4, 5)))
 #endif
     ;
@@ -80,6 +82,10 @@ void instance_log(Instance *instance, Status status, const char *category, const
 /* Variable access by value reference; kind must match the variable's type. */
 Status instance_get(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, void *values);
 Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, const void *values);
+
+/* Model exchange: time and continuous states from the importer (finite, the right number, or refused). */
+Status instance_set_time(Instance *instance, double time);
+Status instance_set_states(Instance *instance, const double x[], size_t nx);
 
 /* Equations */
 void instance_invalidate(Instance *instance);
@@ -100,6 +106,8 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
 void snapshot_free(Instance *instance, Snapshot *snapshot);
 size_t snapshot_serialized_size(const Instance *instance);
 void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char *bytes);
+/* Whether an FMU state handle from the importer was made by snapshot_create (else logs and 0). */
+int snapshot_handle_valid(Instance *instance, const void *state, const char *function);
 /* Checks a state field by field (mode word, finite time and values, inputs and parameters in range) before
  * it may touch an instance; deserialize also checks size, GUID hash and checksum. */
 Status snapshot_check(Instance *instance, const Snapshot *snapshot);

@@ -5,7 +5,8 @@
  *   x  continuous states          d  discrete states (modes, held between events)
  *   u  inputs (Integer inputs are carried as doubles)
  *   p  parameters
- * The runtime (model.c, cosimulation.c, fmi2Functions.c) knows nothing of vehicles.
+ * The runtime (instance.c, cosimulation.c, derivatives.c, fmi2Functions.c, fmi3Functions.c) knows nothing of
+ * vehicles.
  */
 #ifndef SDL_FMU_MODEL_H
 #define SDL_FMU_MODEL_H
@@ -29,7 +30,8 @@ typedef enum {
     STORE_STATE,      /* x[index] */
     STORE_DERIVATIVE, /* der(x[index]) */
     STORE_DISCRETE,   /* d[index] */
-    STORE_OUTPUT      /* y[index], computed by the outputs function */
+    STORE_OUTPUT,     /* y[index], computed by the outputs function */
+    STORE_EVENT_INDICATOR /* z[index], computed by the event indicators function */
 } Store;
 
 typedef enum { KIND_REAL, KIND_INTEGER, KIND_BOOLEAN } Kind;
@@ -68,6 +70,12 @@ typedef struct {
     ModelFunction event_indicators; /* (x,d,u,p) -> z[nz] */
     ModelFunction discrete_update;  /* (x,d,u,p) -> x+[nx], d+[nd]: what happens at an event */
     ModelFunction initial_state;    /* (x,d,u,p) -> x0[nx], d0[nd] from the parameters */
+    /* Exact derivatives (derivatives.c) of the unknowns U = [x; d; xdot; y; z] (nU = 2 nx + nd + ny + nz) with
+     * respect to the knowns K = [x; u; p] (nK = nx + nu + np), from CasADi's forward and reverse sweeps. */
+    ModelFunction unknowns_forward; /* (x,d,u,p,seed[nK]) -> (dU/dK) seed [nU] */
+    ModelFunction unknowns_adjoint; /* (x,d,u,p,seed[nU]) -> (dU/dK)^T seed [nK] */
+    ModelFunction initial_forward;  /* (x,d,u,p,seed[nK]) -> (dx0/dK) seed [nx], x0 = initial state */
+    ModelFunction initial_adjoint;  /* (x,d,u,p,seed[nx]) -> (dx0/dK)^T seed [nK] */
 } ModelInfo;
 
 /* Defined by the generated per-model file. */

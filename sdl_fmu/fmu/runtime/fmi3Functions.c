@@ -1,0 +1,798 @@
+/* The FMI 3.0 API (model exchange and co-simulation) over the generic instance, the sibling of
+ * fmi2Functions.c: the same instance layer (instance.c), in-step solver (cosimulation.c) and partial
+ * derivatives (derivatives.c) behind the FMI 3.0 calling sequence. Each function checks the state machine of
+ * the standard and answers misuse with fmi3Error and a log message; nothing here knows the model.
+ * The independent variable `time` has value reference 0; the model's variables are numbered 1..n. */
+#include "fmi3Functions.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "derivatives.h"
+#include "instance.h"
+
+#define TIME_REFERENCE 0u
+
+typedef struct {
+    Instance *instance;
+    fmi3InstanceEnvironment environment;
+    fmi3LogMessageCallback log_message;
+} Component;
+
+#define ANY_MODE                                                                                               \
+    (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED |   \
+     MODE_ERROR)
+#define GET_MODES ANY_MODE
+#define SET_REAL_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
+/* discrete variables (Int32, Boolean) do not change in continuous-time mode */
+#define SET_DISCRETE_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
+#define DERIVATIVE_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED)
+#define VECTOR_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+
+static void log_to_importer(void *instance_pointer, Status status, const char *category, const char *message) {
+    Instance *instance = (Instance *)instance_pointer;
+    const Component *component = (const Component *)instance->log_context;
+    if (!component || !component->log_message) return;
+    component->log_message(component->environment, (fmi3Status)status, category, message);
+}
+
+static void *allocate_zeroed(size_t count, size_t size) { return calloc(count, size); }
+
+static void release(void *pointer) { free(pointer); }
+
+static Instance *checked(fmi3Instance c, const char *function, int allowed_modes) {
+    Component *component = (Component *)c;
+    Instance *instance;
+    if (!component || !component->instance) return NULL;
+    instance = component->instance;
+    if (!(instance->now.mode & allowed_modes)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s must not be called in the current state",
+                     function);
+        return NULL;
+    }
+    return instance;
+}
+
+/* A function that exists only for one interface type (model exchange or co-simulation). */
+static Instance *checked_type(fmi3Instance c, const char *function, int allowed_modes, int cosimulation) {
+    Instance *instance = checked(c, function, allowed_modes);
+    if (instance && instance->is_cosimulation != cosimulation) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s needs a %s instance", function,
+                     cosimulation ? "co-simulation" : "model exchange");
+        return NULL;
+    }
+    return instance;
+}
+
+static fmi3Status finish(Instance *instance, Status status) {
+    if (status >= STATUS_ERROR) instance->now.mode = MODE_ERROR;
+    return (fmi3Status)status;
+}
+
+static fmi3Status unsupported(fmi3Instance c, const char *function, const char *reason) {
+    Instance *instance = checked(c, function, ANY_MODE);
+    if (!instance) return fmi3Error;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: %s", function, reason);
+    return fmi3Error;
+}
+
+/* Scalar variables only: one value per value reference. */
+static int counts_match(Instance *instance, const char *function, size_t nValueReferences, size_t nValues) {
+    if (nValueReferences == nValues) return 1;
+    instance_log(instance, STATUS_ERROR, "logStatusError",
+                 "%s: %zu values for %zu value references (all variables are scalars)", function, nValues,
+                 nValueReferences);
+    return 0;
+}
+
+/* ---- common functions ----------------------------------------------------------------------- */
+
+const char *fmi3GetVersion(void) { return fmi3Version; }
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t nCategories,
+                               const fmi3String categories[]) {
+    Instance *instance = checked(c, "fmi3SetDebugLogging", ANY_MODE);
+    (void)nCategories;
+    (void)categories;
+    if (!instance) return fmi3Error;
+    instance->logging_on = loggingOn ? 1 : 0;
+    return fmi3OK;
+}
+
+static fmi3Instance instantiate(fmi3String instanceName, fmi3String instantiationToken, fmi3Boolean loggingOn,
+                                fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
+                                int cosimulation) {
+    Component *component;
+    if (!instanceName || !instanceName[0]) {
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3Instantiate: missing instance name");
+        return NULL;
+    }
+    if (!instantiationToken || strcmp(instantiationToken, model_info.guid) != 0) {
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                       "fmi3Instantiate: the instantiation token does not match this binary's modelDescription.xml");
+        return NULL;
+    }
+    component = (Component *)calloc(1, sizeof(Component));
+    if (!component) return NULL;
+    component->environment = instanceEnvironment;
+    component->log_message = logMessage;
+    component->instance = instance_create(&model_info, instanceName, cosimulation, allocate_zeroed, release,
+                                          log_to_importer, component);
+    if (!component->instance) {
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3Instantiate: out of memory");
+        free(component);
+        return NULL;
+    }
+    component->instance->environment = instanceEnvironment;
+    component->instance->logging_on = loggingOn ? 1 : 0;
+    return component;
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    (void)resourcePath;
+    (void)visible;
+    return instantiate(instanceName, instantiationToken, loggingOn, instanceEnvironment, logMessage, 0);
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
+                                         fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                         fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+                                         const fmi3ValueReference requiredIntermediateVariables[],
+                                         size_t nRequiredIntermediateVariables,
+                                         fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
+                                         fmi3IntermediateUpdateCallback intermediateUpdate) {
+    (void)resourcePath;
+    (void)visible;
+    (void)earlyReturnAllowed; /* the FMU never returns early: events are handled inside fmi3DoStep */
+    (void)requiredIntermediateVariables;
+    (void)nRequiredIntermediateVariables;
+    (void)intermediateUpdate;
+    if (eventModeUsed) {
+        /* hasEventMode="false": events are located and handled inside the step, as in FMI 2.0 */
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                       "fmi3InstantiateCoSimulation: event mode is not supported (hasEventMode=\"false\"); "
+                       "events are handled inside fmi3DoStep");
+        return NULL;
+    }
+    return instantiate(instanceName, instantiationToken, loggingOn, instanceEnvironment, logMessage, 1);
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                               fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage, fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    (void)clockUpdate;
+    (void)lockPreemption;
+    (void)unlockPreemption;
+    if (logMessage)
+        logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                   "fmi3InstantiateScheduledExecution: the FMU supports model exchange and co-simulation only");
+    return NULL;
+}
+
+void fmi3FreeInstance(fmi3Instance c) {
+    Component *component = (Component *)c;
+    if (!component) return;
+    instance_free(component->instance);
+    free(component);
+}
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                       fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    Instance *instance = checked(c, "fmi3EnterInitializationMode", MODE_INSTANTIATED);
+    (void)toleranceDefined;
+    (void)tolerance;
+    if (!instance) return fmi3Error;
+    if (!isfinite(startTime) || (stopTimeDefined && (!isfinite(stopTime) || stopTime < startTime))) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "fmi3EnterInitializationMode: start time %g and stop time %g must be finite, stop >= start",
+                     startTime, stopTime);
+        return fmi3Error;
+    }
+    instance->start_time = startTime;
+    instance->now.time = startTime;
+    instance->stop_time_defined = stopTimeDefined ? 1 : 0;
+    instance->stop_time = stopTime;
+    instance->now.mode = MODE_INITIALIZATION;
+    instance->initial_state_valid = 0;
+    return fmi3OK;
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
+    Instance *instance = checked(c, "fmi3ExitInitializationMode", MODE_INITIALIZATION);
+    int states_changed, discrete_changed;
+    Status status;
+    if (!instance) return fmi3Error;
+    status = instance_apply_initial_state(instance);
+    if (status == STATUS_OK) status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    instance->now.mode = instance->is_cosimulation ? MODE_STEP : MODE_EVENT;
+    return finish(instance, status);
+}
+
+fmi3Status fmi3EnterEventMode(fmi3Instance c) {
+    Instance *instance = checked_type(c, "fmi3EnterEventMode", MODE_CONTINUOUS_TIME, 0);
+    if (!instance) return fmi3Error;
+    instance->now.mode = MODE_EVENT;
+    return fmi3OK;
+}
+
+fmi3Status fmi3Terminate(fmi3Instance c) {
+    Instance *instance = checked(c, "fmi3Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP);
+    if (!instance) return fmi3Error;
+    instance->now.mode = MODE_TERMINATED;
+    return fmi3OK;
+}
+
+fmi3Status fmi3Reset(fmi3Instance c) {
+    Instance *instance = checked(c, "fmi3Reset", ANY_MODE);
+    if (!instance) return fmi3Error;
+    instance_reset(instance);
+    return fmi3OK;
+}
+
+/* ---- variables -------------------------------------------------------------------------------- */
+
+fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                          fmi3Float64 values[], size_t nValues) {
+    Instance *instance = checked(c, "fmi3GetFloat64", GET_MODES);
+    size_t i, start = 0;
+    if (!instance || !counts_match(instance, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences > 0 && (!valueReferences || !values)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3GetFloat64: null argument");
+        return fmi3Error;
+    }
+    /* runs of model variables go to the instance in one call; time is answered here */
+    for (i = 0; i <= nValueReferences; i++) {
+        if (i < nValueReferences && valueReferences[i] != TIME_REFERENCE) continue;
+        if (i > start && instance_get(instance, valueReferences + start, i - start, KIND_REAL, values + start) !=
+                             STATUS_OK)
+            return fmi3Error;
+        if (i < nValueReferences) values[i] = instance->now.time;
+        start = i + 1;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetInt32(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        fmi3Int32 values[], size_t nValues) {
+    Instance *instance = checked(c, "fmi3GetInt32", GET_MODES);
+    if (!instance || !counts_match(instance, "fmi3GetInt32", nValueReferences, nValues)) return fmi3Error;
+    /* fmi3Int32 is the runtime's int on every platform FMI 3.0 supports */
+    return (fmi3Status)instance_get(instance, valueReferences, nValueReferences, KIND_INTEGER, values);
+}
+
+#define BOOLEAN_CHUNK 64
+
+fmi3Status fmi3GetBoolean(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                          fmi3Boolean values[], size_t nValues) {
+    Instance *instance = checked(c, "fmi3GetBoolean", GET_MODES);
+    int chunk[BOOLEAN_CHUNK];
+    size_t start, i;
+    if (!instance || !counts_match(instance, "fmi3GetBoolean", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences > 0 && (!valueReferences || !values)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3GetBoolean: null argument");
+        return fmi3Error;
+    }
+    /* the instance stores Booleans as int, fmi3Boolean is bool */
+    for (start = 0; start < nValueReferences; start += BOOLEAN_CHUNK) {
+        size_t n = nValueReferences - start < BOOLEAN_CHUNK ? nValueReferences - start : BOOLEAN_CHUNK;
+        if (instance_get(instance, valueReferences + start, n, KIND_BOOLEAN, chunk) != STATUS_OK) return fmi3Error;
+        for (i = 0; i < n; i++) values[start + i] = chunk[i] ? fmi3True : fmi3False;
+    }
+    return fmi3OK;
+}
+
+static int sets_time(Instance *instance, const char *function, const fmi3ValueReference valueReferences[],
+                     size_t nValueReferences) {
+    size_t i;
+    for (i = 0; valueReferences && i < nValueReferences; i++)
+        if (valueReferences[i] == TIME_REFERENCE) {
+            instance_log(instance, STATUS_ERROR, "logStatusError", "%s: time (value reference 0) cannot be set",
+                         function);
+            return 1;
+        }
+    return 0;
+}
+
+fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                          const fmi3Float64 values[], size_t nValues) {
+    Instance *instance = checked(c, "fmi3SetFloat64", SET_REAL_MODES);
+    if (!instance || !counts_match(instance, "fmi3SetFloat64", nValueReferences, nValues) ||
+        sets_time(instance, "fmi3SetFloat64", valueReferences, nValueReferences))
+        return fmi3Error;
+    return (fmi3Status)instance_set(instance, valueReferences, nValueReferences, KIND_REAL, values);
+}
+
+fmi3Status fmi3SetInt32(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        const fmi3Int32 values[], size_t nValues) {
+    Instance *instance = checked(c, "fmi3SetInt32", SET_DISCRETE_MODES);
+    if (!instance || !counts_match(instance, "fmi3SetInt32", nValueReferences, nValues)) return fmi3Error;
+    return (fmi3Status)instance_set(instance, valueReferences, nValueReferences, KIND_INTEGER, values);
+}
+
+fmi3Status fmi3SetBoolean(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                          const fmi3Boolean values[], size_t nValues) {
+    Instance *instance = checked(c, "fmi3SetBoolean", SET_DISCRETE_MODES);
+    int chunk[BOOLEAN_CHUNK];
+    size_t start, i;
+    if (!instance || !counts_match(instance, "fmi3SetBoolean", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences > 0 && (!valueReferences || !values)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3SetBoolean: null argument");
+        return fmi3Error;
+    }
+    for (start = 0; start < nValueReferences; start += BOOLEAN_CHUNK) {
+        size_t n = nValueReferences - start < BOOLEAN_CHUNK ? nValueReferences - start : BOOLEAN_CHUNK;
+        for (i = 0; i < n; i++) chunk[i] = values[start + i] ? 1 : 0;
+        if (instance_set(instance, valueReferences + start, n, KIND_BOOLEAN, chunk) != STATUS_OK) return fmi3Error;
+    }
+    return fmi3OK;
+}
+
+/* The model has variables of types Float64, Int32 and Boolean only: any value reference given to another
+ * type's getter or setter is a misuse. */
+static fmi3Status no_such_type(fmi3Instance c, const char *function, int allowed_modes, size_t nValueReferences,
+                               const char *type) {
+    Instance *instance = checked(c, function, allowed_modes);
+    if (!instance) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: the model has no %s variables", function, type);
+    return fmi3Error;
+}
+
+#define OTHER_TYPE(TYPE, CTYPE)                                                                                    \
+    fmi3Status fmi3Get##TYPE(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences, \
+                             CTYPE values[], size_t nValues) {                                                    \
+        (void)valueReferences;                                                                                    \
+        (void)values;                                                                                             \
+        (void)nValues;                                                                                            \
+        return no_such_type(c, "fmi3Get" #TYPE, GET_MODES, nValueReferences, #TYPE);                            \
+    }                                                                                                             \
+    fmi3Status fmi3Set##TYPE(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences, \
+                             const CTYPE values[], size_t nValues) {                                              \
+        (void)valueReferences;                                                                                    \
+        (void)values;                                                                                             \
+        (void)nValues;                                                                                            \
+        return no_such_type(c, "fmi3Set" #TYPE, SET_REAL_MODES, nValueReferences, #TYPE);                       \
+    }
+
+OTHER_TYPE(Float32, fmi3Float32)
+OTHER_TYPE(Int8, fmi3Int8)
+OTHER_TYPE(UInt8, fmi3UInt8)
+OTHER_TYPE(Int16, fmi3Int16)
+OTHER_TYPE(UInt16, fmi3UInt16)
+OTHER_TYPE(UInt32, fmi3UInt32)
+OTHER_TYPE(Int64, fmi3Int64)
+OTHER_TYPE(UInt64, fmi3UInt64)
+OTHER_TYPE(String, fmi3String)
+
+fmi3Status fmi3GetBinary(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         size_t valueSizes[], fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return no_such_type(c, "fmi3GetBinary", GET_MODES, nValueReferences, "Binary");
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                         const size_t valueSizes[], const fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return no_such_type(c, "fmi3SetBinary", SET_REAL_MODES, nValueReferences, "Binary");
+}
+
+fmi3Status fmi3GetClock(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)values;
+    return no_such_type(c, "fmi3GetClock", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3SetClock(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                        const fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)values;
+    return no_such_type(c, "fmi3SetClock", ANY_MODE, nValueReferences, "Clock");
+}
+
+/* ---- variable dependencies: declared in the ModelStructure (providesPerElementDependencies="false") ---- */
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance c, fmi3ValueReference valueReference,
+                                               size_t *nDependencies) {
+    (void)valueReference;
+    (void)nDependencies;
+    return unsupported(c, "fmi3GetNumberOfVariableDependencies",
+                       "the dependencies are declared in the modelDescription.xml ModelStructure");
+}
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance c, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
+                                       size_t nDependencies) {
+    (void)dependent;
+    (void)elementIndicesOfDependent;
+    (void)independents;
+    (void)elementIndicesOfIndependents;
+    (void)dependencyKinds;
+    (void)nDependencies;
+    return unsupported(c, "fmi3GetVariableDependencies",
+                       "the dependencies are declared in the modelDescription.xml ModelStructure");
+}
+
+/* ---- FMU state -------------------------------------------------------------------------------- */
+
+fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
+    Instance *instance = checked(c, "fmi3GetFMUState", ANY_MODE & ~MODE_ERROR);
+    Snapshot *snapshot;
+    if (!instance || !FMUState) return fmi3Error;
+    snapshot = (Snapshot *)*FMUState;
+    if (snapshot && !snapshot_handle_valid(instance, snapshot, "fmi3GetFMUState")) return fmi3Error;
+    if (!snapshot) snapshot = snapshot_create(instance);
+    if (!snapshot) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3GetFMUState: out of memory");
+        return fmi3Error;
+    }
+    snapshot_copy(instance, snapshot, &instance->now);
+    *FMUState = snapshot;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState FMUState) {
+    Instance *instance = checked(c, "fmi3SetFMUState", ANY_MODE);
+    if (!instance) return fmi3Error;
+    if (!snapshot_handle_valid(instance, FMUState, "fmi3SetFMUState") ||
+        snapshot_check(instance, (const Snapshot *)FMUState) != STATUS_OK)
+        return fmi3Error;
+    snapshot_copy(instance, &instance->now, (const Snapshot *)FMUState);
+    instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
+    instance_invalidate(instance);
+    return fmi3OK;
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
+    Instance *instance = checked(c, "fmi3FreeFMUState", ANY_MODE);
+    if (!instance || !FMUState) return fmi3Error;
+    if (*FMUState && !snapshot_handle_valid(instance, *FMUState, "fmi3FreeFMUState")) return fmi3Error;
+    snapshot_free(instance, (Snapshot *)*FMUState);
+    *FMUState = NULL;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, size_t *size) {
+    Instance *instance = checked(c, "fmi3SerializedFMUStateSize", ANY_MODE);
+    (void)FMUState;
+    if (!instance || !size) return fmi3Error;
+    *size = snapshot_serialized_size(instance);
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size) {
+    Instance *instance = checked(c, "fmi3SerializeFMUState", ANY_MODE);
+    if (!instance || !serializedState || !snapshot_handle_valid(instance, FMUState, "fmi3SerializeFMUState"))
+        return fmi3Error;
+    if (size < snapshot_serialized_size(instance)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3SerializeFMUState: buffer too small");
+        return fmi3Error;
+    }
+    snapshot_serialize(instance, (const Snapshot *)FMUState, (char *)serializedState);
+    return fmi3OK;
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedState[], size_t size,
+                                   fmi3FMUState *FMUState) {
+    Instance *instance = checked(c, "fmi3DeserializeFMUState", ANY_MODE);
+    Snapshot *snapshot;
+    if (!instance || !FMUState) return fmi3Error;
+    snapshot = snapshot_create(instance);
+    if (!snapshot) return fmi3Error;
+    if (snapshot_deserialize(instance, (const char *)serializedState, size, snapshot) != STATUS_OK) {
+        snapshot_free(instance, snapshot);
+        return fmi3Error;
+    }
+    if (*FMUState && !snapshot_handle_valid(instance, *FMUState, "fmi3DeserializeFMUState")) {
+        snapshot_free(instance, snapshot);
+        return fmi3Error;
+    }
+    if (*FMUState) { /* an existing state is overwritten */
+        snapshot_copy(instance, (Snapshot *)*FMUState, snapshot);
+        snapshot_free(instance, snapshot);
+    } else {
+        *FMUState = snapshot;
+    }
+    return fmi3OK;
+}
+
+/* ---- partial derivatives ---------------------------------------------------------------------- */
+
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                        const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                        size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
+    Instance *instance = checked(c, "fmi3GetDirectionalDerivative", DERIVATIVE_MODES);
+    if (!instance) return fmi3Error;
+    if (nSeed != nKnowns || nSensitivity != nUnknowns) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "fmi3GetDirectionalDerivative: expected %zu seeds and %zu sensitivities", nKnowns, nUnknowns);
+        return fmi3Error;
+    }
+    return (fmi3Status)instance_directional_derivative(instance, unknowns, nUnknowns, knowns, nKnowns, seed,
+                                                       sensitivity);
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                    size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
+    Instance *instance = checked(c, "fmi3GetAdjointDerivative", DERIVATIVE_MODES);
+    if (!instance) return fmi3Error;
+    if (nSeed != nUnknowns || nSensitivity != nKnowns) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "fmi3GetAdjointDerivative: expected %zu seeds and %zu sensitivities", nUnknowns, nKnowns);
+        return fmi3Error;
+    }
+    return (fmi3Status)instance_adjoint_derivative(instance, unknowns, nUnknowns, knowns, nKnowns, seed,
+                                                   sensitivity);
+}
+
+/* ---- configuration mode, clocks: the model has no structural parameters and no clocks ---------- */
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance c) {
+    return unsupported(c, "fmi3EnterConfigurationMode", "the model has no structural parameters");
+}
+
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance c) {
+    return unsupported(c, "fmi3ExitConfigurationMode", "the model has no structural parameters");
+}
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance c, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, fmi3Float64 intervals[],
+                                  fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences;
+    (void)intervals;
+    (void)qualifiers;
+    return no_such_type(c, "fmi3GetIntervalDecimal", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3GetIntervalFraction(fmi3Instance c, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+                                   fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences;
+    (void)counters;
+    (void)resolutions;
+    (void)qualifiers;
+    return no_such_type(c, "fmi3GetIntervalFraction", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                               fmi3Float64 shifts[]) {
+    (void)valueReferences;
+    (void)shifts;
+    return no_such_type(c, "fmi3GetShiftDecimal", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3GetShiftFraction(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                                fmi3UInt64 counters[], fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)counters;
+    (void)resolutions;
+    return no_such_type(c, "fmi3GetShiftFraction", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance c, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, const fmi3Float64 intervals[]) {
+    (void)valueReferences;
+    (void)intervals;
+    return no_such_type(c, "fmi3SetIntervalDecimal", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3SetIntervalFraction(fmi3Instance c, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, const fmi3UInt64 counters[],
+                                   const fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)counters;
+    (void)resolutions;
+    return no_such_type(c, "fmi3SetIntervalFraction", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3SetShiftDecimal(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                               const fmi3Float64 shifts[]) {
+    (void)valueReferences;
+    (void)shifts;
+    return no_such_type(c, "fmi3SetShiftDecimal", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3SetShiftFraction(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
+                                const fmi3UInt64 counters[], const fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)counters;
+    (void)resolutions;
+    return no_such_type(c, "fmi3SetShiftFraction", ANY_MODE, nValueReferences, "Clock");
+}
+
+fmi3Status fmi3ActivateModelPartition(fmi3Instance c, fmi3ValueReference clockReference,
+                                      fmi3Float64 activationTime) {
+    (void)clockReference;
+    (void)activationTime;
+    return unsupported(c, "fmi3ActivateModelPartition", "the FMU supports no scheduled execution");
+}
+
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance c) {
+    return unsupported(c, "fmi3EvaluateDiscreteStates", "not provided (providesEvaluateDiscreteStates=\"false\")");
+}
+
+/* ---- model exchange --------------------------------------------------------------------------- */
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) {
+    Instance *instance = checked_type(c, "fmi3UpdateDiscreteStates", MODE_EVENT, 0);
+    int states_changed = 0, discrete_changed = 0;
+    Status status;
+    if (!instance) return fmi3Error;
+    /* the event iteration runs to its fixed point here, so no further update is needed */
+    status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
+    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = states_changed ? fmi3True : fmi3False;
+    if (nextEventTimeDefined) *nextEventTimeDefined = fmi3False;
+    if (nextEventTime) *nextEventTime = 0.0;
+    return finish(instance, status);
+}
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
+    Instance *instance = checked_type(c, "fmi3EnterContinuousTimeMode", MODE_EVENT, 0);
+    if (!instance) return fmi3Error;
+    instance->now.mode = MODE_CONTINUOUS_TIME;
+    return fmi3OK;
+}
+
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
+    Instance *instance = checked_type(c, "fmi3CompletedIntegratorStep", MODE_CONTINUOUS_TIME, 0);
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (!instance || !enterEventMode || !terminateSimulation) return fmi3Error;
+    *enterEventMode = fmi3False;
+    *terminateSimulation = fmi3False;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetTime(fmi3Instance c, fmi3Float64 time) {
+    Instance *instance = checked_type(c, "fmi3SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME, 0);
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_set_time(instance, time);
+}
+
+fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 continuousStates[], size_t nContinuousStates) {
+    Instance *instance = checked_type(c, "fmi3SetContinuousStates", MODE_CONTINUOUS_TIME, 0);
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_set_states(instance, continuousStates, nContinuousStates);
+}
+
+/* Checks a state or event indicator vector argument; applies the initial state in initialization. */
+static Instance *checked_vector(fmi3Instance c, const char *function, int allowed_modes, const void *vector, size_t n,
+                                int expected) {
+    Instance *instance = checked_type(c, function, allowed_modes, 0);
+    if (!instance) return NULL;
+    if (n != (size_t)expected || (n > 0 && !vector)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: expected a vector of %d", function, expected);
+        return NULL;
+    }
+    if ((instance->now.mode & MODE_INITIALIZATION) && !instance->initial_state_valid &&
+        instance_apply_initial_state(instance) != STATUS_OK)
+        return NULL;
+    return instance;
+}
+
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 derivatives[], size_t nContinuousStates) {
+    Instance *instance = checked(c, "fmi3GetContinuousStateDerivatives", ANY_MODE);
+    if (!instance) return fmi3Error;
+    instance = checked_vector(c, "fmi3GetContinuousStateDerivatives", VECTOR_MODES, derivatives, nContinuousStates,
+                              instance->info->nx);
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_derivatives(instance, instance->now.x, instance->now.d, derivatives);
+}
+
+fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
+    Instance *instance = checked(c, "fmi3GetEventIndicators", ANY_MODE);
+    if (!instance) return fmi3Error;
+    instance = checked_vector(c, "fmi3GetEventIndicators", VECTOR_MODES, eventIndicators, nEventIndicators,
+                              instance->info->nz);
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_event_indicators(instance, instance->now.x, instance->now.d, eventIndicators);
+}
+
+fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 continuousStates[], size_t nContinuousStates) {
+    Instance *instance = checked(c, "fmi3GetContinuousStates", ANY_MODE);
+    if (!instance) return fmi3Error;
+    instance = checked_vector(c, "fmi3GetContinuousStates", VECTOR_MODES, continuousStates, nContinuousStates,
+                              instance->info->nx);
+    if (!instance) return fmi3Error;
+    memcpy(continuousStates, instance->now.x, sizeof(double) * nContinuousStates);
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominals[], size_t nContinuousStates) {
+    Instance *instance = checked(c, "fmi3GetNominalsOfContinuousStates", ANY_MODE);
+    if (!instance) return fmi3Error;
+    instance = checked_vector(c, "fmi3GetNominalsOfContinuousStates", ANY_MODE, nominals, nContinuousStates,
+                              instance->info->nx);
+    if (!instance) return fmi3Error;
+    memcpy(nominals, instance->info->state_nominal, sizeof(double) * nContinuousStates);
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *nEventIndicators) {
+    Instance *instance = checked(c, "fmi3GetNumberOfEventIndicators", ANY_MODE);
+    if (!instance || !nEventIndicators) return fmi3Error;
+    *nEventIndicators = (size_t)instance->info->nz;
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *nContinuousStates) {
+    Instance *instance = checked(c, "fmi3GetNumberOfContinuousStates", ANY_MODE);
+    if (!instance || !nContinuousStates) return fmi3Error;
+    *nContinuousStates = (size_t)instance->info->nx;
+    return fmi3OK;
+}
+
+/* ---- co-simulation ---------------------------------------------------------------------------- */
+
+fmi3Status fmi3EnterStepMode(fmi3Instance c) {
+    /* only reachable with event mode, which the FMU does not offer */
+    return unsupported(c, "fmi3EnterStepMode", "event mode is not supported (hasEventMode=\"false\")");
+}
+
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance c, const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
+                                    size_t nValues) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)orders;
+    (void)values;
+    (void)nValues;
+    return unsupported(c, "fmi3GetOutputDerivatives", "the FMU provides no output derivatives");
+}
+
+fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,
+                      fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
+                      fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
+    Instance *instance = checked_type(c, "fmi3DoStep", MODE_STEP, 1);
+    Status status;
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (!instance) return fmi3Error;
+    if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3DoStep: null argument");
+        return fmi3Error;
+    }
+    /* wrong arguments change nothing, so the instance stays usable */
+    if (instance_check_step(instance, currentCommunicationPoint, communicationStepSize) != STATUS_OK)
+        return fmi3Error;
+    if (instance->stop_time_defined &&
+        currentCommunicationPoint + communicationStepSize > instance->stop_time + 1e-9 * (1.0 + instance->stop_time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3DoStep would pass the stop time %.17g",
+                     instance->stop_time);
+        return fmi3Error;
+    }
+    /* events inside the step are located and handled by the in-step solver, exactly as in FMI 2.0 */
+    status = instance_do_step(instance, currentCommunicationPoint, communicationStepSize);
+    *eventHandlingNeeded = fmi3False;
+    *terminateSimulation = fmi3False;
+    *earlyReturn = fmi3False;
+    *lastSuccessfulTime = instance->now.time;
+    return finish(instance, status);
+}

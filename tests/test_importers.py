@@ -1,5 +1,7 @@
 """The importer matrix: independent FMI importers load the real FMUs, reproduce the Simple FMU's analytic
-braking stop and the Advanced FMU's trajectory (fmpy's co-simulation run is the reference).
+braking stop and the Advanced FMU's trajectory (fmpy's co-simulation run of the FMI 2.0 FMU is the reference).
+FMI 3.0 FMUs run wherever the importer supports them (fmpy, ecospy, the container, the C host); libcosim loads
+FMI 2.0 only.
 
 fmpy (co-simulation and model exchange), libcosimpy (FMI 2.0 co-simulation only, in a subprocess: libcosim
 aborts the process on FMUs it cannot load and prints FMI Library lines on stdout), ecospy (Vico's ecos; in a
@@ -26,7 +28,7 @@ from sdl_fmu.units import STANDARD_GRAVITY as G
 
 from conftest import windows_tools_required
 
-HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi2_host.c"
+HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi_host.c"
 WHEELS = ("fl", "fr", "rl", "rr")
 
 # Simple FMU: straight braking on mu 0.6 without drag and rolling resistance: a = min(b a_max, mu g) = mu g
@@ -86,6 +88,9 @@ def fmpy_samples(fmu, fmi_type, start, stop_time, outputs, **options):
     return {name: result[name][indices] for name in outputs}, result
 
 
+VERSIONS = pytest.mark.parametrize("version", [2, 3], ids=["fmi2", "fmi3"])
+
+
 @pytest.fixture(scope="module")
 def reference(advanced_fmu):
     """The Advanced FMU's trajectory in fmpy's co-simulation: the reference of every other importer."""
@@ -97,22 +102,30 @@ def reference(advanced_fmu):
 # ---- fmpy -----------------------------------------------------------------------------------------------------
 
 
-def test_fmpy_cosimulation_simple(simple_fmu):
-    _, result = fmpy_samples(simple_fmu, "CoSimulation", SIMPLE_START, 10.0, ("s", "stopped"))
+@VERSIONS
+def test_fmpy_cosimulation_simple(simple_fmus, version):
+    _, result = fmpy_samples(simple_fmus[version], "CoSimulation", SIMPLE_START, 10.0, ("s", "stopped"))
     assert result["stopped"][-1]
     assert abs(result["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
-def test_fmpy_model_exchange_simple(simple_fmu):
-    _, result = fmpy_samples(simple_fmu, "ModelExchange", SIMPLE_START, 10.0, ("s", "stopped"), solver="CVode",
-                             relative_tolerance=1e-10)
+def test_fmpy_cosimulation_advanced_fmi3(advanced_fmus, reference):
+    samples, _ = fmpy_samples(advanced_fmus[3], "CoSimulation", ADVANCED_START, SAMPLE_TIMES[-1], ADVANCED_OUTPUTS)
+    assert_same_trajectory(samples, reference, SAME_BINARY_TOLERANCE)  # the same model code and solver
+
+
+@VERSIONS
+def test_fmpy_model_exchange_simple(simple_fmus, version):
+    _, result = fmpy_samples(simple_fmus[version], "ModelExchange", SIMPLE_START, 10.0, ("s", "stopped"),
+                             solver="CVode", relative_tolerance=1e-10)
     assert result["stopped"][-1]
     assert abs(result["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_ME_TOLERANCE
 
 
-def test_fmpy_model_exchange_advanced(advanced_fmu, reference):
-    samples, _ = fmpy_samples(advanced_fmu, "ModelExchange", ADVANCED_START, SAMPLE_TIMES[-1], ADVANCED_OUTPUTS,
-                              solver="CVode", relative_tolerance=1e-10)
+@VERSIONS
+def test_fmpy_model_exchange_advanced(advanced_fmus, reference, version):
+    samples, _ = fmpy_samples(advanced_fmus[version], "ModelExchange", ADVANCED_START, SAMPLE_TIMES[-1],
+                              ADVANCED_OUTPUTS, solver="CVode", relative_tolerance=1e-10)
     assert_same_trajectory(samples, reference, ME_TOLERANCE)
 
 
@@ -172,46 +185,54 @@ def run_script(script, fmu, start, outputs, times, step=STEP):
     return json.loads(line[len("RESULT "):])
 
 
-@pytest.mark.parametrize("script", [LIBCOSIM_SCRIPT, ECOS_SCRIPT], ids=["libcosimpy", "ecospy"])
-def test_subprocess_importer_simple(simple_fmu, script):
-    samples = run_script(script, simple_fmu, SIMPLE_START, ("s", "v"), (10.0,))
+# libcosim loads FMI 2.0 co-simulation FMUs only; ecospy (ecos, through fmi4c) loads FMI 2.0 and 3.0
+SUBPROCESS_IMPORTERS = pytest.mark.parametrize("script, version", [(LIBCOSIM_SCRIPT, 2), (ECOS_SCRIPT, 2),
+                                                                   (ECOS_SCRIPT, 3)],
+                                               ids=["libcosimpy-fmi2", "ecospy-fmi2", "ecospy-fmi3"])
+
+
+@SUBPROCESS_IMPORTERS
+def test_subprocess_importer_simple(simple_fmus, script, version):
+    samples = run_script(script, simple_fmus[version], SIMPLE_START, ("s", "v"), (10.0,))
     assert samples["v"][-1] == 0.0
     assert abs(samples["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
-@pytest.mark.parametrize("script", [LIBCOSIM_SCRIPT, ECOS_SCRIPT], ids=["libcosimpy", "ecospy"])
-def test_subprocess_importer_advanced(advanced_fmu, reference, script):
-    samples = run_script(script, advanced_fmu, ADVANCED_START, ADVANCED_OUTPUTS, SAMPLE_TIMES)
+@SUBPROCESS_IMPORTERS
+def test_subprocess_importer_advanced(advanced_fmus, reference, script, version):
+    samples = run_script(script, advanced_fmus[version], ADVANCED_START, ADVANCED_OUTPUTS, SAMPLE_TIMES)
     assert_same_trajectory(samples, reference, SAME_BINARY_TOLERANCE)
 
 
 # ---- the FMU container of fmu-manipulation-toolbox ------------------------------------------------------------
 
 
-def make_container(fmu, directory):
-    """A container FMU holding the ego FMU; its inputs and outputs are exposed under their own names, its
-    parameters as <fmu>.<name>."""
+def make_container(fmu, directory, version=2):
+    """A container FMU (of the ego FMU's FMI version) holding the ego FMU; its inputs and outputs are exposed
+    under their own names, its parameters as <fmu>.<name>."""
     from fmu_manipulation_toolbox.assembly import AssemblyNode
 
     directory.mkdir()
     shutil.copy(fmu, directory / fmu.name)
     node = AssemblyNode("container.fmu", step_size=STEP, auto_parameter=True)
     node.add_fmu(fmu.name)
-    node.make_fmu(directory)
+    node.make_fmu(directory, fmi_version=version)
     prefix = Path(fmu).stem.lower() + "."
     names = {v.name for v in read_model_description(str(directory / "container.fmu")).modelVariables}
     return directory / "container.fmu", lambda start: {(n if n in names else prefix + n): v for n, v in start.items()}
 
 
-def test_fmu_container_simple(simple_fmu, tmp_path):
-    container, names = make_container(simple_fmu, tmp_path / "container")
-    _, result = fmpy_samples(container, "CoSimulation", names(SIMPLE_START), 10.0, ("s", "stopped"))
-    assert result["stopped"][-1]
+@VERSIONS
+def test_fmu_container_simple(simple_fmus, tmp_path, version):
+    container, names = make_container(simple_fmus[version], tmp_path / "container", version)
+    _, result = fmpy_samples(container, "CoSimulation", names(SIMPLE_START), 10.0, ("s", "v"))
+    assert result["v"][-1] == 0.0
     assert abs(result["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
-def test_fmu_container_advanced(advanced_fmu, reference, tmp_path):
-    container, names = make_container(advanced_fmu, tmp_path / "container")
+@VERSIONS
+def test_fmu_container_advanced(advanced_fmus, reference, tmp_path, version):
+    container, names = make_container(advanced_fmus[version], tmp_path / "container", version)
     samples, _ = fmpy_samples(container, "CoSimulation", names(ADVANCED_START), SAMPLE_TIMES[-1], ADVANCED_OUTPUTS)
     assert_same_trajectory(samples, reference, SAME_BINARY_TOLERANCE)
 
@@ -221,7 +242,7 @@ def test_fmu_container_advanced(advanced_fmu, reference, tmp_path):
 
 @pytest.fixture(scope="session")
 def linux_host(tmp_path_factory):
-    host = tmp_path_factory.mktemp("host") / "fmi2_host"
+    host = tmp_path_factory.mktemp("host") / "fmi_host"
     subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{fmi_headers()}", str(HOST_SOURCE),
                     "-o", str(host), "-ldl"], check=True)
     return host
@@ -235,7 +256,7 @@ def windows_host(tmp_path_factory):
         if windows_tools_required():
             pytest.fail(message)
         pytest.skip(message)
-    host = tmp_path_factory.mktemp("host") / "fmi2_host.exe"
+    host = tmp_path_factory.mktemp("host") / "fmi_host.exe"
     subprocess.run([compiler, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-static-libgcc",
                     f"-I{fmi_headers()}", str(HOST_SOURCE), "-o", str(host)], check=True)
     return host
@@ -243,9 +264,9 @@ def windows_host(tmp_path_factory):
 
 def host_arguments(fmu, library, start, outputs, stop_time, booleans=()):
     variables = fmu_variables(fmu)
-    guid = read_model_description(str(fmu)).guid
+    description = read_model_description(str(fmu))
     every = int(round(1.0 / STEP))
-    return [library, guid, repr(STEP), repr(stop_time), "--every", str(every),
+    return [*(["--fmi3"] if description.fmiVersion.startswith("3") else []), library, description.guid, repr(STEP), repr(stop_time), "--every", str(every),
             *[f"r:{variables[n].valueReference}={v!r}" for n, v in start.items()],
             *[f"o:{variables[n].valueReference}" for n in outputs],
             *[f"b:{variables[n].valueReference}" for n in booleans]]
@@ -262,10 +283,13 @@ def parse_host_output(stdout, outputs, booleans=()):
     return columns
 
 
-def extract_binary(fmu, directory, platform, suffix):
+PLATFORMS = {(2, "so"): "linux64", (2, "dll"): "win64", (3, "so"): "x86_64-linux", (3, "dll"): "x86_64-windows"}
+
+
+def extract_binary(fmu, directory, version, suffix):
     with zipfile.ZipFile(fmu) as archive:
         archive.extractall(directory)
-    return directory / "binaries" / platform / f"{Path(fmu).stem}.{suffix}"
+    return directory / "binaries" / PLATFORMS[version, suffix] / f"{Path(fmu).stem}.{suffix}"
 
 
 def run_host(runner, host, fmu, library, start, outputs, stop_time, booleans=()):
@@ -288,30 +312,36 @@ def sampled(columns):
     return {name: columns[name][indices] for name in ADVANCED_OUTPUTS}
 
 
-def test_linux_c_host_simple(simple_fmu, linux_host, tmp_path):
-    library = extract_binary(simple_fmu, tmp_path, "linux64", "so")
-    columns = run_host(linux_runner, linux_host, simple_fmu, library, SIMPLE_START, ("s", "v"), 10.0, ("stopped",))
+@VERSIONS
+def test_linux_c_host_simple(simple_fmus, linux_host, tmp_path, version):
+    fmu = simple_fmus[version]
+    library = extract_binary(fmu, tmp_path, version, "so")
+    columns = run_host(linux_runner, linux_host, fmu, library, SIMPLE_START, ("s", "v"), 10.0, ("stopped",))
     assert columns["stopped"][-1] == 1.0 and columns["v"][-1] == 0.0
     assert abs(columns["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
-def test_linux_c_host_advanced(advanced_fmu, reference, linux_host, tmp_path):
-    library = extract_binary(advanced_fmu, tmp_path, "linux64", "so")
-    columns = run_host(linux_runner, linux_host, advanced_fmu, library, ADVANCED_START, ADVANCED_OUTPUTS,
-                       SAMPLE_TIMES[-1])
+@VERSIONS
+def test_linux_c_host_advanced(advanced_fmus, reference, linux_host, tmp_path, version):
+    fmu = advanced_fmus[version]
+    library = extract_binary(fmu, tmp_path, version, "so")
+    columns = run_host(linux_runner, linux_host, fmu, library, ADVANCED_START, ADVANCED_OUTPUTS, SAMPLE_TIMES[-1])
     assert_same_trajectory(sampled(columns), reference, SAME_BINARY_TOLERANCE)
 
 
-def test_windows_dll_under_wine_simple(simple_fmu, windows_host, wine, tmp_path):
-    library = extract_binary(simple_fmu, tmp_path, "win64", "dll")
-    columns = run_host(wine, windows_host, simple_fmu, windows_path(library), SIMPLE_START, ("s", "v"), 10.0,
-                       ("stopped",))
+@VERSIONS
+def test_windows_dll_under_wine_simple(simple_fmus, windows_host, wine, tmp_path, version):
+    fmu = simple_fmus[version]
+    library = extract_binary(fmu, tmp_path, version, "dll")
+    columns = run_host(wine, windows_host, fmu, windows_path(library), SIMPLE_START, ("s", "v"), 10.0, ("stopped",))
     assert columns["stopped"][-1] == 1.0 and columns["v"][-1] == 0.0
     assert abs(columns["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
-def test_windows_dll_under_wine_advanced(advanced_fmu, reference, windows_host, wine, tmp_path):
-    library = extract_binary(advanced_fmu, tmp_path, "win64", "dll")
-    columns = run_host(wine, windows_host, advanced_fmu, windows_path(library), ADVANCED_START, ADVANCED_OUTPUTS,
+@VERSIONS
+def test_windows_dll_under_wine_advanced(advanced_fmus, reference, windows_host, wine, tmp_path, version):
+    fmu = advanced_fmus[version]
+    library = extract_binary(fmu, tmp_path, version, "dll")
+    columns = run_host(wine, windows_host, fmu, windows_path(library), ADVANCED_START, ADVANCED_OUTPUTS,
                        SAMPLE_TIMES[-1])
     assert_same_trajectory(sampled(columns), reference, WINDOWS_TOLERANCE)

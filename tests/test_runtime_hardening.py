@@ -252,3 +252,92 @@ def test_serialized_states_are_validated_field_by_field(simple, advanced_fmu, tm
         assert other.deserialize_and_set(good) == ERROR  # another model's state
     finally:
         other.free()
+
+
+# ---- FMI 3.0: the same shared checks behind fmi3Functions.c, and its own state table ---------------------------
+
+
+class Raw3:
+    """An FMI 3.0 binary loaded with ctypes (the fuzzer's signatures); calls return their status."""
+
+    def __init__(self, fmu, directory, cosimulation=True):
+        with zipfile.ZipFile(fmu) as archive:
+            archive.extractall(directory)
+        self.description = read_model_description(str(directory))
+        identifier = self.description.coSimulation.modelIdentifier
+        self.library = ctypes.CDLL(str(directory / "binaries" / "x86_64-linux" / f"{identifier}.so"))
+        for name, (restype, argtypes) in fuzz.SIGNATURES3.items():
+            function = getattr(self.library, name)
+            function.restype, function.argtypes = restype, argtypes
+        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
+        self.messages = []
+        self.logger = fuzz.LogMessage3(lambda environment, status, category, message: self.messages.append(status))
+        token = self.description.guid.encode()
+        if cosimulation:
+            self.instance = self.library.fmi3InstantiateCoSimulation(b"test", token, b"", False, False, False, False,
+                                                                     None, 0, None, self.logger, None)
+        else:
+            self.instance = self.library.fmi3InstantiateModelExchange(b"test", token, b"", False, False, None,
+                                                                      self.logger)
+        assert self.instance
+
+    def __call__(self, name, *args):
+        self.messages.clear()
+        status = getattr(self.library, f"fmi3{name}")(self.instance, *args)
+        if status == ERROR:
+            assert ERROR in self.messages, f"fmi3{name} returned an error without a message"
+        return status
+
+    def set_float64(self, **values):
+        vrs = [self.vr[n] for n in values]
+        return self("SetFloat64", (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+                    (ctypes.c_double * len(vrs))(*values.values()), len(vrs))
+
+    def do_step(self, t, h):
+        flags = [ctypes.byref(ctypes.c_bool()) for _ in range(3)]
+        return self("DoStep", t, h, True, *flags, ctypes.byref(ctypes.c_double()))
+
+    def free(self):
+        self.library.fmi3FreeInstance(self.instance)
+
+
+def test_fmi3_gets_the_same_hardening(simple_fmus, advanced_fmus, tmp_path):
+    cs = Raw3(simple_fmus[3], tmp_path / "cs")
+    try:
+        assert cs.set_float64(brake=-1.0) == ERROR and cs.set_float64(mass=-1.0) == ERROR
+        assert cs("EnterInitializationMode", False, 0.0, math.nan, False, 0.0) == ERROR
+        assert cs("EnterInitializationMode", False, 0.0, 0.0, True, -1.0) == ERROR  # stop before start
+        assert cs("EnterInitializationMode", False, 0.0, 0.0, False, 0.0) == OK
+        assert cs("Terminate") == ERROR  # Initialization Mode
+        assert cs("ExitInitializationMode") == OK
+        assert cs("EnterContinuousTimeMode") == ERROR and cs("SetTime", 0.0) == ERROR  # model exchange only
+        assert cs.do_step(math.nan, 0.01) == ERROR and cs.do_step(0.0, 1e300) == ERROR
+        assert cs.do_step(0.0, 1e-3 * 50001) == ERROR  # the internal-step budget
+        assert cs.do_step(0.0, 0.01) == OK  # argument errors left it usable
+        state = ctypes.c_void_p()
+        assert cs("GetFMUState", ctypes.byref(state)) == OK
+        size = ctypes.c_size_t()
+        assert cs("SerializedFMUStateSize", state, ctypes.byref(size)) == OK
+        buffer = ctypes.create_string_buffer(size.value)
+        assert cs("SerializeFMUState", state, buffer, size.value) == OK
+        corrupted = bytearray(buffer.raw)
+        corrupted[60] ^= 1  # a bit of the time
+        copy = ctypes.c_void_p()
+        assert cs("DeserializeFMUState", bytes(corrupted), len(corrupted), ctypes.byref(copy)) == ERROR
+        assert cs("FreeFMUState", ctypes.byref(state)) == OK
+    finally:
+        cs.free()
+
+    me = Raw3(advanced_fmus[3], tmp_path / "me", cosimulation=False)
+    try:
+        assert me("EnterInitializationMode", False, 0.0, 0.0, False, 0.0) == OK
+        assert me("ExitInitializationMode") == OK  # Event Mode
+        assert me.do_step(0.0, 0.01) == ERROR  # co-simulation only
+        assert me("EnterContinuousTimeMode") == OK
+        surface = (ctypes.c_uint * 1)(me.vr["surface_fl"])
+        assert me("SetInt32", surface, 1, (ctypes.c_int32 * 1)(1), 1) == ERROR  # discrete input, Continuous-Time Mode
+        assert me("SetTime", math.inf) == ERROR
+        nx = me.description.numberOfContinuousStates
+        assert me("SetContinuousStates", (ctypes.c_double * nx)(*[math.nan] * nx), nx) == ERROR
+    finally:
+        me.free()

@@ -1,7 +1,8 @@
-"""Fuzzer for the FMUs' C runtime: random FMI 2.0 call sequences through ctypes, judged by an oracle.
+"""Fuzzer for the FMUs' C runtime: random FMI 2.0 and FMI 3.0 call sequences through ctypes, judged by an oracle.
 
-The oracle knows the FMI 2.0 state tables (sections 3.2.3 and 4.2.4 of the standard: which function may be
-called in which state, on a model-exchange or a co-simulation instance) and the modelDescription (value
+The oracle knows the state tables of the standard (FMI 2.0 sections 3.2.3 and 4.2.4, FMI 3.0 section 3.2: which
+function may be called in which state, on a model-exchange or a co-simulation instance) and the
+modelDescription (value
 references, types, causality, variability, min/max), plus the runtime's documented argument rules (README:
 non-finite or out-of-range values, a step not at the FMU's time, time that cannot advance, the internal-step
 budget, corrupted serialized states). A call that returns OK where an error is required is a violation; so is
@@ -10,7 +11,7 @@ an error without a log message.
 Sequences run in batches, each batch in a worker subprocess that is restarted after a crash; a watchdog kills a
 worker whose current call takes longer than the hang timeout. Every sequence is reproducible from (seed, index).
 
-    python -m sdl_fmu.fmu.fuzz dist/fmi2/EgoVehicleSimple.fmu --sequences 20000 --seed 1 [--sanitize]
+    python -m sdl_fmu.fmu.fuzz dist/fmi2/EgoVehicleSimple.fmu dist/fmi3/EgoVehicleSimple.fmu --sequences 20000
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ INTERNAL_STEP_BUDGET = 50000
 # cosimulation.c accepts a communication point within 1e-9 relative of the FMU's time; clearly wrong is more
 TIME_MISMATCH = 1e-6
 HANG_TIMEOUT = 5.0  # s
+WORKER_COMMAND = [sys.executable, "-m", "sdl_fmu.fmu.fuzz"]  # a worker runs batches of sequences
 
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
 ME, CS = 0, 1
@@ -101,6 +103,62 @@ SIGNATURES = {
     "fmi2GetRealStatus": (Status, [Component, ctypes.c_int, P(Real)]),
 }
 
+Instance3 = ctypes.c_void_p
+Bool3 = ctypes.c_bool
+LogMessage3 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)
+IntermediateUpdate3 = ctypes.c_void_p  # unused: passed as NULL
+SIGNATURES3 = {
+    "fmi3InstantiateCoSimulation": (Instance3, [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p, Bool3, Bool3,
+                                                Bool3, Bool3, P(ctypes.c_uint), ctypes.c_size_t, ctypes.c_void_p,
+                                                LogMessage3, IntermediateUpdate3]),
+    "fmi3InstantiateModelExchange": (Instance3, [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p, Bool3, Bool3,
+                                                 ctypes.c_void_p, LogMessage3]),
+    "fmi3FreeInstance": (None, [Instance3]),
+    "fmi3EnterInitializationMode": (Status, [Instance3, Bool3, Real, Real, Bool3, Real]),
+    "fmi3ExitInitializationMode": (Status, [Instance3]),
+    "fmi3Terminate": (Status, [Instance3]),
+    "fmi3Reset": (Status, [Instance3]),
+    "fmi3GetFloat64": (Status, [Instance3, P(ctypes.c_uint), ctypes.c_size_t, P(Real), ctypes.c_size_t]),
+    "fmi3GetInt32": (Status, [Instance3, P(ctypes.c_uint), ctypes.c_size_t, P(ctypes.c_int32), ctypes.c_size_t]),
+    "fmi3GetBoolean": (Status, [Instance3, P(ctypes.c_uint), ctypes.c_size_t, P(Bool3), ctypes.c_size_t]),
+    "fmi3SetFloat64": (Status, [Instance3, P(ctypes.c_uint), ctypes.c_size_t, P(Real), ctypes.c_size_t]),
+    "fmi3SetInt32": (Status, [Instance3, P(ctypes.c_uint), ctypes.c_size_t, P(ctypes.c_int32), ctypes.c_size_t]),
+    "fmi3SetBoolean": (Status, [Instance3, P(ctypes.c_uint), ctypes.c_size_t, P(Bool3), ctypes.c_size_t]),
+    "fmi3GetFMUState": (Status, [Instance3, P(ctypes.c_void_p)]),
+    "fmi3SetFMUState": (Status, [Instance3, ctypes.c_void_p]),
+    "fmi3FreeFMUState": (Status, [Instance3, P(ctypes.c_void_p)]),
+    "fmi3SerializedFMUStateSize": (Status, [Instance3, ctypes.c_void_p, P(ctypes.c_size_t)]),
+    "fmi3SerializeFMUState": (Status, [Instance3, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t]),
+    "fmi3DeserializeFMUState": (Status, [Instance3, ctypes.c_char_p, ctypes.c_size_t, P(ctypes.c_void_p)]),
+    "fmi3EnterEventMode": (Status, [Instance3]),
+    "fmi3UpdateDiscreteStates": (Status, [Instance3, P(Bool3), P(Bool3), P(Bool3), P(Bool3), P(Bool3), P(Real)]),
+    "fmi3EnterContinuousTimeMode": (Status, [Instance3]),
+    "fmi3CompletedIntegratorStep": (Status, [Instance3, Bool3, P(Bool3), P(Bool3)]),
+    "fmi3SetTime": (Status, [Instance3, Real]),
+    "fmi3SetContinuousStates": (Status, [Instance3, P(Real), ctypes.c_size_t]),
+    "fmi3GetContinuousStateDerivatives": (Status, [Instance3, P(Real), ctypes.c_size_t]),
+    "fmi3GetEventIndicators": (Status, [Instance3, P(Real), ctypes.c_size_t]),
+    "fmi3GetContinuousStates": (Status, [Instance3, P(Real), ctypes.c_size_t]),
+    "fmi3GetNominalsOfContinuousStates": (Status, [Instance3, P(Real), ctypes.c_size_t]),
+    "fmi3DoStep": (Status, [Instance3, Real, Real, Bool3, P(Bool3), P(Bool3), P(Bool3), P(Real)]),
+}
+# the worker speaks FMI 2.0 names; FMI 3.0 calls the same operations so
+FMI3_NAMES = {
+    "fmi2EnterInitializationMode": "fmi3EnterInitializationMode", "fmi2ExitInitializationMode": "fmi3ExitInitializationMode",
+    "fmi2Terminate": "fmi3Terminate", "fmi2Reset": "fmi3Reset",
+    "fmi2GetReal": "fmi3GetFloat64", "fmi2GetInteger": "fmi3GetInt32", "fmi2GetBoolean": "fmi3GetBoolean",
+    "fmi2SetReal": "fmi3SetFloat64", "fmi2SetInteger": "fmi3SetInt32", "fmi2SetBoolean": "fmi3SetBoolean",
+    "fmi2GetFMUstate": "fmi3GetFMUState", "fmi2SetFMUstate": "fmi3SetFMUState", "fmi2FreeFMUstate": "fmi3FreeFMUState",
+    "fmi2SerializedFMUstateSize": "fmi3SerializedFMUStateSize", "fmi2SerializeFMUstate": "fmi3SerializeFMUState",
+    "fmi2DeSerializeFMUstate": "fmi3DeserializeFMUState", "fmi2EnterEventMode": "fmi3EnterEventMode",
+    "fmi2NewDiscreteStates": "fmi3UpdateDiscreteStates", "fmi2EnterContinuousTimeMode": "fmi3EnterContinuousTimeMode",
+    "fmi2CompletedIntegratorStep": "fmi3CompletedIntegratorStep", "fmi2SetTime": "fmi3SetTime",
+    "fmi2SetContinuousStates": "fmi3SetContinuousStates", "fmi2GetDerivatives": "fmi3GetContinuousStateDerivatives",
+    "fmi2GetEventIndicators": "fmi3GetEventIndicators", "fmi2GetContinuousStates": "fmi3GetContinuousStates",
+    "fmi2GetNominalsOfContinuousStates": "fmi3GetNominalsOfContinuousStates", "fmi2DoStep": "fmi3DoStep",
+}
+TYPE_NAMES = {"Float64": "Real", "Int32": "Integer"}  # FMI 3.0 type -> the worker's (FMI 2.0) type
+
 # ---- the oracle's tables -------------------------------------------------------------------------------------
 
 # states: instantiated, init, step (CS stepComplete), event, cont (ME), terminated; None = unknown (after an
@@ -126,6 +184,8 @@ ALLOWED = {  # function -> {interface type: states where the standard allows it}
     "fmi2GetNominalsOfContinuousStates": {CS: set(), ME: {"instantiated", "init", "event", "cont", "terminated"}},
     "state": {CS: "any", ME: "any"},
 }
+# FMI 3.0 differs: Event Mode is entered from Continuous-Time Mode only; the getters' states are not checked
+ALLOWED3 = {"fmi2EnterEventMode": {CS: set(), ME: {"cont"}}, "get": {CS: "any", ME: "any"}}
 
 
 @dataclass(frozen=True)
@@ -165,9 +225,11 @@ def _as_int(value) -> int:
 class Worker:
     def __init__(self, config: dict):
         self.library = ctypes.CDLL(config["library"])
-        for name, (restype, argtypes) in SIGNATURES.items():
+        self.version = config["fmi_version"]
+        for name, (restype, argtypes) in (SIGNATURES if self.version == 2 else SIGNATURES3).items():
             function = getattr(self.library, name)
             function.restype, function.argtypes = restype, argtypes
+        self.log_message3 = LogMessage3(self._log3)
         self.guid = config["guid"].encode()
         self.variables = [Variable(**v) for v in config["variables"]]
         self.by_vr = {v.vr: v for v in self.variables}
@@ -182,6 +244,9 @@ class Worker:
         self.callbacks = Callbacks(Logger(self._log), ctypes.cast(libc.calloc, Allocate),
                                    ctypes.cast(libc.free, Free), StepFinished(), None)
         self.stats = Counter()
+
+    def _log3(self, environment, status, category, message):
+        self._log(environment, None, status, category, message, None)
 
     def _log(self, environment, name, status, category, message, argument):
         if status >= ERROR:
@@ -200,6 +265,9 @@ class Worker:
         self.emit("c", self.index, self.count, name)
         self.count += 1
         self.log_errors = 0
+        if self.version == 3:
+            name = FMI3_NAMES[name]
+            args = self.fmi3_arguments(name, args)
         status = getattr(self.library, name)(*args)
         self.stats[f"{name} {('OK', 'Warning', 'Discard', 'Error', 'Fatal')[status]}"] += 1
         if must_fail and status in (OK, WARNING):
@@ -212,9 +280,32 @@ class Worker:
             self.emit("U", self.index, self.count - 1, name, self.last_message)
         return status
 
+    def fmi3_arguments(self, name: str, args: tuple) -> tuple:
+        """FMI 3.0 passes a few arguments differently from FMI 2.0."""
+        if name.startswith(("fmi3GetFloat64", "fmi3SetFloat64", "fmi3GetInt32", "fmi3SetInt32", "fmi3GetBoolean",
+                            "fmi3SetBoolean")):
+            c, vrs, n, values = args
+            if name.endswith("Int32"):
+                values = (ctypes.c_int32 * max(n, 1))(*list(values)[:n])
+            elif name.endswith("Boolean"):
+                values = (Bool3 * max(n, 1))(*[bool(x) for x in list(values)[:n]])
+            return c, vrs, n, values, n
+        if name == "fmi3DoStep":
+            c, t, h, no_set = args
+            flags = [ctypes.byref(Bool3()) for _ in range(3)]
+            return c, t, h, bool(no_set), *flags, ctypes.byref(Real())
+        if name == "fmi3UpdateDiscreteStates":
+            return args[0], *[ctypes.byref(Bool3()) for _ in range(5)], ctypes.byref(Real())
+        if name == "fmi3CompletedIntegratorStep":
+            return args[0], bool(args[1]), ctypes.byref(Bool3()), ctypes.byref(Bool3())
+        if name == "fmi3EnterInitializationMode":
+            start, stop_defined, stop = self.pending_times
+            return args[0], False, 0.0, start, stop_defined, stop
+        return args
+
     def allowed(self, key: str) -> bool | None:
         """True/False from the state table; None when the oracle does not know the state."""
-        states = ALLOWED[key][self.kind]
+        states = (ALLOWED3.get(key) or ALLOWED[key])[self.kind] if self.version == 3 else ALLOWED[key][self.kind]
         if states == "any":
             return True
         if not states:
@@ -316,6 +407,9 @@ class Worker:
 
     def do_setup(self, progress: bool) -> None:
         r = self.rng
+        if self.version == 3:  # no fmi3SetupExperiment: the times go with fmi3EnterInitializationMode
+            self.do_enter_initialization(progress)
+            return
         start = 0.0 if progress else r.choice([0.0, r.uniform(-10, 10), math.nan, math.inf, 1e16, -1.0])
         stop_defined = r.random() < 0.5
         stop = start + r.choice([10.0, 100.0, 1.0]) if progress or r.random() < 0.7 else r.choice(
@@ -327,6 +421,22 @@ class Worker:
                            int(stop_defined), stop)
         if status == OK:
             self.time, self.stop = start, (stop if stop_defined else math.inf)
+
+    def do_enter_initialization(self, progress: bool) -> None:
+        r = self.rng
+        start, stop_defined, stop = 0.0, r.random() < 0.5, 10.0
+        if self.version == 3 and not progress and r.random() < 0.4:
+            start = r.choice([math.nan, math.inf, 1e16, -1.0, r.uniform(-10, 10)])
+            stop = r.choice([start + 1.0, start - 1.0, math.nan])
+        self.pending_times = (start, stop_defined, stop)
+        must, uncertain = self.state_rule("fmi2EnterInitializationMode")
+        if not math.isfinite(start) or stop_defined and not (math.isfinite(stop) and stop >= start):
+            must, self.why = True, f"start {start}, stop {stop}"
+        status = self.call("fmi2EnterInitializationMode", must, must or uncertain, self.component)
+        if status == OK:
+            self.state = "init"
+            if self.version == 3:
+                self.time, self.stop = start, (stop if stop_defined else math.inf)
 
     def do_transition(self, name: str, to: str | None) -> None:
         must, uncertain = self.state_rule(name)
@@ -387,7 +497,8 @@ class Worker:
         elif choice == "fmi2SetContinuousStates":
             x = (Real * self.nx)()
             n = self.nx
-            if self.state != "cont" or not self.library.fmi2GetContinuousStates(c, x, self.nx) == OK:
+            get_states = getattr(self.library, "fmi2GetContinuousStates" if self.version == 2 else "fmi3GetContinuousStates")
+            if self.state != "cont" or not get_states(c, x, self.nx) == OK:
                 x = (Real * self.nx)(*[r.uniform(-1, 1) for _ in range(self.nx)])
             if not progress and r.random() < 0.3:
                 if r.random() < 0.5 or self.nx == 0:
@@ -457,7 +568,7 @@ class Worker:
         state, r = self.state, self.rng
         if state == "instantiated":
             r.choice([lambda: self.do_setup(True), lambda: self.do_set(True),
-                      lambda: self.do_transition("fmi2EnterInitializationMode", "init")])()
+                      lambda: self.do_enter_initialization(True)])()
         elif state == "init":
             r.choice([lambda: self.do_set(True), self.do_get,
                       lambda: self.do_transition("fmi2ExitInitializationMode", "step" if self.kind == CS else "event")])()
@@ -473,7 +584,7 @@ class Worker:
         r.choice([
             lambda: self.do_set(False), lambda: self.do_set(False), self.do_get, lambda: self.do_step(False),
             lambda: self.do_setup(False), lambda: self.do_me(False), self.do_fmu_state, self.do_fmu_state,
-            lambda: self.do_transition("fmi2EnterInitializationMode", "init"),
+            lambda: self.do_enter_initialization(False),
             lambda: self.do_transition("fmi2ExitInitializationMode", "step" if self.kind == CS else "event"),
             lambda: self.do_transition("fmi2Terminate", "terminated"),
             lambda: self.do_transition("fmi2Reset", "instantiated"),
@@ -481,6 +592,8 @@ class Worker:
         ])()
 
     def do_status(self) -> None:
+        if self.version == 3:  # FMI 3.0 has no fmi3GetRealStatus
+            return
         must, uncertain = self.state_rule("fmi2GetRealStatus")
         self.call("fmi2GetRealStatus", must, True, self.component, 2, ctypes.byref(Real()))  # fmi2LastSuccessfulTime
 
@@ -490,11 +603,19 @@ class Worker:
         self.kind = CS if r.random() < 0.6 else ME
         guid = self.guid if r.random() > 0.02 else b"{00000000-0000-0000-0000-000000000000}"
         self.emit("c", index, -1, "fmi2Instantiate")
-        self.component = self.library.fmi2Instantiate(b"fuzz", self.kind, guid, b"", ctypes.byref(self.callbacks), 0, 0)
+        if self.version == 2:
+            self.component = self.library.fmi2Instantiate(b"fuzz", self.kind, guid, b"", ctypes.byref(self.callbacks),
+                                                          0, 0)
+        elif self.kind == CS:
+            self.component = self.library.fmi3InstantiateCoSimulation(b"fuzz", guid, b"", False, False, False, False,
+                                                                      None, 0, None, self.log_message3, None)
+        else:
+            self.component = self.library.fmi3InstantiateModelExchange(b"fuzz", guid, b"", False, False, None,
+                                                                       self.log_message3)
         if guid != self.guid:
             if self.component:
                 self.emit("V", index, -1, "fmi2Instantiate", "accepted a wrong GUID")
-                self.library.fmi2FreeInstance(self.component)
+                getattr(self.library, "fmi2FreeInstance" if self.version == 2 else "fmi3FreeInstance")(self.component)
             return
         if not self.component:
             self.emit("V", index, -1, "fmi2Instantiate", "failed")
@@ -502,14 +623,17 @@ class Worker:
         self.state, self.time, self.stop = "instantiated", 0.0, math.inf
         self.current_solver_step = self.solver_step.start if self.solver_step else 1e-3
         self.handles, self.blobs = [], []
+        self.pending_times = (0.0, False, 0.0)
         for _ in range(r.randint(5, 40)):
             if r.random() < 0.65 and self.state is not None:
                 self.progress_call()
             else:
                 self.random_call()
+        free_state, free_instance = (("fmi2FreeFMUstate", "fmi2FreeInstance") if self.version == 2
+                                     else ("fmi3FreeFMUState", "fmi3FreeInstance"))
         for handle, _ in self.handles:
-            self.library.fmi2FreeFMUstate(self.component, ctypes.byref(handle))
-        self.library.fmi2FreeInstance(self.component)
+            getattr(self.library, free_state)(self.component, ctypes.byref(handle))
+        getattr(self.library, free_instance)(self.component)
 
     def run(self, first: int, count: int) -> None:
         for index in range(first, first + count):
@@ -547,11 +671,12 @@ def model_config(unzipped: Path, library: Path, seed: int) -> dict:
     def bound(text, default):
         return float(text) if text is not None else default
 
-    variables = [dict(name=v.name, vr=v.valueReference, type=v.type, causality=v.causality,
+    variables = [dict(name=v.name, vr=v.valueReference, type=TYPE_NAMES.get(v.type, v.type), causality=v.causality,
                       variability=v.variability, min=bound(v.min, -math.inf), max=bound(v.max, math.inf),
                       start=None if v.start is None or v.type == "Boolean" else float(v.start))
                  for v in description.modelVariables]
     return {"library": str(library), "guid": description.guid, "variables": variables,
+            "fmi_version": int(description.fmiVersion[0]),
             "nx": description.numberOfContinuousStates, "nz": description.numberOfEventIndicators, "seed": seed}
 
 
@@ -585,8 +710,10 @@ def fuzz(fmu: Path, sequences: int = 1000, seed: int = 1, batch: int = 250, hang
             archive.extractall(work)
         from fmpy import read_model_description
 
-        identifier = read_model_description(str(work)).coSimulation.modelIdentifier
-        library = work / "binaries" / "linux64" / f"{identifier}.so"
+        description = read_model_description(str(work))
+        identifier = description.coSimulation.modelIdentifier
+        platform = "linux64" if description.fmiVersion.startswith("2") else "x86_64-linux"
+        library = work / "binaries" / platform / f"{identifier}.so"
         environment = dict(os.environ)
         if sanitize:
             library = sanitized_library(work, work / f"{identifier}-sanitized.so")
@@ -608,8 +735,8 @@ def _run_batch(config: Path, first: int, count: int, hang_timeout: float, enviro
                report: Report, log) -> int:
     """Runs one worker; returns the index of the next sequence to run."""
     with open(stderr_path, "wb") as stderr:
-        worker = subprocess.Popen([sys.executable, "-m", "sdl_fmu.fmu.fuzz", "--worker", str(config), str(first),
-                                   str(count)], stdout=subprocess.PIPE, stderr=stderr, env=environment)
+        worker = subprocess.Popen([*WORKER_COMMAND, "--worker", str(config), str(first), str(count)],
+                                  stdout=subprocess.PIPE, stderr=stderr, env=environment)
     current, last_call, buffer, done = first, "", b"", False
     try:
         while True:

@@ -39,6 +39,7 @@ INTERNAL_STEP_BUDGET = 50000
 # cosimulation.c accepts a communication point within 1e-9 relative of the FMU's time; clearly wrong is more
 TIME_MISMATCH = 1e-6
 HANG_TIMEOUT = 5.0  # s
+STARTUP_TIMEOUT = 120.0  # s for a worker to start Python and load the FMU (not a call: no hang)
 WORKER_COMMAND = [sys.executable, "-m", "sdl_fmu.fmu.fuzz"]  # a worker runs batches of sequences
 
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
@@ -740,10 +741,14 @@ def _run_batch(config: Path, first: int, count: int, hang_timeout: float, enviro
     current, last_call, buffer, done = first, "", b"", False
     try:
         while True:
-            ready, _, _ = select.select([worker.stdout], [], [], hang_timeout)
+            # the watchdog times calls; before the first one the worker is still starting
+            ready, _, _ = select.select([worker.stdout], [], [], hang_timeout if last_call else STARTUP_TIMEOUT)
             if not ready:
                 worker.kill()
                 worker.wait()
+                if not last_call:
+                    report.crashes.append(f"sequence {first}: the worker did not start in {STARTUP_TIMEOUT} s")
+                    return first + 1
                 report.hangs.append(f"sequence {current}: {last_call} ran longer than {hang_timeout} s")
                 if log:
                     log(f"HANG in sequence {current} at {last_call}")

@@ -803,7 +803,7 @@ def main(argv: list[str] | None = None) -> int:
     for fmu in arguments.fmu:
         report = fuzz(fmu, arguments.sequences, arguments.seed, arguments.batch, arguments.hang_timeout,
                       arguments.sanitize, log=lambda text: print(text, file=sys.stderr))
-        print(f"{fmu.name}: {report.summary()}")
+        print(f"{fmu.parent.name}/{fmu.name}: {report.summary()}")
         failed |= bool(report.crashes or report.hangs or report.violations)
     return 1 if failed else 0
 

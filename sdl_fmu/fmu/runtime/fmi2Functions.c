@@ -66,7 +66,6 @@ static Instance *checked_cs(fmi2Component c, const char *function, int allowed_m
     return checked_type(c, function, allowed_modes, CO_SIMULATION_ONLY);
 }
 
-
 static fmi2Status finish(Instance *instance, Status status) {
     if (status >= STATUS_ERROR) instance->now.mode = MODE_ERROR;
     return (fmi2Status)status;

@@ -12,8 +12,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_model_source,
-                      model_guid, runtime_sources, variable_table)
+from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
+                      generate_model_source, model_guid, runtime_sources, variable_table)
 from .structure import declared_dependencies, reinitialized_states
 from .xml import build_description, model_description, model_description_fmi3
 
@@ -31,6 +31,10 @@ FMI_VERSIONS = (2, 3)
 # binaries/<platform>/ of each binary, as each FMI version names the platform
 LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
 WINDOWS_BINARY_DIRECTORY = {2: "win64", 3: "x86_64-windows"}
+# the standard's headers (BSD-2-Clause, shipped with fmpy), copied into sources/ so that one compiler line
+# rebuilds the binary anywhere, without an FMI SDK
+FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+               3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
 
 
 class BuildError(RuntimeError):
@@ -96,12 +100,6 @@ def _run_compilers(commands: list[list[str]]) -> None:
         raise BuildError("\n".join(failures))
 
 
-def compile_object(sources_dir: Path, source: str, output: Path, compiler: str | None = None,
-                   windows: bool = False) -> None:
-    """Compiles one source into an object, e.g. the model code that FMI 2.0 and 3.0 binaries share."""
-    _run_compilers([_object_command(sources_dir, source, output, compiler, windows)])
-
-
 def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
                    objects: tuple[Path, ...] = (), windows: bool = False, extra_flags: tuple[str, ...] = ()) -> None:
     """Compiles and links the FMU's shared library (a Linux .so, or with windows=True and mingw-w64 a DLL);
@@ -136,15 +134,18 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
         generated.mkdir()
         functions, casadi_source = generate_casadi(equations, generated)
         guid = model_guid(equations.interface, casadi_source)
-        model_source = generate_model_source(equations, functions, guid, generated)
+        model_sources = [generate_model_source(equations, functions, guid, generated).name,
+                         generate_derivatives_source(equations, generated).name]
         for name in RUNTIME_HEADERS:
             shutil.copy(RUNTIME_DIRECTORY / name, generated / name)
-        linux_object = Path(work) / f"{model}_model.o"
-        windows_object = Path(work) / f"{model}_model.win64.o"
-        objects = [_object_command(generated, model_source.name, linux_object)]
+        # the model code, compiled once per platform (gcc and mingw-w64 side by side), linked into each version
+        linux_objects = [Path(work) / "linux" / (Path(source).stem + ".o") for source in model_sources]
+        windows_objects = [Path(work) / "windows" / (Path(source).stem + ".o") for source in model_sources]
+        commands = [_object_command(generated, source, output) for source, output in zip(model_sources, linux_objects)]
         if cross:
-            objects.append(_object_command(generated, model_source.name, windows_object, cross, windows=True))
-        _run_compilers(objects)
+            commands += [_object_command(generated, source, output, cross, windows=True)
+                         for source, output in zip(model_sources, windows_objects)]
+        _run_compilers(commands)
         nz = functions["event_indicators"].size1_out(0)
         table = variable_table(equations.interface, nz)
         dependencies = declared_dependencies(equations, table)
@@ -156,7 +157,9 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
             shutil.copytree(generated, sources_dir)
             for name in runtime_sources(version):
                 shutil.copy(RUNTIME_DIRECTORY / name, sources_dir / name)
-            sources = [*runtime_sources(version), model_source.name]
+            for name in FMI_HEADERS[version]:
+                shutil.copy(fmi_headers() / name, sources_dir / name)
+            sources = [*runtime_sources(version), *model_sources]
             (sources_dir / "buildDescription.xml").write_bytes(build_description(model, sources))
             if version == 2:
                 description = model_description(equations.interface, table, guid, nz, sources, dependencies)
@@ -167,11 +170,11 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
             runtime = list(runtime_sources(version))
             links.append(_binary_command(sources_dir, runtime,
                                          root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
-                                         objects=(linux_object,)))
+                                         objects=tuple(linux_objects)))
             if cross:
                 links.append(_binary_command(sources_dir, runtime,
                                              root / "binaries" / WINDOWS_BINARY_DIRECTORY[version] / f"{model}.dll",
-                                             cross, objects=(windows_object,), windows=True))
+                                             cross, objects=tuple(windows_objects), windows=True))
             roots.append((root, fmu_path(out_dir, dynamics, version)))
         _run_compilers(links)
         targets = [_zip_fmu(root, target) for root, target in roots]

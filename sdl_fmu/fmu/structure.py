@@ -48,6 +48,35 @@ def unknowns(equations: Equations) -> Unknowns:
     return Unknowns(ca.vertcat(s.x, s.u, s.p), continuous, initial, sizes)
 
 
+def zero_subgradient_at_roots(expression: ca.SX, inputs: list[ca.SX]) -> ca.SX:
+    """The same expression with every sqrt(a) read as (a > 0 ? sqrt(a) : 0).
+
+    Its values are unchanged where they are defined, but its derivatives at a = 0 become 0 instead of 0/0:
+    a norm sqrt(a^2 + b^2) at the origin (a car at rest, a tire without force) gets the subgradient 0, not
+    NaN. Done by replaying CasADi's instruction list, so it works for any model."""
+    function = ca.Function("rewritten", inputs, [expression])
+    work: dict[int, ca.SX] = {}
+    result = [ca.SX(0)] * expression.numel()
+    for k in range(function.n_instructions()):
+        op = function.instruction_id(k)
+        arguments = function.instruction_input(k)
+        destination = function.instruction_output(k)
+        if op == ca.OP_INPUT:
+            work[destination[0]] = inputs[arguments[0]].nz[arguments[1]]
+        elif op == ca.OP_OUTPUT:
+            result[destination[1]] = work[arguments[0]]
+        elif op == ca.OP_CONST:
+            work[destination[0]] = ca.SX(function.instruction_constant(k))
+        elif op == ca.OP_SQRT:
+            radicand = work[arguments[0]]
+            work[destination[0]] = ca.if_else(radicand > 0, ca.sqrt(radicand), 0)
+        elif len(arguments) == 1:
+            work[destination[0]] = ca.SX.unary(op, work[arguments[0]])
+        else:
+            work[destination[0]] = ca.SX.binary(op, work[arguments[0]], work[arguments[1]])
+    return ca.reshape(ca.vertcat(*result), expression.shape) if result else expression
+
+
 def derivative_functions(equations: Equations, model: str) -> dict[str, ca.Function]:
     """The four CasADi functions (x, d, u, p, seed) -> sensitivity of the runtime's derivative calls.
 
@@ -57,8 +86,10 @@ def derivative_functions(equations: Equations, model: str) -> dict[str, ca.Funct
     and the chain keeps the generated code half the size of differentiating the substituted U once more."""
     s = equations.symbols
     system = unknowns(equations)
-    known, unknown = system.known, system.continuous
     args = [s.x, s.d, s.u, s.p]
+    known = system.known
+    unknown = zero_subgradient_at_roots(system.continuous, args)
+    initial_states = zero_subgradient_at_roots(equations.initial_states, args)
     names = ["x", "d", "u", "p"]
     seed_known = ca.SX.sym("seed_known", known.numel())
     seed_unknown = ca.SX.sym("seed_unknown", unknown.numel())
@@ -68,8 +99,8 @@ def derivative_functions(equations: Equations, model: str) -> dict[str, ca.Funct
     sweeps = {
         "unknowns_forward": (seed_known, ca.cse(ca.jtimes(unknown, known, seed_known))),
         "unknowns_adjoint": (seed_unknown, ca.cse(ca.jtimes(unknown, known, seed_unknown, True))),
-        "initial_forward": (seed_known, ca.jtimes(equations.initial_states, known, seed_known)),
-        "initial_adjoint": (seed_state, ca.jtimes(equations.initial_states, known, seed_state, True)),
+        "initial_forward": (seed_known, ca.jtimes(initial_states, known, seed_known)),
+        "initial_adjoint": (seed_state, ca.jtimes(initial_states, known, seed_state, True)),
     }
     return {key: ca.Function(f"{model}_{key}", [*args, seed], [sensitivity], [*names, "seed"], ["sensitivity"])
             for key, (seed, sensitivity) in sweeps.items()}

@@ -12,6 +12,7 @@ from .structure import DeclaredDependencies
 
 LOG_CATEGORIES = {
     "logEvents": "Events located by the FMU: stops, starts, mode changes (debug logging)",
+    "logStatusWarning": "Warnings: partial derivatives that are not finite",
     "logStatusError": "Errors: misuse of the FMI API, failed evaluations",
 }
 

@@ -3,6 +3,7 @@
  * references onto positions in U and K here; nothing in this file knows the model. */
 #include "derivatives.h"
 
+#include <math.h>
 #include <string.h>
 
 typedef enum { FORWARD, ADJOINT } Direction;
@@ -176,10 +177,19 @@ static Status partial_derivative(Instance *instance, Direction direction, const 
         }
     }
     if (status == STATUS_OK) {
+        size_t n = direction == FORWARD ? n_unknowns : n_knowns;
         if (direction == FORWARD)
             for (i = 0; i < n_unknowns; i++) sensitivity[i] = result[unknown_position(instance, unknowns[i], 0)];
         else
             for (i = 0; i < n_knowns; i++) sensitivity[i] = result[known_position(instance, knowns[i])];
+        for (i = 0; i < n; i++)
+            if (!isfinite(sensitivity[i])) {
+                instance_log(instance, STATUS_WARNING, "logStatusWarning",
+                             "partial derivative: the %s sensitivity %lu is not finite at t = %.17g",
+                             direction == FORWARD ? "directional" : "adjoint", (unsigned long)i, instance->now.time);
+                status = STATUS_WARNING;
+                break;
+            }
     }
     instance->release(seed_vector);
     instance->release(result);

@@ -81,8 +81,8 @@ static fmi3Status unsupported(fmi3Instance c, const char *function, const char *
 static int counts_match(Instance *instance, const char *function, size_t nValueReferences, size_t nValues) {
     if (nValueReferences == nValues) return 1;
     instance_log(instance, STATUS_ERROR, "logStatusError",
-                 "%s: %zu values for %zu value references (all variables are scalars)", function, nValues,
-                 nValueReferences);
+                 "%s: %lu values for %lu value references (all variables are scalars)", function,
+                 (unsigned long)nValues, (unsigned long)nValueReferences);
     return 0;
 }
 
@@ -526,7 +526,8 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference
     if (!instance) return fmi3Error;
     if (nSeed != nKnowns || nSensitivity != nUnknowns) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
-                     "fmi3GetDirectionalDerivative: expected %zu seeds and %zu sensitivities", nKnowns, nUnknowns);
+                     "fmi3GetDirectionalDerivative: expected %lu seeds and %lu sensitivities",
+                     (unsigned long)nKnowns, (unsigned long)nUnknowns);
         return fmi3Error;
     }
     return (fmi3Status)instance_directional_derivative(instance, unknowns, nUnknowns, knowns, nKnowns, seed,
@@ -540,7 +541,8 @@ fmi3Status fmi3GetAdjointDerivative(fmi3Instance c, const fmi3ValueReference unk
     if (!instance) return fmi3Error;
     if (nSeed != nUnknowns || nSensitivity != nKnowns) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
-                     "fmi3GetAdjointDerivative: expected %zu seeds and %zu sensitivities", nUnknowns, nKnowns);
+                     "fmi3GetAdjointDerivative: expected %lu seeds and %lu sensitivities",
+                     (unsigned long)nUnknowns, (unsigned long)nKnowns);
         return fmi3Error;
     }
     return (fmi3Status)instance_adjoint_derivative(instance, unknowns, nUnknowns, knowns, nKnowns, seed,

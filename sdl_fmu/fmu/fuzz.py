@@ -536,7 +536,8 @@ class Worker:
         elif choice == "set":
             handle, saved = r.choice(self.handles)
             if self.call("fmi2SetFMUstate", False, True, c, handle) == OK:
-                self.state, self.time, self.stop, self.current_solver_step = saved
+                # the stop time belongs to the experiment, not to the FMU state: it stays
+                self.state, self.time, _, self.current_solver_step = saved
         elif choice == "free":
             handle, _ = self.handles.pop(r.randrange(len(self.handles)))
             self.call("fmi2FreeFMUstate", False, False, c, ctypes.byref(handle))
@@ -804,6 +805,8 @@ def main(argv: list[str] | None = None) -> int:
         report = fuzz(fmu, arguments.sequences, arguments.seed, arguments.batch, arguments.hang_timeout,
                       arguments.sanitize, log=lambda text: print(text, file=sys.stderr))
         print(f"{fmu.parent.name}/{fmu.name}: {report.summary()}")
+        for line in report.unpredicted[:10]:
+            print(f"    error not predicted by the oracle (sequence, call, function, message): {line}")
         failed |= bool(report.crashes or report.hangs or report.violations)
     return 1 if failed else 0
 

@@ -61,6 +61,8 @@ def test_declared_dependencies_are_casadis_sparsity(simple_fmus, advanced_fmus, 
         for unknown in declared:
             assert unknown.dependencies is not None, f"{kind} {unknown.variable.name} declares no dependencies"
             names = [v.name for v in unknown.dependencies]
+            references = [v.valueReference for v in unknown.dependencies]
+            assert references == sorted(set(references)), f"{kind} {unknown.variable.name}: not ascending"
             assert set(names) == expected[unknown.variable.name], f"{kind} {unknown.variable.name}"
             assert len(unknown.dependenciesKind) == len(names)
             allowed = {"dependent", "constant"} if kind == "initial unknowns" else \

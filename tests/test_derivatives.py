@@ -5,7 +5,6 @@ against the declared dependencies, co-simulation against model exchange, and ini
 with respect to parameters and inputs)."""
 
 import ctypes
-import math
 
 import numpy as np
 import pytest
@@ -436,7 +435,7 @@ def test_misuse_of_partial_derivatives_is_an_error_not_a_crash(simple_fmus, adva
     initializing = Probe(simple_fmus[2], 2, tmp_path / "s", start={"v0": 10.0})
     initializing.enter_initialization()
     with pytest.raises(FMICallException):  # states are calculated in initialization, not knowns
-        initializing.directional([initializing.variables["der(x)"]], [initializing.variables["v"]], [1.0])
+        initializing.directional([initializing.variables["der(x)"]], [initializing.states[0]], [1.0])
     assert initializing.directional([initializing.variables["der(x)"]], [initializing.variables["v0"]], [1.0])[0] == 1.0
     initializing.fmu.exitInitializationMode()
     initializing.free()

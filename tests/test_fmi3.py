@@ -12,7 +12,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from test_simple_fmu import (COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, MU, V0, expected_distance, start_values)
+from test_simple_fmu import COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, expected_distance, start_values
 
 MODELS = {"simple": "EgoVehicleSimple", "advanced": "EgoVehicleAdvanced"}
 
@@ -254,3 +254,14 @@ def test_build_command_writes_both_versions(tmp_path):
     completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "build", "--fmi-version", "4"],
                                capture_output=True, text=True, timeout=60)
     assert completed.returncode == 2 and "Traceback" not in completed.stderr and "--fmi-version" in completed.stderr
+
+
+def test_orchestrator_refuses_an_fmi3_fmu_with_one_line(simple_fmus, tmp_path):
+    scenario = tmp_path / "s.sdl"
+    scenario.write_text("Metric\n10,ES\n")
+    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", str(scenario), "--fmu",
+                                str(simple_fmus[3]), "--out", str(tmp_path / "out")], capture_output=True, text=True,
+                               timeout=120, cwd=tmp_path)
+    assert completed.returncode == 2 and "Traceback" not in completed.stderr
+    assert "FMI 3.0" in completed.stderr and "FMI 2.0" in completed.stderr
+    assert not (tmp_path / "out").exists()

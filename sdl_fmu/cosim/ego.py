@@ -45,6 +45,9 @@ class EgoFMU:
 
     def __init__(self, fmu_path: str | Path, start_values: dict[str, float] | None = None, instance_name: str = "ego"):
         self.model_description = read_model_description(str(fmu_path))
+        if self.model_description.fmiVersion != "2.0":
+            raise FmuError(f"{fmu_path}: FMI {self.model_description.fmiVersion} FMU; the orchestrator co-simulates "
+                           "FMI 2.0 FMUs (dist/fmi2/)")
         if self.model_description.coSimulation is None:
             raise FmuError(f"{fmu_path}: the FMU has no co-simulation interface")
         self.variables = {v.name: v for v in self.model_description.modelVariables}

@@ -232,8 +232,9 @@ def declared_dependencies(equations: Equations, table) -> DeclaredDependencies:
             row = position(entry)
             if row is None:
                 continue
-            target[vr] = [(known_references[d.known], d.kind) for d in per_unknown[row]
-                          if known_role[d.known] in roles]
+            # FMI 2.0: "ordered according to size, starting with the smallest index"
+            target[vr] = sorted((known_references[d.known], d.kind) for d in per_unknown[row]
+                                if known_role[d.known] in roles)
     return declared
 
 

@@ -1,5 +1,10 @@
 """Shared fixtures: the real FMUs, built once per test session into a temporary folder (FMI 2.0 and 3.0 of
-each model from one code generation and one compilation of the model code)."""
+each model from one code generation and one compilation of the model code); wine, started once."""
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -34,3 +39,49 @@ def defaults_simple(simple_fmu):
 
     return {v.name: float(v.start) for v in read_model_description(str(simple_fmu)).modelVariables
             if v.causality == "parameter"}
+
+
+def windows_tools_required() -> bool:
+    """CI (.ci/run) installs mingw-w64 and wine and sets this: there a missing tool is a failure, not a skip."""
+    return os.environ.get("SDL_FMU_REQUIRE_WINDOWS") == "1"
+
+
+def wine_loader() -> str | None:
+    # Debian's wine64 package installs its loader outside PATH; the wine package adds /usr/bin/wine
+    for candidate in ("wine64", "wine", "/usr/lib/wine/wine64"):
+        if shutil.which(candidate):
+            return shutil.which(candidate)
+    return None
+
+
+@pytest.fixture(scope="session")
+def wine(tmp_path_factory):
+    """Runs a Windows program under wine in a fresh prefix; wine's server stays up for the whole session."""
+    loader = wine_loader()
+    if loader is None:
+        if windows_tools_required():
+            pytest.fail("wine is not installed (Debian: apt-get install wine64)")
+        pytest.skip("wine is not installed (Debian: apt-get install wine64)")
+    environment = {**os.environ, "WINEPREFIX": str(tmp_path_factory.mktemp("wineprefix")), "WINEDEBUG": "-all"}
+    server = next((s for s in (shutil.which("wineserver"), "/usr/lib/wine/wineserver64") if s and Path(s).exists()),
+                  None)
+    if server:
+        subprocess.run([server, "-p"], env=environment, check=False)  # persistent: no restart per program
+    # create the prefix once; wine's background services inherit these null handles (with pipes, a caller
+    # reading the output would wait for the services to end)
+    subprocess.run([loader, "wineboot", "--init"], env=environment, stdin=subprocess.DEVNULL,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=300, check=False)
+    outputs = tmp_path_factory.mktemp("wine-output")
+
+    def run(arguments, timeout=120):
+        """Runs a program under wine; its output goes through files, never pipes a service could hold open."""
+        with open(outputs / "stdout", "w+") as stdout, open(outputs / "stderr", "w+") as stderr:
+            completed = subprocess.run([loader, *map(str, arguments)], env=environment, stdin=subprocess.DEVNULL,
+                                       stdout=stdout, stderr=stderr, timeout=timeout)
+            stdout.seek(0)
+            stderr.seek(0)
+            return subprocess.CompletedProcess(completed.args, completed.returncode, stdout.read(), stderr.read())
+
+    yield run
+    if server:
+        subprocess.run([server, "-k"], env=environment, check=False)  # ends this prefix's server only

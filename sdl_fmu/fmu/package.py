@@ -1,5 +1,5 @@
-"""Builds an FMU: CasADi C code + generated table + generic runtime, compiled by gcc, zipped with its
-modelDescription.xml and its sources (so any platform can rebuild it)."""
+"""Builds an FMU: CasADi C code + generated table + generic runtime, compiled by gcc (Linux) and mingw-w64
+(Windows), zipped with its modelDescription.xml and its sources (so any platform can rebuild it)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import importlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import zipfile
 from pathlib import Path
@@ -22,9 +23,14 @@ MODELS = {
     "advanced": ("EgoVehicleAdvanced", "sdl_fmu.dynamics.advanced"),
 }
 WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
+# only the fmi* functions are exported: CasADi's generated functions stay internal to the library
+EXPORT_FLAGS = ["-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
+# mingw-w64 cross compiler (Debian gcc-mingw-w64-x86-64); override with SDL_FMU_MINGW_CC
+MINGW_COMPILER = "x86_64-w64-mingw32-gcc"
 FMI_VERSIONS = (2, 3)
-# binaries/<platform>/ of this machine's binary, as each FMI version names the platform
+# binaries/<platform>/ of each binary, as each FMI version names the platform
 LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
+WINDOWS_BINARY_DIRECTORY = {2: "win64", 3: "x86_64-windows"}
 # the standard's headers (BSD-2-Clause, shipped with fmpy), copied into sources/ so that one compiler line
 # rebuilds the binary anywhere, without an FMI SDK
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -45,6 +51,12 @@ def fmu_path(out_dir: Path, dynamics: str, fmi_version: int = 2) -> Path:
     return Path(out_dir) / f"fmi{fmi_version}" / f"{MODELS[dynamics][0]}.fmu"
 
 
+def mingw_compiler() -> str | None:
+    """The mingw-w64 cross compiler if it is installed, else None."""
+    compiler = os.environ.get("SDL_FMU_MINGW_CC", MINGW_COMPILER)
+    return compiler if shutil.which(compiler) else None
+
+
 def _compiler(compiler: str | None) -> str:
     compiler = compiler or os.environ.get("CC", "gcc")
     if shutil.which(compiler) is None:
@@ -52,46 +64,47 @@ def _compiler(compiler: str | None) -> str:
     return compiler
 
 
-def _run_compiler(command: list[str], output: Path) -> None:
-    result = subprocess.run(command, capture_output=True, text=True)
-    if result.returncode != 0:
-        raise BuildError(f"compiling {output.name} failed:\n{' '.join(command)}\n{result.stderr}")
+def _compile_flags(sources_dir: Path, windows: bool, extra_flags: tuple[str, ...]) -> list[str]:
+    position_independent = [] if windows else ["-fPIC"]  # Windows code is always position independent
+    return ["-std=c99", "-O2", *position_independent, *EXPORT_FLAGS, *WARNING_FLAGS, *extra_flags,
+            f"-I{fmi_headers()}", f"-I{sources_dir}"]
 
 
-def _compile_flags(sources_dir: Path) -> list[str]:
-    return ["-std=c99", "-O2", "-fPIC", "-fvisibility=hidden", *WARNING_FLAGS, f"-I{fmi_headers()}",
-            f"-I{sources_dir}"]
+def _object_command(sources_dir: Path, source: str, output: Path, compiler: str | None = None,
+                    windows: bool = False, extra_flags: tuple[str, ...] = ()) -> list[str]:
+    output.parent.mkdir(parents=True, exist_ok=True)
+    return [_compiler(compiler), *_compile_flags(sources_dir, windows, extra_flags), "-c", str(sources_dir / source),
+            "-o", str(output)]
 
 
-def compile_objects(sources_dir: Path, sources: list[str], directory: Path, compiler: str | None = None) -> list[Path]:
-    """Compiles sources into objects side by side (one compiler process each), e.g. the model code that the
-    FMI 2.0 and 3.0 binaries share."""
-    compiler = _compiler(compiler)
-    directory.mkdir(parents=True, exist_ok=True)
-    jobs = []
-    for source in sources:
-        output = directory / (Path(source).stem + ".o")
-        command = [compiler, *_compile_flags(sources_dir), "-c", str(sources_dir / source), "-o", str(output)]
-        jobs.append((command, output, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                                        text=True)))
+def _binary_command(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
+                    objects: tuple[Path, ...] = (), windows: bool = False,
+                    extra_flags: tuple[str, ...] = ()) -> list[str]:
+    # a Windows DLL links libgcc statically, so that it needs system DLLs only (KERNEL32, msvcrt)
+    link_flags = ["-static-libgcc", "-Wl,--no-insert-timestamp"] if windows else []
+    output.parent.mkdir(parents=True, exist_ok=True)
+    return [_compiler(compiler), *_compile_flags(sources_dir, windows, extra_flags), "-shared", *link_flags,
+            *[str(sources_dir / s) for s in sources], *map(str, objects), "-o", str(output), "-lm"]
+
+
+def _run_compilers(commands: list[list[str]]) -> None:
+    """Runs compiler commands side by side (gcc and mingw-w64 at once); raises BuildError naming each failure."""
+    running = [(command, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+               for command in commands]
     failures = []
-    for command, output, process in jobs:
-        _, errors = process.communicate()
+    for command, process in running:
+        _, stderr = process.communicate()
         if process.returncode != 0:
-            failures.append(f"compiling {output.name} failed:\n{' '.join(command)}\n{errors}")
+            failures.append(f"compiling {Path(command[-1]).name} failed:\n{' '.join(command)}\n{stderr}")
     if failures:
         raise BuildError("\n".join(failures))
-    return [output for _, output, _ in jobs]
 
 
 def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
-                   objects: tuple[Path, ...] = ()) -> None:
-    """Compiles and links the FMU's shared library; -lm last, so libm is a dependency of the binary itself."""
-    compiler = _compiler(compiler)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    command = [compiler, *_compile_flags(sources_dir), "-shared", *[str(sources_dir / s) for s in sources],
-               *map(str, objects), "-o", str(output), "-lm"]
-    _run_compiler(command, output)
+                   objects: tuple[Path, ...] = (), windows: bool = False, extra_flags: tuple[str, ...] = ()) -> None:
+    """Compiles and links the FMU's shared library (a Linux .so, or with windows=True and mingw-w64 a DLL);
+    -lm last, so libm is a dependency of the binary itself."""
+    _run_compilers([_binary_command(sources_dir, sources, output, compiler, objects, windows, extra_flags)])
 
 
 def build_fmu(dynamics: str = "simple", out_dir: Path = Path("dist"), fmi_version: int = 2) -> Path:
@@ -102,13 +115,19 @@ def build_fmu(dynamics: str = "simple", out_dir: Path = Path("dist"), fmi_versio
 def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
                fmi_versions: tuple[int, ...] = FMI_VERSIONS) -> list[Path]:
     """Builds the FMUs of one dynamics model in several FMI versions from one code generation; the model
-    code (CasADi's C and the variable table) is compiled once and linked into each version's binary."""
+    code (CasADi's C and the variable table) is compiled once per platform and linked into each version's
+    binaries. Without mingw-w64, one line on stderr says so and the FMUs carry the Linux binary only."""
     for version in fmi_versions:
         if version not in FMI_VERSIONS:
             raise BuildError(f"FMI version {version!r} is not supported: choose one of "
                              f"{', '.join(map(str, FMI_VERSIONS))}")
     model, module = MODELS[dynamics]
     equations = importlib.import_module(module).equations()
+    cross = mingw_compiler()
+    if cross is None:
+        wanted = os.environ.get("SDL_FMU_MINGW_CC", MINGW_COMPILER)
+        print(f"sdl-fmu: {wanted} not found: the {model} FMUs get no Windows binary (Debian: apt-get install "
+              f"gcc-mingw-w64-x86-64)", file=sys.stderr)
     targets = []
     with tempfile.TemporaryDirectory(prefix=f"{model}-") as work:
         generated = Path(work) / "generated"
@@ -119,11 +138,19 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
                          generate_derivatives_source(equations, generated).name]
         for name in RUNTIME_HEADERS:
             shutil.copy(RUNTIME_DIRECTORY / name, generated / name)
-        model_objects = compile_objects(generated, model_sources, Path(work) / "objects")
+        # the model code, compiled once per platform (gcc and mingw-w64 side by side), linked into each version
+        linux_objects = [Path(work) / "linux" / (Path(source).stem + ".o") for source in model_sources]
+        windows_objects = [Path(work) / "windows" / (Path(source).stem + ".o") for source in model_sources]
+        commands = [_object_command(generated, source, output) for source, output in zip(model_sources, linux_objects)]
+        if cross:
+            commands += [_object_command(generated, source, output, cross, windows=True)
+                         for source, output in zip(model_sources, windows_objects)]
+        _run_compilers(commands)
         nz = functions["event_indicators"].size1_out(0)
         table = variable_table(equations.interface, nz)
         dependencies = declared_dependencies(equations, table)
 
+        roots, links = [], []
         for version in fmi_versions:
             root = Path(work) / f"fmi{version}"
             sources_dir = root / "sources"
@@ -140,10 +167,17 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
                 description = model_description_fmi3(equations.interface, table, guid, dependencies,
                                                      reinitialized_states(equations))
             (root / "modelDescription.xml").write_bytes(description)
-            compile_binary(sources_dir, list(runtime_sources(version)),
-                           root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
-                           objects=tuple(model_objects))
-            targets.append(_zip_fmu(root, fmu_path(out_dir, dynamics, version)))
+            runtime = list(runtime_sources(version))
+            links.append(_binary_command(sources_dir, runtime,
+                                         root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
+                                         objects=tuple(linux_objects)))
+            if cross:
+                links.append(_binary_command(sources_dir, runtime,
+                                             root / "binaries" / WINDOWS_BINARY_DIRECTORY[version] / f"{model}.dll",
+                                             cross, objects=tuple(windows_objects), windows=True))
+            roots.append((root, fmu_path(out_dir, dynamics, version)))
+        _run_compilers(links)
+        targets = [_zip_fmu(root, target) for root, target in roots]
     return targets
 
 

@@ -167,10 +167,33 @@ static Status locate_crossing(Instance *instance, int k, double h, double *theta
     return STATUS_OK;
 }
 
-Status instance_check_step(Instance *instance, double current_time, double h) {
+/* Internal steps of solver_step that one doStep may take; a longer step is refused up front (split it or
+ * raise solver_step), so no call runs without bound. At the default 1 ms that is 50 s of simulated time
+ * (about 2 s of computing for the Advanced model). */
+#define MAX_INTERNAL_STEPS 50000.0
+/* All RODAS4 evaluations of one doStep, event location included: the hard stop for pathological cases
+ * (an event at every internal step); reaching it puts the instance in the error state. */
+#define MAX_EVALUATIONS_PER_STEP 120000LL
+
+static double solver_step_of(const Instance *instance) {
     const ModelInfo *info = instance->info;
+    return info->solver_step_parameter >= 0 ? instance->now.p[info->solver_step_parameter] : 1e-3;
+}
+
+/* The length of the equal internal steps that split a step h: no longer than solver_step, at least one. */
+static double first_internal_step(double h, double solver_step) {
+    return h / fmax(1.0, ceil(h / solver_step - 1e-9));
+}
+
+Status instance_check_step(Instance *instance, double current_time, double h) {
+    double solver_step = solver_step_of(instance);
+    if (!isfinite(current_time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "communication point %g is not finite", current_time);
+        return STATUS_ERROR;
+    }
     if (!(h >= 0.0) || !isfinite(h)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "communication step size %g must be >= 0", h);
+        instance_log(instance, STATUS_ERROR, "logStatusError", "communication step size %g must be finite and >= 0",
+                     h);
         return STATUS_ERROR;
     }
     if (fabs(current_time - instance->now.time) > 1e-9 * fmax(1.0, fabs(current_time))) {
@@ -178,9 +201,22 @@ Status instance_check_step(Instance *instance, double current_time, double h) {
                      "doStep at t = %.17g but the FMU is at t = %.17g", current_time, instance->now.time);
         return STATUS_ERROR;
     }
-    if (info->solver_step_parameter >= 0 && !(instance->now.p[info->solver_step_parameter] > 0.0)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "solver_step %g must be > 0",
-                     instance->now.p[info->solver_step_parameter]);
+    if (!(solver_step > 0.0) || !isfinite(solver_step)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "solver_step %g must be > 0", solver_step);
+        return STATUS_ERROR;
+    }
+    /* the internal steps must advance the time in double precision (not so at t = 1e16 with 1 ms steps) */
+    if (h > 0.0 && !(current_time + first_internal_step(h, solver_step) > current_time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "time cannot advance: at t = %.17g an internal step of %g s is lost to rounding", current_time,
+                     first_internal_step(h, solver_step));
+        return STATUS_ERROR;
+    }
+    if (h / solver_step > MAX_INTERNAL_STEPS) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "a step of %g s needs %.3g internal steps of solver_step = %g s, more than the budget of %.0f "
+                     "per doStep: split the step or raise solver_step",
+                     h, ceil(h / solver_step), solver_step, MAX_INTERNAL_STEPS);
         return STATUS_ERROR;
     }
     return STATUS_OK;
@@ -188,22 +224,32 @@ Status instance_check_step(Instance *instance, double current_time, double h) {
 
 Status instance_do_step(Instance *instance, double current_time, double h) {
     const ModelInfo *info = instance->info;
-    double end_time = current_time + h, solver_step;
+    double end_time = current_time + h, solver_step = solver_step_of(instance);
     size_t x_bytes = sizeof(double) * (size_t)info->nx;
+    long long first_step = instance->steps;
     int states_changed, discrete_changed;
     Status status;
 
-    solver_step = info->solver_step_parameter >= 0 ? instance->now.p[info->solver_step_parameter] : 1e-3;
     /* inputs may have changed since the last step: settle the discrete states first */
     status = instance_event_iteration(instance, &states_changed, &discrete_changed);
     if (status != STATUS_OK) return status;
 
     while (end_time - instance->now.time > EVENT_TIME_TOLERANCE) {
         double remaining = end_time - instance->now.time;
-        double dt = remaining / ceil(remaining / solver_step - 1e-9);
+        /* equal internal steps no longer than solver_step; at least one (remaining may be far below
+         * solver_step, e.g. just after an event located near the end) */
+        double dt = first_internal_step(remaining, solver_step);
         int k, first = -1;
         double first_theta = 2.0;
 
+        if (instance->steps - first_step > MAX_EVALUATIONS_PER_STEP || !(instance->now.time + dt > instance->now.time)) {
+            instance_log(instance, STATUS_ERROR, "logStatusError",
+                         instance->steps - first_step > MAX_EVALUATIONS_PER_STEP
+                             ? "doStep exceeded its budget of internal steps at t = %.17g"
+                             : "time cannot advance at t = %.17g",
+                         instance->now.time);
+            return STATUS_ERROR;
+        }
         memcpy(instance->x_start, instance->now.x, x_bytes);
         status = instance_event_indicators(instance, instance->x_start, instance->now.d, instance->z_start);
         if (status != STATUS_OK) return status;

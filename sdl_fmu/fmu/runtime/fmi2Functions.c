@@ -3,6 +3,7 @@
  * log message; nothing here knows the model. */
 #include "fmi2Functions.h"
 
+#include <math.h>
 #include <string.h>
 
 #include "derivatives.h"
@@ -30,17 +31,39 @@ static void log_to_importer(void *instance_pointer, Status status, const char *c
     callbacks->logger(callbacks->componentEnvironment, instance->name, (fmi2Status)status, category, "%s", safe);
 }
 
-static Instance *checked(fmi2Component c, const char *function, int allowed_modes) {
+/* The FMI 2.0 state tables (sections 3.2.3 and 4.2.4): a function is allowed in some modes and, for the
+ * model-exchange and co-simulation functions, only on an instance of that type. */
+typedef enum { ANY_TYPE, MODEL_EXCHANGE_ONLY, CO_SIMULATION_ONLY } InstanceType;
+
+static Instance *checked_type(fmi2Component c, const char *function, int allowed_modes, InstanceType type) {
     Component *component = (Component *)c;
     Instance *instance;
     if (!component || !component->instance) return NULL;
     instance = component->instance;
+    if ((type == MODEL_EXCHANGE_ONLY && instance->is_cosimulation) ||
+        (type == CO_SIMULATION_ONLY && !instance->is_cosimulation)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s needs a %s instance", function,
+                     type == MODEL_EXCHANGE_ONLY ? "model-exchange" : "co-simulation");
+        return NULL;
+    }
     if (!(instance->now.mode & allowed_modes)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "%s must not be called in the current state",
                      function);
         return NULL;
     }
     return instance;
+}
+
+static Instance *checked(fmi2Component c, const char *function, int allowed_modes) {
+    return checked_type(c, function, allowed_modes, ANY_TYPE);
+}
+
+static Instance *checked_me(fmi2Component c, const char *function, int allowed_modes) {
+    return checked_type(c, function, allowed_modes, MODEL_EXCHANGE_ONLY);
+}
+
+static Instance *checked_cs(fmi2Component c, const char *function, int allowed_modes) {
+    return checked_type(c, function, allowed_modes, CO_SIMULATION_ONLY);
 }
 
 static fmi2Status finish(Instance *instance, Status status) {
@@ -123,6 +146,12 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     (void)toleranceDefined;
     (void)tolerance;
     if (!instance) return fmi2Error;
+    if (!isfinite(startTime) || (stopTimeDefined && (!isfinite(stopTime) || stopTime < startTime))) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "fmi2SetupExperiment: start time %g and stop time %g must be finite, stop >= start", startTime,
+                     stopTime);
+        return fmi2Error;
+    }
     instance->start_time = startTime;
     instance->now.time = startTime;
     instance->stop_time_defined = stopTimeDefined ? 1 : 0;
@@ -151,7 +180,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 
 fmi2Status fmi2Terminate(fmi2Component c) {
     Instance *instance =
-        checked(c, "fmi2Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_INITIALIZATION);
+        checked(c, "fmi2Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP);
     if (!instance) return fmi2Error;
     instance->now.mode = MODE_TERMINATED;
     return fmi2OK;
@@ -233,6 +262,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Snapshot *snapshot;
     if (!instance || !FMUstate) return fmi2Error;
     snapshot = (Snapshot *)*FMUstate;
+    if (snapshot && !snapshot_handle_valid(instance, snapshot, "fmi2GetFMUstate")) return fmi2Error;
     if (!snapshot) snapshot = snapshot_create(instance);
     if (!snapshot) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2GetFMUstate: out of memory");
@@ -246,10 +276,9 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     Instance *instance = checked(c, "fmi2SetFMUstate", ANY_MODE);
     if (!instance) return fmi2Error;
-    if (!FMUstate) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetFMUstate: null state");
+    if (!snapshot_handle_valid(instance, FMUstate, "fmi2SetFMUstate") ||
+        snapshot_check(instance, (const Snapshot *)FMUstate) != STATUS_OK)
         return fmi2Error;
-    }
     snapshot_copy(instance, &instance->now, (const Snapshot *)FMUstate);
     instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
     instance_invalidate(instance);
@@ -259,6 +288,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *instance = checked(c, "fmi2FreeFMUstate", ANY_MODE);
     if (!instance || !FMUstate) return fmi2Error;
+    if (*FMUstate && !snapshot_handle_valid(instance, *FMUstate, "fmi2FreeFMUstate")) return fmi2Error;
     snapshot_free(instance, (Snapshot *)*FMUstate);
     *FMUstate = NULL;
     return fmi2OK;
@@ -275,7 +305,8 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
     Instance *instance = checked(c, "fmi2SerializeFMUstate", ANY_MODE);
-    if (!instance || !FMUstate || !serializedState) return fmi2Error;
+    if (!instance || !serializedState || !snapshot_handle_valid(instance, FMUstate, "fmi2SerializeFMUstate"))
+        return fmi2Error;
     if (size < snapshot_serialized_size(instance)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SerializeFMUstate: buffer too small");
         return fmi2Error;
@@ -311,14 +342,14 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 /* ---- model exchange --------------------------------------------------------------------------- */
 
 fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    Instance *instance = checked(c, "fmi2EnterEventMode", MODE_EVENT | MODE_CONTINUOUS_TIME);
-    if (!instance || instance->is_cosimulation) return fmi2Error;
+    Instance *instance = checked_me(c, "fmi2EnterEventMode", MODE_EVENT | MODE_CONTINUOUS_TIME);
+    if (!instance) return fmi2Error;
     instance->now.mode = MODE_EVENT;
     return fmi2OK;
 }
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
-    Instance *instance = checked(c, "fmi2NewDiscreteStates", MODE_EVENT);
+    Instance *instance = checked_me(c, "fmi2NewDiscreteStates", MODE_EVENT);
     int states_changed = 0, discrete_changed = 0;
     Status status;
     if (!instance || !eventInfo) return fmi2Error;
@@ -333,7 +364,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    Instance *instance = checked(c, "fmi2EnterContinuousTimeMode", MODE_EVENT);
+    Instance *instance = checked_me(c, "fmi2EnterContinuousTimeMode", MODE_EVENT);
     if (!instance) return fmi2Error;
     instance->now.mode = MODE_CONTINUOUS_TIME;
     return fmi2OK;
@@ -341,7 +372,7 @@ fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
 
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation) {
-    Instance *instance = checked(c, "fmi2CompletedIntegratorStep", MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2CompletedIntegratorStep", MODE_CONTINUOUS_TIME);
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!instance || !enterEventMode || !terminateSimulation) return fmi2Error;
     *enterEventMode = fmi2False;
@@ -350,31 +381,22 @@ fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStat
 }
 
 fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
-    Instance *instance = checked(c, "fmi2SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME);
     if (!instance) return fmi2Error;
-    instance->now.time = time;
-    instance_invalidate(instance);
-    return fmi2OK;
+    return (fmi2Status)instance_set_time(instance, time);
 }
 
 fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    Instance *instance = checked(c, "fmi2SetContinuousStates", MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2SetContinuousStates", MODE_CONTINUOUS_TIME);
     if (!instance) return fmi2Error;
-    if (nx != (size_t)instance->info->nx || (nx > 0 && !x)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SetContinuousStates: expected %d states",
-                     instance->info->nx);
-        return fmi2Error;
-    }
-    memcpy(instance->now.x, x, sizeof(double) * nx);
-    instance_invalidate(instance);
-    return fmi2OK;
+    return (fmi2Status)instance_set_states(instance, x, nx);
 }
 
 typedef enum { STATE_VECTOR, INDICATOR_VECTOR } VectorKind;
 
 static Instance *checked_vector(fmi2Component c, const char *function, int allowed_modes, const void *vector,
                                 size_t n, VectorKind kind) {
-    Instance *instance = checked(c, function, allowed_modes);
+    Instance *instance = checked_me(c, function, allowed_modes);
     int expected;
     if (!instance) return NULL;
     expected = kind == STATE_VECTOR ? instance->info->nx : instance->info->nz;
@@ -422,7 +444,7 @@ fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
-    Instance *instance = checked(c, "fmi2SetRealInputDerivatives", ANY_MODE);
+    Instance *instance = checked_cs(c, "fmi2SetRealInputDerivatives", ANY_MODE);
     (void)vr;
     (void)nvr;
     (void)order;
@@ -434,7 +456,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[]) {
-    Instance *instance = checked(c, "fmi2GetRealOutputDerivatives", ANY_MODE);
+    Instance *instance = checked_cs(c, "fmi2GetRealOutputDerivatives", ANY_MODE);
     (void)vr;
     (void)nvr;
     (void)order;
@@ -446,13 +468,9 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    Instance *instance = checked(c, "fmi2DoStep", MODE_STEP);
+    Instance *instance = checked_cs(c, "fmi2DoStep", MODE_STEP);
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!instance) return fmi2Error;
-    if (!instance->is_cosimulation) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep needs a co-simulation instance");
-        return fmi2Error;
-    }
     /* wrong arguments change nothing, so the instance stays usable */
     if (instance_check_step(instance, currentCommunicationPoint, communicationStepSize) != STATUS_OK)
         return fmi2Error;
@@ -466,14 +484,14 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
-    Instance *instance = checked(c, "fmi2CancelStep", MODE_STEP);
+    Instance *instance = checked_cs(c, "fmi2CancelStep", MODE_STEP);
     if (!instance) return fmi2Error;
     instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep always completes: nothing to cancel");
     return fmi2Error;
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    Instance *instance = checked(c, "fmi2GetStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
     if (!instance || !value) return fmi2Error;
     if (s == fmi2DoStepStatus) {
         *value = fmi2OK;
@@ -483,7 +501,7 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    Instance *instance = checked(c, "fmi2GetRealStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetRealStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
     if (!instance || !value) return fmi2Error;
     if (s == fmi2LastSuccessfulTime) {
         *value = instance->now.time;
@@ -493,14 +511,14 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    Instance *instance = checked(c, "fmi2GetIntegerStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetIntegerStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
     (void)s;
     (void)value;
     return instance ? fmi2Discard : fmi2Error;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    Instance *instance = checked(c, "fmi2GetBooleanStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetBooleanStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
     if (!instance || !value) return fmi2Error;
     if (s == fmi2Terminated) {
         *value = fmi2False;
@@ -510,7 +528,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    Instance *instance = checked(c, "fmi2GetStringStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetStringStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
     (void)s;
     (void)value;
     return instance ? fmi2Discard : fmi2Error;

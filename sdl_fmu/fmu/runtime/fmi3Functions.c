@@ -5,6 +5,7 @@
  * The independent variable `time` has value reference 0; the model's variables are numbered 1..n. */
 #include "fmi3Functions.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -195,6 +196,12 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefi
     (void)toleranceDefined;
     (void)tolerance;
     if (!instance) return fmi3Error;
+    if (!isfinite(startTime) || (stopTimeDefined && (!isfinite(stopTime) || stopTime < startTime))) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "fmi3EnterInitializationMode: start time %g and stop time %g must be finite, stop >= start",
+                     startTime, stopTime);
+        return fmi3Error;
+    }
     instance->start_time = startTime;
     instance->now.time = startTime;
     instance->stop_time_defined = stopTimeDefined ? 1 : 0;
@@ -434,6 +441,7 @@ fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
     Snapshot *snapshot;
     if (!instance || !FMUState) return fmi3Error;
     snapshot = (Snapshot *)*FMUState;
+    if (snapshot && !snapshot_handle_valid(instance, snapshot, "fmi3GetFMUState")) return fmi3Error;
     if (!snapshot) snapshot = snapshot_create(instance);
     if (!snapshot) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3GetFMUState: out of memory");
@@ -447,10 +455,9 @@ fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
 fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState FMUState) {
     Instance *instance = checked(c, "fmi3SetFMUState", ANY_MODE);
     if (!instance) return fmi3Error;
-    if (!FMUState) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3SetFMUState: null state");
+    if (!snapshot_handle_valid(instance, FMUState, "fmi3SetFMUState") ||
+        snapshot_check(instance, (const Snapshot *)FMUState) != STATUS_OK)
         return fmi3Error;
-    }
     snapshot_copy(instance, &instance->now, (const Snapshot *)FMUState);
     instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
     instance_invalidate(instance);
@@ -460,6 +467,7 @@ fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState FMUState) {
 fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
     Instance *instance = checked(c, "fmi3FreeFMUState", ANY_MODE);
     if (!instance || !FMUState) return fmi3Error;
+    if (*FMUState && !snapshot_handle_valid(instance, *FMUState, "fmi3FreeFMUState")) return fmi3Error;
     snapshot_free(instance, (Snapshot *)*FMUState);
     *FMUState = NULL;
     return fmi3OK;
@@ -475,7 +483,8 @@ fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, siz
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size) {
     Instance *instance = checked(c, "fmi3SerializeFMUState", ANY_MODE);
-    if (!instance || !FMUState || !serializedState) return fmi3Error;
+    if (!instance || !serializedState || !snapshot_handle_valid(instance, FMUState, "fmi3SerializeFMUState"))
+        return fmi3Error;
     if (size < snapshot_serialized_size(instance)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3SerializeFMUState: buffer too small");
         return fmi3Error;
@@ -492,6 +501,10 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedStat
     snapshot = snapshot_create(instance);
     if (!snapshot) return fmi3Error;
     if (snapshot_deserialize(instance, (const char *)serializedState, size, snapshot) != STATUS_OK) {
+        snapshot_free(instance, snapshot);
+        return fmi3Error;
+    }
+    if (*FMUState && !snapshot_handle_valid(instance, *FMUState, "fmi3DeserializeFMUState")) {
         snapshot_free(instance, snapshot);
         return fmi3Error;
     }
@@ -663,22 +676,13 @@ fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean noSetFMUState
 fmi3Status fmi3SetTime(fmi3Instance c, fmi3Float64 time) {
     Instance *instance = checked_type(c, "fmi3SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME, 0);
     if (!instance) return fmi3Error;
-    instance->now.time = time;
-    instance_invalidate(instance);
-    return fmi3OK;
+    return (fmi3Status)instance_set_time(instance, time);
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 continuousStates[], size_t nContinuousStates) {
     Instance *instance = checked_type(c, "fmi3SetContinuousStates", MODE_CONTINUOUS_TIME, 0);
     if (!instance) return fmi3Error;
-    if (nContinuousStates != (size_t)instance->info->nx || (nContinuousStates > 0 && !continuousStates)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3SetContinuousStates: expected %d states",
-                     instance->info->nx);
-        return fmi3Error;
-    }
-    memcpy(instance->now.x, continuousStates, sizeof(double) * nContinuousStates);
-    instance_invalidate(instance);
-    return fmi3OK;
+    return (fmi3Status)instance_set_states(instance, continuousStates, nContinuousStates);
 }
 
 /* Checks a state or event indicator vector argument; applies the initial state in initialization. */

@@ -1,5 +1,8 @@
 /* Generic instance handling: memory, variable access, evaluation of the model's functions, events,
  * FMU state. Knows the model only through ModelInfo (model.h). */
+#if defined(__MINGW32__) && !defined(__USE_MINGW_ANSI_STDIO)
+#define __USE_MINGW_ANSI_STDIO 1 /* Windows: mingw-w64's C99 vsnprintf (static), not msvcrt's: %zu in messages */
+#endif
 #include "instance.h"
 
 #include <math.h>
@@ -291,17 +294,30 @@ Status instance_get(Instance *instance, const unsigned int vr[], size_t nvr, Kin
     return STATUS_OK;
 }
 
-static int may_set(const Instance *instance, Settable settable) {
+static int may_set(const Instance *instance, const ModelVariable *variable) {
     Mode mode = instance->now.mode;
-    switch (settable) {
+    switch (variable->settable) {
     case SET_NEVER: return 0;
     case SET_FIXED: return (mode & (MODE_INSTANTIATED | MODE_INITIALIZATION)) != 0;
     case SET_TUNABLE: return (mode & (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)) != 0;
     case SET_INPUT:
-        return (mode & (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)) !=
-               0;
+        /* FMI 2.0 3.2.3: in Continuous-Time Mode only continuous (Real) inputs may change; discrete ones
+         * change in Event Mode */
+        if (mode & MODE_CONTINUOUS_TIME) return variable->kind == KIND_REAL;
+        return (mode & (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)) != 0;
     }
     return 0;
+}
+
+/* The one range rule: a value outside the declared [min, max] (or not finite) is refused. */
+static int in_range(const ModelVariable *variable, double value) {
+    return isfinite(value) && value >= variable->min && value <= variable->max;
+}
+
+static double given_value(Kind kind, const void *values, size_t i) {
+    if (kind == KIND_REAL) return ((const double *)values)[i];
+    if (kind == KIND_INTEGER) return (double)((const int *)values)[i];
+    return ((const int *)values)[i] ? 1.0 : 0.0;
 }
 
 Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, const void *values) {
@@ -310,35 +326,64 @@ Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kin
         instance_log(instance, STATUS_ERROR, "logStatusError", "set %s: null argument", kind_name(kind));
         return STATUS_ERROR;
     }
+    /* check every value first: a refused call changes nothing */
     for (i = 0; i < nvr; i++) {
         const ModelVariable *variable = typed_variable(instance, vr[i], kind);
         double value;
         if (!variable) return STATUS_ERROR;
-        if (!may_set(instance, variable->settable)) {
+        if (!may_set(instance, variable)) {
             instance_log(instance, STATUS_ERROR, "logStatusError",
                          variable->settable == SET_NEVER ? "%s (value reference %u) cannot be set"
                                                          : "%s (value reference %u) cannot be set in this state",
                          variable->name, vr[i]);
             return STATUS_ERROR;
         }
-        if (kind == KIND_REAL) {
-            value = ((const double *)values)[i];
-            if (!isfinite(value)) {
-                instance_log(instance, STATUS_ERROR, "logStatusError", "%s: value %g is not finite",
-                             variable->name, value);
-                return STATUS_ERROR;
-            }
-        } else if (kind == KIND_INTEGER) {
-            value = (double)((const int *)values)[i];
-        } else {
-            value = ((const int *)values)[i] ? 1.0 : 0.0;
+        value = given_value(kind, values, i);
+        if (!in_range(variable, value)) {
+            instance_log(instance, STATUS_ERROR, "logStatusError",
+                         "%s: value %.17g is outside its declared range [%g, %g]", variable->name, value,
+                         variable->min, variable->max);
+            return STATUS_ERROR;
         }
+    }
+    for (i = 0; i < nvr; i++) {
+        const ModelVariable *variable = &instance->info->variables[vr[i] - 1];
+        double value = given_value(kind, values, i);
         if (variable->store == STORE_INPUT)
             instance->now.u[variable->index] = value;
         else
             instance->now.p[variable->index] = value;
-        if (instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION)) instance->initial_state_valid = 0;
     }
+    if (nvr > 0 && (instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION)))
+        instance->initial_state_valid = 0;
+    instance_invalidate(instance);
+    return STATUS_OK;
+}
+
+Status instance_set_time(Instance *instance, double time) {
+    if (!isfinite(time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "SetTime: time %g is not finite", time);
+        return STATUS_ERROR;
+    }
+    instance->now.time = time;
+    instance_invalidate(instance);
+    return STATUS_OK;
+}
+
+Status instance_set_states(Instance *instance, const double x[], size_t nx) {
+    size_t i;
+    if (nx != (size_t)instance->info->nx || (nx > 0 && !x)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "SetContinuousStates: expected %d states",
+                     instance->info->nx);
+        return STATUS_ERROR;
+    }
+    for (i = 0; i < nx; i++)
+        if (!isfinite(x[i])) {
+            instance_log(instance, STATUS_ERROR, "logStatusError", "SetContinuousStates: x[%lu] is not finite",
+                         (unsigned long)i);
+            return STATUS_ERROR;
+        }
+    memcpy(instance->now.x, x, sizeof(double) * nx);
     instance_invalidate(instance);
     return STATUS_OK;
 }
@@ -349,6 +394,7 @@ Snapshot *snapshot_create(Instance *instance) {
     const ModelInfo *info = instance->info;
     Snapshot *snapshot = (Snapshot *)instance->allocate(1, sizeof(Snapshot));
     if (!snapshot) return NULL;
+    snapshot->tag = SNAPSHOT_TAG;
     snapshot->x = (double *)allocate_array(instance, (size_t)info->nx, sizeof(double));
     snapshot->d = (double *)allocate_array(instance, (size_t)info->nd, sizeof(double));
     snapshot->u = (double *)allocate_array(instance, (size_t)info->nu, sizeof(double));
@@ -372,6 +418,7 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
 
 void snapshot_free(Instance *instance, Snapshot *snapshot) {
     if (!snapshot) return;
+    snapshot->tag = 0;
     instance->release(snapshot->x);
     instance->release(snapshot->d);
     instance->release(snapshot->u);
@@ -379,66 +426,169 @@ void snapshot_free(Instance *instance, Snapshot *snapshot) {
     instance->release(snapshot);
 }
 
-/* Serialized layout: guid-checked header, then time, mode and the four vectors. */
-typedef struct {
-    char magic[8];
-    int nx, nd, nu, np;
-    double time;
-    int mode;
-} SerializedHeader;
-
-static size_t vector_bytes(const ModelInfo *info) {
-    return sizeof(double) * (size_t)(info->nx + info->nd + info->nu + info->np);
+int snapshot_handle_valid(Instance *instance, const void *state, const char *function) {
+    if (state && ((const Snapshot *)state)->tag == SNAPSHOT_TAG) return 1;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: not an FMU state of this FMU", function);
+    return 0;
 }
 
+/* The modes an instance of this interface type can be saved in (never the error state). */
+static int saveable_mode(const Instance *instance, int mode) {
+    int allowed = instance->is_cosimulation
+                      ? (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP | MODE_TERMINATED)
+                      : (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME |
+                         MODE_TERMINATED);
+    return mode != 0 && (mode & (mode - 1)) == 0 && (mode & allowed) != 0; /* exactly one allowed bit */
+}
+
+static int all_finite(const double *values, int n) {
+    int i;
+    for (i = 0; i < n; i++)
+        if (!isfinite(values[i])) return 0;
+    return 1;
+}
+
+Status snapshot_check(Instance *instance, const Snapshot *snapshot) {
+    const ModelInfo *info = instance->info;
+    int i;
+    if (!snapshot || snapshot->tag != SNAPSHOT_TAG) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: not a state of this FMU");
+        return STATUS_ERROR;
+    }
+    if (!saveable_mode(instance, (int)snapshot->mode)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: invalid mode word 0x%x for a %s instance",
+                     (unsigned int)snapshot->mode, instance->is_cosimulation ? "co-simulation" : "model-exchange");
+        return STATUS_ERROR;
+    }
+    if (!isfinite(snapshot->time)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: time is not finite");
+        return STATUS_ERROR;
+    }
+    if (!all_finite(snapshot->x, info->nx) || !all_finite(snapshot->d, info->nd)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: a state value is not finite");
+        return STATUS_ERROR;
+    }
+    for (i = 0; i < info->n_variables; i++) {
+        const ModelVariable *variable = &info->variables[i];
+        double value;
+        if (variable->store == STORE_INPUT)
+            value = snapshot->u[variable->index];
+        else if (variable->store == STORE_PARAMETER)
+            value = snapshot->p[variable->index];
+        else
+            continue;
+        if (!in_range(variable, value)) {
+            instance_log(instance, STATUS_ERROR, "logStatusError",
+                         "FMU state: %s = %.17g is outside its declared range [%g, %g]", variable->name, value,
+                         variable->min, variable->max);
+            return STATUS_ERROR;
+        }
+    }
+    return STATUS_OK;
+}
+
+/* Serialized layout (native byte order, 8-byte fields):
+ *   "SDLFMU2\0" | FNV-1a hash of the GUID | nx nd nu np | mode | time | x d u p | FNV-1a checksum of all before.
+ * The hash ties a state to this model build; the checksum catches corruption; the fields are then checked
+ * one by one (snapshot_check) before anything reaches the instance. */
+#define SERIAL_MAGIC "SDLFMU2"
+#define SERIAL_HEADER_WORDS 8 /* magic, guid hash, nx, nd, nu, np, mode, time */
+
+static unsigned long long fnv1a(const unsigned char *bytes, size_t n) {
+    unsigned long long hash = 14695981039346656037ull;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        hash ^= bytes[i];
+        hash *= 1099511628211ull;
+    }
+    return hash;
+}
+
+static unsigned long long guid_hash(const ModelInfo *info) {
+    return fnv1a((const unsigned char *)info->guid, strlen(info->guid));
+}
+
+static size_t vector_count(const ModelInfo *info) { return (size_t)(info->nx + info->nd + info->nu + info->np); }
+
 size_t snapshot_serialized_size(const Instance *instance) {
-    return sizeof(SerializedHeader) + vector_bytes(instance->info);
+    return 8 * (SERIAL_HEADER_WORDS + vector_count(instance->info) + 1);
+}
+
+static char *put_word(char *cursor, unsigned long long word) {
+    memcpy(cursor, &word, 8);
+    return cursor + 8;
+}
+
+static char *put_doubles(char *cursor, const double *values, int n) {
+    memcpy(cursor, values, sizeof(double) * (size_t)n);
+    return cursor + sizeof(double) * (size_t)n;
 }
 
 void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char *bytes) {
     const ModelInfo *info = instance->info;
-    SerializedHeader header;
-    char *cursor = bytes + sizeof(header);
-    memset(&header, 0, sizeof(header));
-    memcpy(header.magic, "SDLFMU1", 8);
-    header.nx = info->nx;
-    header.nd = info->nd;
-    header.nu = info->nu;
-    header.np = info->np;
-    header.time = snapshot->time;
-    header.mode = (int)snapshot->mode;
-    memcpy(bytes, &header, sizeof(header));
-    memcpy(cursor, snapshot->x, sizeof(double) * (size_t)info->nx);
-    cursor += sizeof(double) * (size_t)info->nx;
-    memcpy(cursor, snapshot->d, sizeof(double) * (size_t)info->nd);
-    cursor += sizeof(double) * (size_t)info->nd;
-    memcpy(cursor, snapshot->u, sizeof(double) * (size_t)info->nu);
-    cursor += sizeof(double) * (size_t)info->nu;
-    memcpy(cursor, snapshot->p, sizeof(double) * (size_t)info->np);
+    char *cursor = bytes;
+    memset(cursor, 0, 8);
+    memcpy(cursor, SERIAL_MAGIC, sizeof(SERIAL_MAGIC));
+    cursor += 8;
+    cursor = put_word(cursor, guid_hash(info));
+    cursor = put_word(cursor, (unsigned long long)info->nx);
+    cursor = put_word(cursor, (unsigned long long)info->nd);
+    cursor = put_word(cursor, (unsigned long long)info->nu);
+    cursor = put_word(cursor, (unsigned long long)info->np);
+    cursor = put_word(cursor, (unsigned long long)snapshot->mode);
+    cursor = put_doubles(cursor, &snapshot->time, 1);
+    cursor = put_doubles(cursor, snapshot->x, info->nx);
+    cursor = put_doubles(cursor, snapshot->d, info->nd);
+    cursor = put_doubles(cursor, snapshot->u, info->nu);
+    cursor = put_doubles(cursor, snapshot->p, info->np);
+    put_word(cursor, fnv1a((const unsigned char *)bytes, (size_t)(cursor - bytes)));
+}
+
+static const char *get_word(const char *cursor, unsigned long long *word) {
+    memcpy(word, cursor, 8);
+    return cursor + 8;
+}
+
+static const char *get_doubles(const char *cursor, double *values, int n) {
+    memcpy(values, cursor, sizeof(double) * (size_t)n);
+    return cursor + sizeof(double) * (size_t)n;
 }
 
 Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, Snapshot *snapshot) {
     const ModelInfo *info = instance->info;
-    SerializedHeader header;
-    const char *cursor = bytes + sizeof(header);
-    if (!bytes || size != snapshot_serialized_size(instance)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "serialized FMU state has the wrong size");
+    size_t expected = snapshot_serialized_size(instance);
+    unsigned long long hash, nx, nd, nu, np, mode, checksum;
+    const char *cursor = bytes;
+    if (!bytes || size != expected) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "serialized FMU state has %lu bytes, this model's have %lu", (unsigned long)size,
+                     (unsigned long)expected);
         return STATUS_ERROR;
     }
-    memcpy(&header, bytes, sizeof(header));
-    if (memcmp(header.magic, "SDLFMU1", 8) != 0 || header.nx != info->nx || header.nd != info->nd ||
-        header.nu != info->nu || header.np != info->np) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "serialized FMU state is not from this model");
+    get_word(bytes + expected - 8, &checksum);
+    if (memcmp(cursor, SERIAL_MAGIC, sizeof(SERIAL_MAGIC)) != 0 ||
+        checksum != fnv1a((const unsigned char *)bytes, expected - 8)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "serialized FMU state is corrupted (checksum)");
         return STATUS_ERROR;
     }
-    snapshot->time = header.time;
-    snapshot->mode = (Mode)header.mode;
-    memcpy(snapshot->x, cursor, sizeof(double) * (size_t)info->nx);
-    cursor += sizeof(double) * (size_t)info->nx;
-    memcpy(snapshot->d, cursor, sizeof(double) * (size_t)info->nd);
-    cursor += sizeof(double) * (size_t)info->nd;
-    memcpy(snapshot->u, cursor, sizeof(double) * (size_t)info->nu);
-    cursor += sizeof(double) * (size_t)info->nu;
-    memcpy(snapshot->p, cursor, sizeof(double) * (size_t)info->np);
-    return STATUS_OK;
+    cursor = get_word(cursor + 8, &hash);
+    cursor = get_word(cursor, &nx);
+    cursor = get_word(cursor, &nd);
+    cursor = get_word(cursor, &nu);
+    cursor = get_word(cursor, &np);
+    if (hash != guid_hash(info) || nx != (unsigned long long)info->nx || nd != (unsigned long long)info->nd ||
+        nu != (unsigned long long)info->nu || np != (unsigned long long)info->np) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "serialized FMU state is from another model or build (GUID %s expected)", info->guid);
+        return STATUS_ERROR;
+    }
+    cursor = get_word(cursor, &mode);
+    if (mode > 0xffffu) mode = 0; /* snapshot_check reports it */
+    snapshot->mode = (Mode)mode;
+    cursor = get_doubles(cursor, &snapshot->time, 1);
+    cursor = get_doubles(cursor, snapshot->x, info->nx);
+    cursor = get_doubles(cursor, snapshot->d, info->nd);
+    cursor = get_doubles(cursor, snapshot->u, info->nu);
+    get_doubles(cursor, snapshot->p, info->np);
+    return snapshot_check(instance, snapshot);
 }

@@ -27,8 +27,11 @@ typedef void (*FreeFn)(void *pointer);
 /* status, category, message: the FMI layer turns this into the importer's logger call */
 typedef void (*LogFn)(void *instance, Status status, const char *category, const char *message);
 
+#define SNAPSHOT_TAG 0x53444c46u /* "SDLF": marks memory that snapshot_create made */
+
 /* The part of an instance that fmi2GetFMUstate saves and fmi2SetFMUstate restores. */
 typedef struct {
+    unsigned int tag; /* set by snapshot_create: SetFMUstate refuses anything else */
     double time;
     Mode mode;
     double *x, *d, *u, *p;
@@ -69,7 +72,9 @@ Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimu
 void instance_free(Instance *instance);
 void instance_reset(Instance *instance);
 void instance_log(Instance *instance, Status status, const char *category, const char *format, ...)
-#if defined(__GNUC__)
+#if defined(__MINGW32__)
+    __attribute__((format(gnu_printf, 4, 5))) /* instance.c formats with mingw-w64's C99 printf */
+#elif defined(__GNUC__)
     __attribute__((format(printf, 4, 5)))
 #endif
     ;
@@ -77,6 +82,10 @@ void instance_log(Instance *instance, Status status, const char *category, const
 /* Variable access by value reference; kind must match the variable's type. */
 Status instance_get(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, void *values);
 Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, const void *values);
+
+/* Model exchange: time and continuous states from the importer (finite, the right number, or refused). */
+Status instance_set_time(Instance *instance, double time);
+Status instance_set_states(Instance *instance, const double x[], size_t nx);
 
 /* Equations */
 void instance_invalidate(Instance *instance);
@@ -97,6 +106,11 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
 void snapshot_free(Instance *instance, Snapshot *snapshot);
 size_t snapshot_serialized_size(const Instance *instance);
 void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char *bytes);
+/* Whether an FMU state handle from the importer was made by snapshot_create (else logs and 0). */
+int snapshot_handle_valid(Instance *instance, const void *state, const char *function);
+/* Checks a state field by field (mode word, finite time and values, inputs and parameters in range) before
+ * it may touch an instance; deserialize also checks size, GUID hash and checksum. */
+Status snapshot_check(Instance *instance, const Snapshot *snapshot);
 Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, Snapshot *snapshot);
 
 #endif

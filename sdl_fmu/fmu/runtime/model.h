@@ -51,6 +51,7 @@ typedef struct {
     Store store;
     int index;
     Settable settable;
+    double min, max; /* declared range (modelDescription min/max; +-INFINITY where none): set refuses values outside */
 } ModelVariable;
 
 typedef struct {

@@ -156,12 +156,23 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0]
 
 
-def _model_description(fmu: Path, dynamics: str):
-    """The FMU's modelDescription, checked to be a co-simulation FMI 2.0 ego FMU for these dynamics."""
+@functools.lru_cache(maxsize=16)
+def _read_model_description(path: str, stamp: tuple):
+    """fmpy's modelDescription of an FMU file, read once per file version (stamp: size, mtime)."""
     from fmpy import read_model_description
 
+    return read_model_description(path, validate=False)
+
+
+def _description(fmu: Path):
+    stat = fmu.stat()
+    return _read_model_description(str(fmu.resolve()), (stat.st_size, stat.st_mtime_ns))
+
+
+def _model_description(fmu: Path, dynamics: str):
+    """The FMU's modelDescription, checked to be a co-simulation FMI 2.0 ego FMU for these dynamics."""
     try:
-        description = read_model_description(str(fmu), validate=False)
+        description = _description(fmu)
     except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
         raise _option_error("fmu", fmu, f"is not a readable FMU ({_first_line(error)})") from None
     if not str(description.fmiVersion).startswith("2.") or description.coSimulation is None:
@@ -209,8 +220,17 @@ def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]
 def ego_fmu(dynamics: str = "simple", fmu: str | os.PathLike | None = None) -> Path:
     """The ego FMU: `fmu` if given (checked), else the cached build for these dynamics (built on first use)."""
     if fmu is not None:
+        import zipfile
+
+        import fmpy
+
         path = _regular_file("fmu", fmu)
-        _model_description(path, dynamics)
+        description = _model_description(path, dynamics)
+        binary = (f"binaries/{fmpy.platform}/{description.coSimulation.modelIdentifier}"
+                  f"{fmpy.sharedLibraryExtension}")
+        with zipfile.ZipFile(path) as archive:  # readable: _model_description read it
+            if binary not in archive.namelist():
+                raise _option_error("fmu", path, f"has no binary for this platform ({binary})")
         return path
     from .fmu.cache import cached_fmu
 
@@ -386,17 +406,15 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
         except ResultsFolderError as error:
             raise InputError("out", f"--out {error}") from None
     fmu_path = ego_fmu(dynamics, fmu)
-    from fmpy import read_model_description
-
-    parameters = _parameters(params, read_model_description(str(fmu_path), validate=False), fmu_path)
+    parameters = _parameters(params, _description(fmu_path), fmu_path)
     options = RunOptions(dynamics=dynamics, speed=speed, seed=seed, step=step, until_distance=until_distance,
                          until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
                          known_attributes=None if known_attributes is None else set(known_attributes))
     options.progress = _progress_bar(progress, scenario)
     try:
         raw = run_scenario(scenario, fmu_path, options, _vehicle_table())
-    except (FmuError, OSError) as error:
-        raise InputError("fmu", f"--fmu {fmu_path}: {_first_line(error)}") from None
+    except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
+        raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
     raw.warnings[:0] = [*scenario.warnings, *tire_warnings]
     result = Result(raw, scenario)
     if out is not None:

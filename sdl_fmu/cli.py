@@ -29,11 +29,12 @@ def _build(args) -> int:
     from .api import InputError
 
     names = list(MODELS) if args.dynamics == "all" else [args.dynamics]
-    for dynamics in names:
-        try:
+    try:
+        Path(args.out).mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
+        for dynamics in names:
             print(build_fmu(dynamics, Path(args.out), args.fmi_version))
-        except OSError as error:
-            raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
+    except OSError as error:
+        raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
     return 0
 
 
@@ -68,7 +69,7 @@ def _run(args) -> int:
     from .units import length_label, speed_label
 
     scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported)
-    out = Path(args.out) if args.out else Path("runs") / Path(scenario.path).stem
+    out = Path(args.out) if args.out is not None else Path("runs") / Path(scenario.path).stem
     result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, speed=args.speed, seed=args.seed,
                      step=args.step, until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out)

@@ -117,8 +117,10 @@ def _alive(pid: int) -> bool:
 
 
 def clean_leftovers(target: Path) -> list[Path]:
-    """Removes hidden siblings of `target` left by killed runs: only folders that carry sdl-fmu's manifest,
-    hold nothing else, and whose process is gone. Returns what was removed."""
+    """Removes hidden siblings of `target` left by killed runs: only folders that carry sdl-fmu's manifest and
+    whose process is gone. A partial folder is sdl-fmu's from its creation (private, manifest first); an
+    old one (an earlier results folder set aside) must hold nothing but its manifest's files. Returns what
+    was removed."""
     removed = []
     try:
         siblings = list(target.parent.iterdir())
@@ -130,7 +132,7 @@ def clean_leftovers(target: Path) -> list[Path]:
                 or _alive(int(match["pid"]))):
             continue
         own = read_manifest(sibling)
-        if own is None or _foreign_entries(sibling, own):
+        if own is None or (match["kind"] == _OLD and _foreign_entries(sibling, own)):
             continue
         shutil.rmtree(sibling, ignore_errors=True)
         removed.append(sibling)

@@ -18,10 +18,10 @@ import tempfile
 from pathlib import Path
 
 from .. import __version__
+from ..interface import PACKAGE_DIRECTORY
 from .package import MODELS, build_fmu, fmu_path
 
 CACHE_VARIABLE = "SDL_FMU_CACHE"
-PACKAGE_DIRECTORY = Path(__file__).resolve().parents[1]
 # Everything a build reads, relative to the package: the model and build code, interface data, the tire
 # files the Advanced FMU's start values come from, the C runtime.
 BUILD_INPUTS = ("interface.py", "units.py", "dynamics", "fmu", "interfaces", "scenarios/tires")

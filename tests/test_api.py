@@ -89,3 +89,28 @@ def test_scenario_errors_raise_scenario_error(tmp_path):
     path.write_text("10,BRK,50,9,1\n")
     with pytest.raises(api.ScenarioError, match=r"bad.sdl:1: BRK parameter 2"):
         api.run(path)
+
+
+def test_the_command_line_shows_the_bar_when_stderr_is_a_terminal(tmp_path, simple_fmu):
+    import os
+    import pty
+    import subprocess
+    import sys
+
+    controller, terminal = pty.openpty()
+    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "head_on", "--fmu", str(simple_fmu),
+                                "--until-time", "2", "--out", str(tmp_path / "out")], cwd=tmp_path,
+                               stdout=subprocess.PIPE, stderr=terminal, text=True, timeout=120)
+    os.close(terminal)
+    shown = b""
+    while True:
+        try:
+            chunk = os.read(controller, 65536)
+        except OSError:  # the terminal's other end is closed and drained
+            break
+        if not chunk:
+            break
+        shown += chunk
+    os.close(controller)
+    assert completed.returncode == 0
+    assert b"%|" in shown and "%|" not in completed.stdout  # the bar is on the terminal, never in stdout

@@ -97,6 +97,11 @@ def test_the_cache_key_changes_with_every_input_of_the_build(changed, monkeypatc
 
 def test_two_processes_building_at_once_leave_one_good_fmu(tmp_path):
     env = {**os.environ, cache.CACHE_VARIABLE: str(tmp_path / "cache")}
+    # and the temporary folder of a build that was killed (a process id that no longer exists) goes away
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    abandoned = tmp_path / "cache" / f".building-{dead.stdout.strip()}-x1y2"
+    abandoned.mkdir(parents=True)
+    (abandoned / "half.fmu").write_bytes(b"PK")
     code = "from sdl_fmu.fmu.cache import cached_fmu; print(cached_fmu('simple'))"
     builders = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  text=True) for _ in range(2)]

@@ -295,7 +295,7 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float
     for section in result.surfaces:
         start = from_si(section.start, units)
         end = x_max + span if section.end is None else from_si(section.end, units)
-        if end < x_min or start > x_max:
+        if end < x_min or start > x_max or section.lane not in road.valid_lanes:  # a lane the road lacks
             continue
         centre = from_si(road.lane_center(section.lane), units)
         ax.add_patch(Rectangle((start, centre - width / 2), end - start, width, color=color(section.value),

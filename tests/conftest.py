@@ -1,26 +1,32 @@
-"""Shared fixtures: the real FMUs, built once per test session into a temporary folder (FMI 2.0 and 3.0 of
-each model from one code generation and one compilation of the model code); wine, started once."""
+"""Shared fixtures: the real FMUs, built once per test session (FMI 2.0 and 3.0 of each model from one code
+generation) into a private per-user FMU cache, which every sdl-fmu subprocess of the tests uses too; wine,
+started once."""
 
 import os
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
 
-from sdl_fmu.fmu.package import FMI_VERSIONS, build_fmus
+# Every test (and every sdl-fmu subprocess it starts) uses a private FMU cache, never the user's.
+os.environ["SDL_FMU_CACHE"] = tempfile.mkdtemp(prefix="sdl-fmu-test-cache-")
+
+from sdl_fmu.fmu.cache import cached_fmus  # noqa: E402
+from sdl_fmu.fmu.package import FMI_VERSIONS  # noqa: E402
 
 
 @pytest.fixture(scope="session")
-def simple_fmus(tmp_path_factory):
+def simple_fmus():
     """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of the Simple model."""
-    return dict(zip(FMI_VERSIONS, build_fmus("simple", tmp_path_factory.mktemp("dist"), FMI_VERSIONS)))
+    return dict(zip(FMI_VERSIONS, cached_fmus("simple", FMI_VERSIONS)))
 
 
 @pytest.fixture(scope="session")
-def advanced_fmus(tmp_path_factory):
+def advanced_fmus():
     """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of the Advanced model."""
-    return dict(zip(FMI_VERSIONS, build_fmus("advanced", tmp_path_factory.mktemp("dist"), FMI_VERSIONS)))
+    return dict(zip(FMI_VERSIONS, cached_fmus("advanced", FMI_VERSIONS)))
 
 
 @pytest.fixture(scope="session")
@@ -85,3 +91,7 @@ def wine(tmp_path_factory):
     yield run
     if server:
         subprocess.run([server, "-k"], env=environment, check=False)  # ends this prefix's server only
+
+
+def pytest_unconfigure(config):
+    shutil.rmtree(os.environ["SDL_FMU_CACHE"], ignore_errors=True)

@@ -13,6 +13,7 @@ import math
 import random
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -43,6 +44,7 @@ class RunOptions:
     parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
     tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
+    progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
 
 
 class Cosimulation:
@@ -257,6 +259,8 @@ class Cosimulation:
                     self.finish(state, "until_time")
                 self.apply_controls(state)  # the inputs from this instant on, as recorded with it
                 self.record(state)
+                if self.options.progress is not None:
+                    self.options.progress(self, state)
             return self.result(state)
         finally:
             self.ego.close()

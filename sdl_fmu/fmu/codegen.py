@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import uuid
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import casadi as ca
@@ -13,7 +14,7 @@ from ..dynamics.equations import Equations
 from ..interface import DISCRETE, INPUT, OUTPUT, PARAMETER, STATE, Interface, Variable
 from .structure import DERIVATIVE_FUNCTIONS, derivative_functions
 
-RUNTIME_DIRECTORY = Path(__file__).parent / "runtime"
+RUNTIME_DIRECTORY = Path(str(resources.files(__package__) / "runtime"))  # package data (pyproject.toml)
 RUNTIME_SOURCES = ("instance.c", "cosimulation.c", "derivatives.c")  # shared by FMI 2.0 and 3.0
 FMI_SOURCES = {2: "fmi2Functions.c", 3: "fmi3Functions.c"}  # the FMI layer of each version
 RUNTIME_HEADERS = ("model.h", "instance.h", "derivatives.h")

@@ -1,0 +1,127 @@
+"""The per-user FMU cache: FMUs are built on first use, keyed by a hash of everything that goes into them.
+
+Location: $SDL_FMU_CACHE if set, else $XDG_CACHE_HOME/sdl-fmu, else ~/.cache/sdl-fmu. One folder per
+(model, FMI version, input hash) holds `fmi<version>/<Model>.fmu`. A changed model, interface, tire
+file, runtime source, compiler or flag changes the hash, so a stale FMU is never found. Each build goes
+into a private temporary folder inside the cache that is renamed into place in one step, so two
+processes building at once never see or leave a half-built FMU (the loser of the race discards its copy);
+the temporary folder of a killed build is removed by the next build.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from .. import __version__
+from ..interface import PACKAGE_DIRECTORY
+from .package import MODELS, build_fmus, fmu_path, mingw_compiler
+
+CACHE_VARIABLE = "SDL_FMU_CACHE"
+# Everything a build reads, relative to the package: the model and build code, interface data, the tire
+# files the Advanced FMU's start values come from, the C runtime.
+BUILD_INPUTS = ("interface.py", "units.py", "dynamics", "fmu", "interfaces", "scenarios/tires")
+BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
+
+
+def cache_directory() -> Path:
+    """Where built FMUs are kept for this user."""
+    if os.environ.get(CACHE_VARIABLE):
+        return Path(os.environ[CACHE_VARIABLE]).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "sdl-fmu"
+
+
+@functools.lru_cache(maxsize=None)
+def _compiler_identity(compiler: str) -> str:
+    """The compiler's own version banner (a different gcc builds a different binary)."""
+    try:
+        completed = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
+        return completed.stdout
+    except (OSError, subprocess.SubprocessError) as error:
+        return f"unavailable: {error}"  # build_fmu reports the missing compiler itself
+
+
+def _input_files() -> list[Path]:
+    files = []
+    for entry in BUILD_INPUTS:
+        path = PACKAGE_DIRECTORY / entry
+        candidates = sorted(path.rglob("*")) if path.is_dir() else [path]
+        files += [f for f in candidates if f.is_file() and f.suffix in BUILD_SUFFIXES and "__pycache__" not in f.parts]
+    return files
+
+
+def build_key(dynamics: str, fmi_version: int = 2) -> str:
+    """SHA-256 of every input of one FMU build: sources, data, compiler identity and flags, versions."""
+    import casadi
+    import fmpy
+
+    digest = hashlib.sha256()
+    compiler = os.environ.get("CC", "gcc")
+    cross_compiler = mingw_compiler()  # None: the FMU gets no Windows binary, a different FMU
+    for part in (f"sdl-fmu {__version__}", f"model {MODELS[dynamics][0]}", f"fmi {fmi_version}",
+                 f"casadi {casadi.__version__}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
+                 _compiler_identity(compiler), f"mingw {cross_compiler}",
+                 _compiler_identity(cross_compiler) if cross_compiler else ""):
+        digest.update(part.encode() + b"\0")
+    for path in _input_files():
+        digest.update(path.relative_to(PACKAGE_DIRECTORY).as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def _remove_abandoned_builds(root: Path) -> None:
+    """Temporary build folders of processes that no longer exist (killed during a build)."""
+    for folder in root.glob(".building-*-*"):
+        pid = folder.name.split("-")[1]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except OSError:
+            pass  # alive, someone else's
+
+
+def _cache_folder(dynamics: str, fmi_version: int) -> Path:
+    return cache_directory() / f"{MODELS[dynamics][0]}-fmi{fmi_version}-{build_key(dynamics, fmi_version)[:24]}"
+
+
+def cached_fmus(dynamics: str = "simple", fmi_versions: tuple[int, ...] = (2,), announce=None) -> list[Path]:
+    """The FMUs of these dynamics in these FMI versions from the cache; the missing ones are built together
+    (one code generation, announced through `announce(path)`) and each is renamed into its own folder."""
+    folders = {version: _cache_folder(dynamics, version) for version in fmi_versions}
+    targets = {version: fmu_path(folder, dynamics, version) for version, folder in folders.items()}
+    missing = tuple(version for version, target in targets.items() if not target.is_file())
+    if missing:
+        root = cache_directory()
+        root.mkdir(parents=True, exist_ok=True)
+        _remove_abandoned_builds(root)
+        if announce is not None:
+            announce(targets[missing[0]])
+        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
+        try:
+            build_fmus(dynamics, work / "all", missing)
+            for version in missing:
+                staging = work / f"fmi{version}-entry"
+                fmu_path(staging, dynamics, version).parent.mkdir(parents=True)
+                os.rename(fmu_path(work / "all", dynamics, version), fmu_path(staging, dynamics, version))
+                try:
+                    os.rename(staging, folders[version])  # atomic; fails if another process got there first
+                except OSError:
+                    if not targets[version].is_file():
+                        raise
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+    return [targets[version] for version in fmi_versions]
+
+
+def cached_fmu(dynamics: str = "simple", fmi_version: int = 2, announce=None) -> Path:
+    """The FMU for these dynamics from the cache, built (and announced through `announce(path)`) if missing."""
+    return cached_fmus(dynamics, (fmi_version,), announce)[0]

@@ -74,7 +74,7 @@ def _run(args) -> int:
 
     scenario, table = _load_scenario(args.scenario)
     units = scenario.units
-    for name in ("speed", "until_distance", "until_time", "step"):
+    for name in ("speed", "until_distance", "until_time", "step", "driver_period"):
         value = getattr(args, name)
         if value is not None and (value <= 0 if name != "speed" else value < 0):
             raise UsageError(f"--{name.replace('_', '-')} {value:g}: must be {'>= 0' if name == 'speed' else '> 0'}")
@@ -82,7 +82,8 @@ def _run(args) -> int:
         dynamics=args.dynamics,
         speed=None if args.speed is None else to_si(args.speed, units),
         seed=args.seed,
-        step=args.step,
+        **({"step": args.step} if args.step is not None else {}),
+        **({"driver_period": args.driver_period} if args.driver_period is not None else {}),
         until_distance=None if args.until_distance is None else to_si(args.until_distance, units),
         until_time=args.until_time,
         parameters=_parse_parameters(args.param),
@@ -149,7 +150,9 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--fmu", help="ego FMU (default: dist/fmi2/<Model>.fmu, built on first use)")
     run.add_argument("--speed", type=float, help="driver's start and target speed, scenario units (default 88 ft/s)")
     run.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
-    run.add_argument("--step", type=float, default=0.01, help="communication step, s (default 0.01)")
+    run.add_argument("--step", type=float, help="longest communication step, s (default 1; triggers are exact at "
+                     "any step, driver samples and triggers cut steps shorter)")
+    run.add_argument("--driver-period", type=float, help="the driver model's sampling period, s (default 0.05)")
     run.add_argument("--until-distance", type=float, help="end at this distance, scenario units")
     run.add_argument("--until-time", type=float, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",

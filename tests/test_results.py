@@ -121,7 +121,8 @@ def test_summary_json_keys_per_spec(tmp_path):
     result = make_result()
     out = write_results(result, tmp_path / "run", plot=False)
     data = json.loads((out / "summary.json").read_text())
-    assert set(data) == {"scenario", "seed", "units", "dynamics", "collisions", "final", "events", "warnings"}
+    assert set(data) == {"scenario", "seed", "units", "dynamics", "collisions", "final", "events", "warnings",
+                         "timing"}
     assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
     assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
     assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}

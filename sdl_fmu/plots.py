@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
-from matplotlib.collections import PolyCollection
+from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -29,6 +29,7 @@ LABEL_CHAR_PX = 6.5  # rough width of one 7.5 pt label character at 110 dpi
 LABEL_TOP = 0.97  # axis fraction of the first row of event labels
 LABEL_ROW = 0.075  # axis fraction per row of event labels
 MAX_LABEL_ROWS = 6
+MAX_LABELLED_VEHICLES = 12  # vehicles named in the legend and on the road; the rest summarised
 MAX_LINE_POINTS = 4000  # lines are decimated to this many points: the figure is ~1800 px wide anyway
 NOMINAL_MU = 0.8
 WHEELS = ("fl", "fr", "rl", "rr")
@@ -260,14 +261,18 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float
     ax.add_patch(Rectangle((x_min - span, left), 3 * span, right - left, color=LANE_FILL, lw=0, zorder=0))
 
     color, _, _ = _surface_style(result)
+    boxes, colors = [], []  # one collection however many sections: thousands stay fast
     for section in result.surfaces:
         start = from_si(section.start, units)
         end = x_max + span if section.end is None else from_si(section.end, units)
         if end < x_min or start > x_max:
             continue
-        centre = from_si(road.lane_center(section.lane), units)
-        ax.add_patch(Rectangle((start, centre - width / 2), end - start, width, color=color(section.value),
-                               alpha=0.6, lw=0, zorder=1))
+        start, end = max(start, x_min - span), min(end, x_max + span)
+        low = from_si(road.lane_center(section.lane), units) - width / 2
+        boxes.append(((start, low), (start, low + width), (end, low + width), (end, low)))
+        colors.append(color(section.value))
+    if boxes:
+        ax.add_collection(PolyCollection(boxes, facecolors=colors, alpha=0.6, lw=0, zorder=1), autolim=False)
 
     line = dict(zorder=2, solid_capstyle="butt")
     for edge in (left, right):
@@ -316,20 +321,39 @@ def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, ann
     if len(station):
         ax.plot(station[0], lateral[0], ">", color=EGO_COLOR, ms=8, zorder=5)
 
+    # Traffic: one line collection and one marker call however many vehicles; legend entries and labels
+    # for the first few only (MAX_LABELLED_VEHICLES), the rest summarised in one legend entry.
+    many = len(result.vehicles) > MAX_LABELLED_VEHICLES
+    paths, path_colors, spawns, spawn_colors = [], [], [], []
     for number, track in enumerate(result.vehicles):
         color = TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)]
         x = from_si(np.asarray(track.station, dtype=float), units)
         y = from_si(np.asarray(track.lateral, dtype=float), units)
-        label = f"A{track.vehicle} {track.name}"
-        ax.plot(x[::step], y[::step], color=color, lw=1.6, zorder=4)
-        handles.append(Line2D([], [], color=color, lw=1.6, label=label))
         present = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
-        if len(present):
-            spawn = present[0]
-            ax.plot(x[spawn], y[spawn], "o", color=color, ms=6, zorder=5)
+        if not len(present) or x[present].max() < x_min or x[present].min() > x_max:
+            continue
+        stride = max(1, math.ceil(len(present) / 200)) if many else step
+        keep = present[::stride]
+        if keep[-1] != present[-1]:
+            keep = np.append(keep, present[-1])
+        paths.append(np.column_stack([x[keep], y[keep]]))
+        path_colors.append(color)
+        spawn = present[0]
+        spawns.append((x[spawn], y[spawn]))
+        spawn_colors.append(color)
+        if number < MAX_LABELLED_VEHICLES:
+            handles.append(Line2D([], [], color=color, lw=1.6, label=f"A{track.vehicle} {track.name}"))
             if annotate and x_min <= x[spawn] <= x_max:
                 ax.annotate(f"A{track.vehicle}", (x[spawn], y[spawn]), xytext=(0, 7), textcoords="offset points",
                             ha="center", va="bottom", fontsize=8, color=color, fontweight="bold", zorder=6)
+    if paths:
+        ax.add_collection(LineCollection(paths, colors=path_colors, lw=1.0 if many else 1.6, zorder=4),
+                          autolim=False)
+        points = np.array(spawns)
+        ax.scatter(points[:, 0], points[:, 1], c=spawn_colors, s=12 if many else 36, zorder=5)
+    if many:
+        handles.append(Line2D([], [], color="gray", lw=1.0, marker="o", ms=4,
+                              label=f"... {len(result.vehicles) - MAX_LABELLED_VEHICLES} more vehicles"))
 
     if result.collision_points:
         points = np.array([(from_si(s, units), from_si(d, units)) for s, d in result.collision_points])
@@ -351,9 +375,10 @@ def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
         index = int(np.argmin(np.abs(station - target)))
         return index, f"first collision, t = {time[index]:.2f} s"
     for track in result.vehicles:
-        gap = np.abs(np.asarray(track.station, dtype=float) - station)
+        own = np.asarray(track.station, dtype=float)
+        gap = np.abs(own - station[track.first:track.first + len(own)])
         if np.isfinite(gap).any():
-            index = int(np.nanargmin(gap))
+            index = track.first + int(np.nanargmin(gap))
             return index, f"closest approach of A{track.vehicle} {track.name}, t = {time[index]:.2f} s"
     return None
 
@@ -362,7 +387,9 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
     """Traffic vehicles' footprints and the ego's position at one sample (zoom panel)."""
     units = result.units
     for number, track in enumerate(result.vehicles):
-        x, y = float(track.station[index]), float(track.lateral[index])
+        if not track.first <= index < track.first + len(track.station):
+            continue
+        x, y = float(track.station[index - track.first]), float(track.lateral[index - track.first])
         if not (math.isfinite(x) and math.isfinite(y)):
             continue
         length, width = from_si(track.length, units), from_si(track.width, units)

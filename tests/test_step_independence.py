@@ -6,6 +6,7 @@ import pytest
 from sdl_fmu.cosim.master import RunOptions, run_scenario
 from sdl_fmu.interface import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
+from sdl_fmu.units import FOOT
 
 TABLE = load_vehicle_table(default_vehicle_table_path())
 STEPS = (0.001, 0.01, 0.1, 1.0, 10.0)
@@ -20,8 +21,9 @@ TIME_TOLERANCE = 1e-5  # s
 SHORT_PATCH = "English\n100,BRK,100,2,10\n200,RSA,1,2\n202,RSA,1,8\n500,ES"
 
 SCENARIOS = {
-    # the whole demo: A spawns, manoeuvres and despawns, ice under a braking car, BRK thresholds, ES
-    "demo": (lambda: load_scenario(SCENARIO_DIRECTORY / "demo.sdl"), None),
+    # the demo up to 4700 ft (54 s): three vehicles spawned, the swerving one's manoeuvres, passes and
+    # despawns, the ice stretch entered and left under a 2 s full brake
+    "demo": (lambda: load_scenario(SCENARIO_DIRECTORY / "demo.sdl"), 4700 * FOOT),
     "head_on": (lambda: load_scenario(SCENARIO_DIRECTORY / "head_on.sdl"), None),
     "seed_a": (lambda: load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl"), None),
     "short_patch": (lambda: parse_text(SHORT_PATCH, "short_patch.sdl"), None),

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import shutil
-from dataclasses import dataclass
+from typing import NamedTuple
 from pathlib import Path
 
 from fmpy import extract, read_model_description
@@ -12,9 +12,9 @@ from fmpy.fmi2 import FMU2Slave, fmi2Boolean, fmi2Real, fmi2ValueReference
 REAL_OUTPUTS = ("x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate")
 
 
-@dataclass(frozen=True)
-class EgoState:
-    """The ego's outputs at one instant (SI, ISO 8855 inertial frame)."""
+class EgoState(NamedTuple):
+    """The ego's outputs at one instant (SI, ISO 8855 inertial frame); a named tuple: made at every
+    communication point and bisection probe, it must be cheap."""
 
     time: float
     x: float

@@ -44,6 +44,7 @@ TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
 # s: closer than this to a possible trigger the master steps this far from a saved state and bisects;
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly)
 MIN_LOOKAHEAD = 1e-3
+SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
@@ -173,25 +174,32 @@ class Cosimulation:
 
     def surface_horizon(self, state: EgoState) -> float:
         """How long every wheel surely stays on its surface: the nearest station in its lane where the value
-        changes, and the nearest lane boundary, each reached at the ego's bounded rates."""
+        changes, and its lane's edges where the lane beyond differs within the reach of SURFACE_WINDOW (a
+        bound then valid for that window only), each reached at the ego's bounded rates."""
         kin = EgoKinematics.of(state)
-        bounds, road = self.bounds, self.road
+        bounds, road, surfaces = self.bounds, self.road, self.surfaces
+        a = bounds.acceleration
         turn = bounds.wheel_arm * bounds.yaw_rate
         width = road.lane_width
-        horizon = math.inf
+        reach = (abs(kin.station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
+        horizon = SURFACE_WINDOW
         for station, lateral in self.geometry.contact_points(state.x, state.y, state.psi):
-            changes = self.surface_changes.get(road.lane_at(lateral))
+            lane = road.lane_at(lateral)
+            changes = self.surface_changes.get(lane)
             if changes:
                 k = bisect.bisect_right(changes, station)
                 if k < len(changes):
-                    horizon = min(horizon, reach_time_scalar(changes[k] - station, kin.station_rate + turn,
-                                                             bounds.acceleration))
+                    horizon = min(horizon, reach_time_scalar(changes[k] - station, kin.station_rate + turn, a))
                 if k > 0:
-                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -kin.station_rate + turn,
-                                                             bounds.acceleration))
-            boundary = min(max(round(lateral / width), -road.lanes_left), road.lanes_right) * width
-            toward = kin.lateral_rate if boundary > lateral else -kin.lateral_rate
-            horizon = min(horizon, reach_time_scalar(abs(boundary - lateral), toward + turn, bounds.acceleration))
+                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -kin.station_rate + turn, a))
+            k = math.floor(lateral / width)
+            for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
+                if not road.left_edge <= edge <= road.right_edge:
+                    continue  # beyond the shoulders' outer edges nothing changes
+                toward = side * kin.lateral_rate
+                beyond = road.lane_at(edge + side * width / 2)
+                if beyond != lane and not _same_surface(surfaces, lane, beyond, station - reach, station + reach):
+                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), toward + turn, a))
         return horizon
 
     def traffic_horizon(self, state: EgoState, limit: float) -> float:
@@ -426,6 +434,15 @@ class Cosimulation:
             collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
         )
+
+
+def _same_surface(surfaces, lane: int, other: int, low: float, high: float) -> bool:
+    """Whether two lanes have the same surface everywhere between stations low and high."""
+    stations = [low]
+    for each in (lane, other):
+        starts = surfaces.starts.get(each, [])
+        stations += starts[bisect.bisect_right(starts, low):bisect.bisect_right(starts, high)]
+    return all(surfaces.value(lane, station) == surfaces.value(other, station) for station in stations)
 
 
 def _surface_changes(surfaces) -> dict[int, list[float]]:

@@ -35,7 +35,7 @@ from .recorder import ChunkedTable
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
 from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_conditions,
-                       vehicle_horizons)
+                       vehicle_horizons, vehicle_triggered)
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
@@ -227,6 +227,9 @@ class Cosimulation:
         if "traffic" in kinds:
             traffic = self.traffic
             due = traffic.active[traffic.next_check[traffic.active] <= state.time]
+            if 0 < len(due) <= 4:
+                kinematics = EgoKinematics.of(state)
+                return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)
             if len(due):
                 action, overlap, leave = vehicle_conditions(traffic, due, EgoKinematics.of(state), self.bounds)
                 return bool((action | (overlap != traffic.in_contact[due]) | leave).any())

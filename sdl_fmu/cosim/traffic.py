@@ -217,8 +217,12 @@ class Traffic:
         return self.station0[idx] - travelled, lateral, speed, lateral_rate, speed_rate
 
     def at(self, i: int, t: float) -> tuple[float, float, float]:
-        station, lateral, speed, _, _ = self.motion(np.array([i]), t)
-        return float(station[0]), float(lateral[0]), float(speed[0])
+        return self.at_scalar(i, t)
+
+    def at_scalar(self, i: int, t: float) -> tuple[float, float, float]:
+        """(station, lateral, speed) of vehicle i at time t, in plain floats (`Motion.at`)."""
+        return Motion(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
+                      float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i])).at(t)
 
     def start_action(self, i: int, t: float, ego_lateral: float, ego_speed: float) -> Action:
         """Fires the armed action: a new transition from where the vehicle is now (interrupting any)."""

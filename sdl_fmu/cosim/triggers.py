@@ -121,15 +121,42 @@ def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bo
     seconds, where = traffic.trigger_seconds[idx], traffic.where[idx]
     closing = -gap_rate * np.sign(gap)
     allowed = (gap != 0) & ~((where == 1) & (gap < 0)) & ~((where == 2) & (gap > 0))
-    with np.errstate(invalid="ignore"):
-        due = allowed & (((seconds > 0) & (closing > 0) & (np.abs(gap) <= seconds * closing))
-                         | ((seconds < 0) & (closing < 0) & (np.abs(gap) >= seconds * closing)))
+    due = allowed & (((seconds > 0) & (closing > 0) & (np.abs(gap) <= seconds * closing))
+                     | ((seconds < 0) & (closing < 0) & (np.abs(gap) >= seconds * closing)))
     length, width = traffic.length[idx], traffic.width[idx]
     overlap = _penetrations(ego, bounds, gap, lateral - ego.lateral, length, width)[2] > 0
-    with np.errstate(invalid="ignore"):
-        leave_allowed = np.isnan(seconds) | (seconds > 0) | (where == 1)
+    leave_allowed = np.isnan(seconds) | (seconds > 0) | (where == 1)
     leave = (leave_allowed & ~traffic.in_contact[idx] & (gap < -(bounds.length + length) / 2) & (gap_rate < 0))
     return due, overlap, leave
+
+
+def vehicle_triggered(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> bool:
+    """`vehicle_conditions` for one vehicle in plain floats (the bisection probes' path): whether its
+    action is due, its contact state changes or it may leave."""
+    station, lateral, speed = traffic.at_scalar(i, ego.time)
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    seconds, where = traffic.trigger_seconds[i], traffic.where[i]
+    if seconds == seconds and gap != 0 and not (where == 1 and gap < 0) and not (where == 2 and gap > 0):
+        closing = -gap_rate if gap > 0 else gap_rate
+        if seconds > 0 and closing > 0 and abs(gap) <= seconds * closing:
+            return True
+        if seconds < 0 and closing < 0 and abs(gap) >= seconds * closing:
+            return True
+    length, width = traffic.length[i], traffic.width[i]
+    c, s = math.cos(ego.psi), math.sin(ego.psi)
+    ac, as_ = abs(c), abs(s)
+    half_l, half_w = bounds.length / 2, bounds.width / 2
+    dx, dy = gap, -(lateral - ego.lateral)
+    overlap = (half_l * ac + half_w * as_ + length / 2 - abs(dx) > 0
+               and half_l * as_ + half_w * ac + width / 2 - abs(dy) > 0
+               and half_l + length / 2 * ac + width / 2 * as_ - abs(dx * c + dy * s) > 0
+               and half_w + length / 2 * as_ + width / 2 * ac - abs(-dx * s + dy * c) > 0)
+    in_contact = bool(traffic.in_contact[i])
+    if overlap != in_contact:
+        return True
+    leave_allowed = seconds != seconds or seconds > 0 or where == 1
+    return leave_allowed and not in_contact and gap < -(bounds.length + length) / 2 and gap_rate < 0
 
 
 def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bounds: EgoBounds) -> np.ndarray:
@@ -148,17 +175,16 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     # closure-time actions (see closure_reached)
     pass_time = reach_time(np.abs(gap), closing, relative_acceleration)  # earliest instant gap = 0
     blocked = ((where == 1) & (gap <= 0)) | ((where == 2) & (gap >= 0))
-    with np.errstate(invalid="ignore"):
-        closing_margin = np.abs(gap) - seconds * closing  # <= 0: a positive T is due
-        positive = reach_time(closing_margin, closing + seconds * relative_acceleration, relative_acceleration)
-        separating = -closing
-        separating_margin = -seconds * separating - np.abs(gap)  # <= 0 with separating > 0: a negative T is due
-        negative = np.where(
-            separating <= 0,
-            np.minimum(-separating / relative_acceleration, pass_time),
-            reach_time(separating_margin, separating - seconds * relative_acceleration, relative_acceleration))
-        action = np.where(np.isnan(seconds), inf,
-                          np.where(blocked, pass_time, np.where(seconds > 0, positive, negative)))
+    closing_margin = np.abs(gap) - seconds * closing  # <= 0: a positive T is due
+    positive = reach_time(closing_margin, closing + seconds * relative_acceleration, relative_acceleration)
+    separating = -closing
+    separating_margin = -seconds * separating - np.abs(gap)  # <= 0 with separating > 0: a negative T is due
+    negative = np.where(
+        separating <= 0,
+        np.minimum(-separating / relative_acceleration, pass_time),
+        reach_time(separating_margin, separating - seconds * relative_acceleration, relative_acceleration))
+    action = np.where(np.isnan(seconds), inf,
+                      np.where(blocked, pass_time, np.where(seconds > 0, positive, negative)))
 
     # footprint contact: starts once both road-axis separations have closed; ends once any penetration has
     length, width = traffic.length[idx], traffic.width[idx]
@@ -176,8 +202,7 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     contact = np.where(in_contact, end, start)
 
     # departure: wholly behind the ego and moving away (may_leave)
-    with np.errstate(invalid="ignore"):
-        leave_allowed = (np.isnan(seconds) | (seconds > 0) | (where == 1)) & ~in_contact
+    leave_allowed = (np.isnan(seconds) | (seconds > 0) | (where == 1)) & ~in_contact
     behind = reach_time(gap + (bounds.length + length) / 2, -gap_rate, relative_acceleration)
     away = np.where(gap_rate >= 0, gap_rate / relative_acceleration, 0.0)
     leave = np.where(leave_allowed, np.maximum(behind, away), inf)

@@ -13,9 +13,12 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 
-PACKAGE_DIRECTORY = Path(__file__).resolve().parent
+# Package data (declared in pyproject.toml) is found through importlib.resources, so an installed package
+# reads its own copy wherever it is installed; pip installs packages unzipped, so these are real folders.
+PACKAGE_DIRECTORY = Path(str(resources.files(__package__)))
 INTERFACE_DIRECTORY = PACKAGE_DIRECTORY / "interfaces"
 SCENARIO_DIRECTORY = PACKAGE_DIRECTORY / "scenarios"  # shipped examples, vehicle table, tire files
 

@@ -265,7 +265,7 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float
     for section in result.surfaces:
         start = from_si(section.start, units)
         end = x_max + span if section.end is None else from_si(section.end, units)
-        if end < x_min or start > x_max:
+        if end < x_min or start > x_max or section.lane not in road.valid_lanes:  # a lane the road lacks
             continue
         start, end = max(start, x_min - span), min(end, x_max + span)
         low = from_si(road.lane_center(section.lane), units) - width / 2

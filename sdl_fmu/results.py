@@ -4,15 +4,12 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
-import tempfile
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .results_folder import write_results_folder
 from .sdl.events import Road
 from .units import from_si, length_label, speed_label
 
@@ -263,38 +260,15 @@ def write_summary_json(result: RunResult, path: Path) -> None:
     Path(path).write_text(text + "\n", encoding="utf-8")
 
 
-def _replace_directory(new: Path, target: Path) -> None:
-    """Move a finished directory to `target`; an old `target` is set aside first and deleted only after."""
-    if not target.exists():
-        os.replace(new, target)
-        return
-    aside = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
-    os.replace(target, aside)
-    try:
-        os.replace(new, target)
-    except BaseException:
-        os.replace(aside, target)
-        raise
-    shutil.rmtree(aside, ignore_errors=True)
-
-
 def write_results(result: RunResult, out_dir: Path, plot: bool = True) -> Path:
-    """Write timeseries.csv, summary.json and plot.png into out_dir atomically: all of them or nothing."""
-    out_dir = Path(out_dir).absolute()
-    if out_dir.exists() and not out_dir.is_dir():
-        raise NotADirectoryError(f"{out_dir} exists and is not a directory")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    partial = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.partial-", dir=out_dir.parent))
-    try:
-        os.chmod(partial, 0o755)  # mkdtemp makes it private; results are ordinary files
-        write_timeseries_csv(result, partial / "timeseries.csv")
-        write_summary_json(result, partial / "summary.json")
+    """Write timeseries.csv, summary.json and plot.png into out_dir atomically: all of them or nothing, and
+    nothing sdl-fmu did not write is touched (results_folder)."""
+    def write(folder: Path) -> None:
+        write_timeseries_csv(result, folder / "timeseries.csv")
+        write_summary_json(result, folder / "summary.json")
         if plot:
             from . import plots
 
-            plots.plot_run(result, partial / "plot.png")
-        _replace_directory(partial, out_dir)
-    except BaseException:
-        shutil.rmtree(partial, ignore_errors=True)
-        raise
-    return out_dir
+            plots.plot_run(result, folder / "plot.png")
+
+    return write_results_folder(out_dir, write)

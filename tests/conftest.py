@@ -1,18 +1,24 @@
-"""Shared fixtures: the real FMUs, built once per test session into a temporary folder."""
+"""Shared fixtures: the real FMUs, built once per test session into a temporary per-user FMU cache."""
+
+import os
+import tempfile
 
 import pytest
 
-from sdl_fmu.fmu.package import build_fmu
+# Every test (and every sdl-fmu subprocess it starts) uses a private FMU cache, never the user's.
+os.environ["SDL_FMU_CACHE"] = tempfile.mkdtemp(prefix="sdl-fmu-test-cache-")
+
+from sdl_fmu.fmu.cache import cached_fmu  # noqa: E402
 
 
 @pytest.fixture(scope="session")
-def simple_fmu(tmp_path_factory):
-    return build_fmu("simple", tmp_path_factory.mktemp("dist"))
+def simple_fmu():
+    return cached_fmu("simple")
 
 
 @pytest.fixture(scope="session")
-def advanced_fmu(tmp_path_factory):
-    return build_fmu("advanced", tmp_path_factory.mktemp("dist"))
+def advanced_fmu():
+    return cached_fmu("advanced")
 
 
 @pytest.fixture(scope="session")
@@ -21,3 +27,9 @@ def defaults_simple(simple_fmu):
 
     return {v.name: float(v.start) for v in read_model_description(str(simple_fmu)).modelVariables
             if v.causality == "parameter"}
+
+
+def pytest_unconfigure(config):
+    import shutil
+
+    shutil.rmtree(os.environ["SDL_FMU_CACHE"], ignore_errors=True)

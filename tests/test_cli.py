@@ -70,7 +70,7 @@ def test_run_writes_the_three_results(tmp_path, simple_fmu):
     out = tmp_path / "results"
     completed = sdl_fmu("run", scenario, "--fmu", simple_fmu, "--out", out, "--speed", "60", cwd=tmp_path)
     assert completed.returncode == 0, completed.stderr
-    assert {p.name for p in out.iterdir()} == {"timeseries.csv", "summary.json", "plot.png"}
+    assert {p.name for p in out.iterdir()} == {"timeseries.csv", "summary.json", "plot.png", ".sdl-fmu-results.json"}
     summary = json.loads((out / "summary.json").read_text())
     assert {"units", "dynamics", "collisions", "final", "events", "warnings"} <= set(summary)
     assert [(e["code"], e["action"]) for e in summary["events"]] == [("BRK", "on"), ("BRK", "off"), ("ES", "end")]

@@ -8,6 +8,7 @@ import pytest
 
 from sdl_fmu import plots
 from sdl_fmu.results import RunResult, SurfaceSection, VehicleTrack, summary, write_results
+from sdl_fmu.results_folder import ResultsFolderError
 from sdl_fmu.sdl.events import Road
 from sdl_fmu.units import from_si
 
@@ -152,24 +153,20 @@ def test_failure_leaves_no_directory(tmp_path, monkeypatch):
 
 
 def test_failure_keeps_old_results_untouched(tmp_path, monkeypatch):
-    old = tmp_path / "run"
-    old.mkdir()
-    (old / "summary.json").write_text("old")
+    old = write_results(make_result(), tmp_path / "run", plot=False)
+    before = {p.name: p.read_bytes() for p in old.iterdir()}
     monkeypatch.setattr(plots, "plot_run", lambda result, path: 1 / 0)
     with pytest.raises(ZeroDivisionError):
         write_results(make_result(), old)
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
-    assert [p.name for p in old.iterdir()] == ["summary.json"]
-    assert (old / "summary.json").read_text() == "old"
+    assert {p.name: p.read_bytes() for p in old.iterdir()} == before
 
 
 def test_success_replaces_old_results(tmp_path):
-    old = tmp_path / "run"
-    old.mkdir()
-    (old / "stale.txt").write_text("from an earlier run")
+    old = write_results(make_result(), tmp_path / "run")
     out = write_results(make_result(), old, plot=False)
     assert out == old.absolute()
-    assert sorted(p.name for p in out.iterdir()) == ["summary.json", "timeseries.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [".sdl-fmu-results.json", "summary.json", "timeseries.csv"]
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
 
 
@@ -180,7 +177,7 @@ def test_missing_parents_are_created(tmp_path):
 
 def test_out_dir_that_is_a_file_is_refused(tmp_path):
     (tmp_path / "run").write_text("not a directory")
-    with pytest.raises(NotADirectoryError):
+    with pytest.raises(ResultsFolderError, match="exists and is not a folder"):
         write_results(make_result(), tmp_path / "run", plot=False)
     assert [p.name for p in tmp_path.iterdir()] == ["run"]
 
@@ -188,7 +185,8 @@ def test_out_dir_that_is_a_file_is_refused(tmp_path):
 @pytest.mark.parametrize("dynamics, collision", [("simple", True), ("advanced", False)])
 def test_plot_png_is_written(tmp_path, dynamics, collision):
     out = write_results(make_result(dynamics=dynamics, collision=collision), tmp_path / "run")
-    assert sorted(p.name for p in out.iterdir()) == ["plot.png", "summary.json", "timeseries.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [".sdl-fmu-results.json", "plot.png", "summary.json",
+                                                     "timeseries.csv"]
     assert (out / "plot.png").read_bytes()[:8] == PNG_SIGNATURE
 
 

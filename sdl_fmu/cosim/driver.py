@@ -68,8 +68,8 @@ def make_driver(target_speed: float, target_lateral: float, parameters: dict[str
         wheelbase=wheelbase,
         mass=mass,
         # the Advanced FMU states its drive as a wheel torque: a = T / (m R)
-        drive_accel_max=parameters.get("drive_accel_max")
-        or parameters["drive_torque_max"] / (mass * parameters["wheel_radius"]),
+        drive_accel_max=parameters["drive_accel_max"] if "drive_accel_max" in parameters
+        else parameters["drive_torque_max"] / (mass * parameters["wheel_radius"]),
         drive_power_max=parameters.get("drive_power_max", 1e5),
         brake_decel_max=parameters["brake_decel_max"],
         rolling_resistance=parameters["rolling_resistance"],

@@ -49,12 +49,16 @@ class EgoFMU:
             raise FmuError(f"{fmu_path}: the FMU has no co-simulation interface")
         self.variables = {v.name: v for v in self.model_description.modelVariables}
         self._unzipped = extract(str(fmu_path))
-        self.slave = FMU2Slave(
-            guid=self.model_description.guid,
-            unzipDirectory=self._unzipped,
-            modelIdentifier=self.model_description.coSimulation.modelIdentifier,
-            instanceName=instance_name,
-        )
+        try:
+            self.slave = FMU2Slave(
+                guid=self.model_description.guid,
+                unzipDirectory=self._unzipped,
+                modelIdentifier=self.model_description.coSimulation.modelIdentifier,
+                instanceName=instance_name,
+            )
+        except Exception as error:  # fmpy reports a binary that cannot be loaded as a plain Exception
+            shutil.rmtree(self._unzipped, ignore_errors=True)
+            raise FmuError(f"{fmu_path}: the FMU's binary cannot be loaded: {error}") from None
         self._real_outputs = [self.reference(name) for name in REAL_OUTPUTS]
         self._stopped = [self.reference("stopped")]
         # read() is called at every communication point and bisection probe: its ctypes buffers are made once

@@ -21,6 +21,7 @@ import random
 import time as wall_clock
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -64,6 +65,7 @@ class RunOptions:
     parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
     tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
+    progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
 
 
 class Cosimulation:
@@ -410,6 +412,8 @@ class Cosimulation:
                         sample += 1
                 self.apply_inputs(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
+                if self.options.progress is not None:
+                    self.options.progress(self, state)
             wall = wall_clock.perf_counter() - started
             return self.result(state, wall)
         finally:

@@ -170,3 +170,4 @@ class Scenario:
     road: Road
     events: tuple[Event, ...]
     end_distance: float | None
+    warnings: tuple[str, ...] = ()  # what was read but will not act (skipped codes, lanes the road lacks)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import re
@@ -39,7 +40,8 @@ class SdlError:
     reason: str
 
     def __str__(self) -> str:
-        return f"{self.path}:{self.line}: {self.field}: {self.reason}"
+        where = f"{self.path}:{self.line}" if self.line else self.path  # line 0: the file as a whole
+        return f"{where}: {self.field}: {self.reason}"
 
 
 class ScenarioError(Exception):
@@ -56,6 +58,7 @@ class _Invalid(Exception):
 
 Report = Callable[[str, str], None]
 
+_CODE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 _WHOLE = re.compile(r"[+-]?\d+")
 _CLOSURE = re.compile(rf"({_NUMBER.pattern})\s*([FfBb]?)")
@@ -296,23 +299,22 @@ def _content_lines(text: str):
             yield number, content
 
 
-def _lane_errors(event: SurfaceAttribute, road: Road, path: str) -> list[SdlError]:
-    """RSA lanes that the road layout does not have."""
-    errors = []
-    for index, (lane, _value) in enumerate(event.settings):
-        if lane not in road.valid_lanes:
-            lanes = ", ".join(str(n) for n in road.valid_lanes if abs(n) != RIGHT_SHOULDER)
-            errors.append(SdlError(
-                path, event.line, f"RSA parameter {2 * index + 1} (lane)",
-                f"lane {lane} is not on the road: lanes are {lanes}, {RIGHT_SHOULDER} (right shoulder) and "
-                f"{LEFT_SHOULDER} (left shoulder); a ROAD event sets the layout",
-            ))
-    return errors
+def _lane_warnings(event: SurfaceAttribute, road: Road) -> list[str]:
+    """RSA lanes that the road layout does not have: kept, but they never apply (SPEC section 3)."""
+    lanes = ", ".join(str(n) for n in road.valid_lanes if abs(n) != RIGHT_SHOULDER)
+    return [f"line {event.line}: RSA parameter {2 * index + 1} (lane): lane {lane} is not on the road (it has lanes "
+            f"{lanes} and the shoulders {RIGHT_SHOULDER}, {LEFT_SHOULDER}): this setting never applies"
+            for index, (lane, _value) in enumerate(event.settings) if lane not in road.valid_lanes]
 
 
-def parse_text(text: str, path: str = "<text>") -> Scenario:
-    """Parse a whole SDL file's text; raises ScenarioError listing every problem, not only the first."""
+def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) -> Scenario:
+    """Parse a whole SDL file's text; raises ScenarioError listing every problem, not only the first.
+
+    skip_unsupported: event codes sdl-fmu does not simulate are skipped with one warning per code
+    instead of being errors."""
     errors: list[SdlError] = []
+    warnings: list[str] = []
+    skipped: dict[str, list[int]] = {}  # unsupported code -> lines
     units, seen_content = ENGLISH, False
     events: list[Event] = []
     road: Road | None = None
@@ -355,8 +357,14 @@ def parse_text(text: str, path: str = "<text>") -> Scenario:
 
         parser = _EVENT_PARSERS.get(code)
         if parser is None:
-            shown = f"'{code_text}'" if code_text else "empty"
-            report("event code", f"unsupported event code {shown} (supported: {', '.join(SUPPORTED_CODES)})")
+            if not _CODE.fullmatch(code_text):
+                shown = f"'{code_text}'" if code_text else "empty"
+                report("event code", f"unsupported event code {shown} (supported: {', '.join(SUPPORTED_CODES)})")
+            elif skip_unsupported:
+                skipped.setdefault(code, []).append(number)
+            else:
+                report("event code", f"unsupported event code '{code_text}' (supported: {', '.join(SUPPORTED_CODES)}); "
+                       "--skip-unsupported runs the file without it")
             continue
 
         if end_line is not None:
@@ -386,30 +394,92 @@ def parse_text(text: str, path: str = "<text>") -> Scenario:
     if not road_failed:
         for event in events:
             if isinstance(event, SurfaceAttribute):
-                errors.extend(_lane_errors(event, road, path))
+                warnings.extend(_lane_warnings(event, road))
     if errors:
         errors.sort(key=lambda error: error.line)
         raise ScenarioError(errors)
+    for code, lines in skipped.items():
+        shown = ", ".join(map(str, lines[:10])) + (f" and {len(lines) - 10} more" if len(lines) > 10 else "")
+        warnings.append(f"line {lines[0]}: event code '{code}' is not simulated: skipped (line{'s' * (len(lines) > 1)} "
+                        f"{shown})")
     return Scenario(
         path=path, units=units, road=road, events=tuple(events),
-        end_distance=end.distance if end is not None else None,
+        end_distance=end.distance if end is not None else None, warnings=tuple(warnings),
     )
 
 
-def load_scenario(path: str | os.PathLike) -> Scenario:
-    """Read and parse a scenario file (UTF-8, BOM and CRLF tolerated); any failure is a ScenarioError."""
+MAX_FILE_SIZE = 10 * 2**20  # bytes; far beyond any scenario, and it keeps /dev/zero-like inputs out
+_CTRL_Z = "\x1a"  # DOS end-of-file marker
+
+
+class _Undecodable(Exception):
+    """The bytes are no text sdl-fmu reads; args: (line, reason)."""
+
+
+def _line_of(data: bytes, offset: int) -> int:
+    return data[:offset].count(b"\n") + 1
+
+
+def decode_text(data: bytes) -> tuple[str, int | None]:
+    """SDL bytes -> text: UTF-16 with a BOM, UTF-8 (BOM or not), else Windows-1252.
+
+    Returns (text, first line that is not UTF-8 when read as Windows-1252, else None); a trailing
+    Ctrl-Z (and anything blank after it) is dropped. Raises _Undecodable(line, reason)."""
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        try:
+            text, fallback = data.decode("utf-16"), None
+        except UnicodeDecodeError as exc:
+            line = data[:exc.start].decode("utf-16", errors="replace").count("\n") + 1
+            raise _Undecodable(line, f"is not valid UTF-16 text (byte {exc.start})") from None
+    else:
+        if b"\0" in data:
+            raise _Undecodable(_line_of(data, data.index(b"\0")), "holds a NUL byte: a binary file, not SDL text")
+        try:
+            text, fallback = data.decode("utf-8-sig"), None
+        except UnicodeDecodeError as exc:
+            fallback = _line_of(data, exc.start)
+            try:
+                text = data.decode("cp1252")
+            except UnicodeDecodeError as exc1252:
+                raise _Undecodable(_line_of(data, exc1252.start),
+                                   f"byte 0x{data[exc1252.start]:02x} is neither UTF-8 nor Windows-1252 text") from None
+    text = text.removeprefix("\ufeff")
+    if _CTRL_Z in text:
+        marker = text.index(_CTRL_Z)
+        if text[marker:].strip(_CTRL_Z + " \t\r\n"):
+            raise _Undecodable(text[:marker].count("\n") + 1,
+                               "Ctrl-Z (end-of-file marker) before the end of the file")
+        text = text[:marker]
+    return text, fallback
+
+
+def load_scenario(path: str | os.PathLike, skip_unsupported: bool = False) -> Scenario:
+    """Read and parse a scenario file (see decode_text for the encodings); any failure is a ScenarioError."""
     name = os.fspath(path)
+
+    def fail(line: int, reason: str) -> ScenarioError:
+        return ScenarioError([SdlError(name, line, "file", reason)])
+
     try:
+        if os.path.isdir(name):
+            raise fail(0, "is a folder, not a scenario file")
+        if os.path.exists(name) and not os.path.isfile(name):
+            raise fail(0, "is not a regular file")
         with open(name, "rb") as file:
-            data = file.read()
+            data = file.read(MAX_FILE_SIZE + 1)
     except OSError as exc:
-        raise ScenarioError([SdlError(name, 0, "file", f"cannot be read: {exc.strerror or exc}")]) from exc
+        raise fail(0, f"cannot be read: {exc.strerror or exc}") from None
+    if len(data) > MAX_FILE_SIZE:
+        raise fail(0, f"is larger than {MAX_FILE_SIZE // 2**20} MiB: not an SDL scenario")
     try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise ScenarioError([SdlError(name, line, "file", f"is not UTF-8 text (byte {exc.start})")]) from exc
-    return parse_text(text, name)
+        text, fallback = decode_text(data)
+    except _Undecodable as exc:
+        raise fail(*exc.args) from None
+    scenario = parse_text(text, name, skip_unsupported)
+    if fallback is not None:
+        warning = (f"line {fallback}: file: is not UTF-8 (first such line); the file was read as Windows-1252")
+        scenario = dataclasses.replace(scenario, warnings=(warning, *scenario.warnings))
+    return scenario
 
 
 # --- the report for `sdl-fmu check` --------------------------------------------------------------

@@ -26,7 +26,9 @@ class VehicleModel:
 
 def default_vehicle_table_path() -> Path:
     """The table shipped with the scenarios: sdl_fmu/scenarios/vehicles.csv."""
-    return Path(__file__).resolve().parents[1] / "scenarios" / "vehicles.csv"
+    from ..interface import SCENARIO_DIRECTORY
+
+    return SCENARIO_DIRECTORY / "vehicles.csv"
 
 
 def _positive(text: str) -> float:

@@ -330,6 +330,13 @@ Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kin
         } else {
             value = ((const int *)values)[i] ? 1.0 : 0.0;
         }
+        if (variable->store == STORE_PARAMETER && (value < variable->min || value > variable->max)) {
+            instance_log(instance, STATUS_ERROR, "logStatusError",
+                         value < variable->min ? "%s: value %g is below its declared minimum %g"
+                                               : "%s: value %g is above its declared maximum %g",
+                         variable->name, value, value < variable->min ? variable->min : variable->max);
+            return STATUS_ERROR;
+        }
         if (variable->store == STORE_INPUT)
             instance->now.u[variable->index] = value;
         else

@@ -49,6 +49,7 @@ typedef struct {
     Store store;
     int index;
     Settable settable;
+    double min, max;  /* declared range; parameters outside it are refused (-DBL_MAX/DBL_MAX: none) */
 } ModelVariable;
 
 typedef struct {

@@ -1,0 +1,428 @@
+"""sdl-fmu from Python: the one public API that the command line, the sweep and the tests call.
+
+    from sdl_fmu import api
+
+    result = api.run("demo", until_time=20.0, params={"mass": 1800.0})   # a shipped example or a path
+    result.arrays["speed_ft/s"]       # the time series as NumPy arrays, columns as in timeseries.csv
+    result.events, result.warnings    # summary.json's events (scenario units) and every warning
+    result.write("runs/demo")         # timeseries.csv, summary.json, plot.png (a results folder)
+
+Every user mistake raises an `InputError` (a bad option, FMU, tire file or results folder; the message
+names the option or file) or a `ScenarioError` (the scenario file; one line per problem, each naming
+file, line and field). Anything else is a bug.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import sys
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .fmu.package import MODELS
+from .results import RunResult, summary, timeseries_table, write_results
+from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
+
+__all__ = ["InputError", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
+           "ego_fmu", "LIMITS"]
+
+# Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
+# cannot reach within it could never end a run.
+MAX_SPEED = 150.0  # m/s (335 mph)
+MAX_TIME = 3600.0  # s
+LIMITS = {
+    "speed": (0.0, MAX_SPEED),  # scenario units on input, checked in m/s
+    "step": (1e-5, 10.0),  # s
+    "driver_period": (1e-3, 1.0),  # s
+    "until_time": (0.0, MAX_TIME),  # s, > 0
+    "until_distance": (0.0, MAX_SPEED * MAX_TIME),  # m, > 0
+    "seed": (0, 2**63 - 1),
+}
+EGO_VARIABLES = ("throttle", "brake", "steer", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate",
+                 "stopped", "length", "width", "mass", "v0", "x0", "y0", "psi0")
+MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
+
+
+class InputError(ValueError):
+    """A user mistake outside the scenario file: a bad option, FMU, tire file or results folder.
+
+    `option` is the keyword (e.g. "until_time", "fmu"); the message names the option or file."""
+
+    def __init__(self, option: str | None, message: str):
+        self.option = option
+        super().__init__(message)
+
+
+def _option_error(option: str, value, reason: str) -> InputError:
+    return InputError(option, f"--{option.replace('_', '-')} {value}: {reason}")
+
+
+# --- scenarios ----------------------------------------------------------------------------------
+
+
+def shipped_scenarios() -> dict[str, Path]:
+    """The example scenarios shipped in the package, by short name (file name without .sdl)."""
+    folder = resources.files("sdl_fmu") / "scenarios"
+    return {entry.name[:-4]: Path(str(entry)) for entry in sorted(folder.iterdir(), key=lambda e: e.name)
+            if entry.name.endswith(".sdl")}
+
+
+def resolve_scenario(name: str | os.PathLike) -> Path:
+    """A scenario path: the file if it exists, else a shipped example named `name` (with or without .sdl)."""
+    path = Path(name)
+    if os.path.lexists(path) or len(path.parts) != 1:
+        return path
+    shipped = shipped_scenarios()
+    return shipped.get(path.name.removesuffix(".sdl"), path)
+
+
+@functools.lru_cache(maxsize=None)
+def _vehicle_table():
+    from .sdl import default_vehicle_table_path
+
+    return load_vehicle_table(default_vehicle_table_path())
+
+
+def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False) -> Scenario:
+    """Reads and checks a scenario file (or a shipped example by name); raises ScenarioError listing every
+    problem. skip_unsupported: event codes sdl-fmu does not simulate become warnings (one per code)."""
+    path = resolve_scenario(scenario)
+    if not os.path.lexists(path) and isinstance(scenario, str):
+        names = ", ".join(shipped_scenarios())
+        raise ScenarioError([SdlError(os.fspath(scenario), 0, "file",
+                                      f"no such file (shipped examples by name: {names})")])
+    loaded = load_scenario(path, skip_unsupported=skip_unsupported)
+    problems = check_models(loaded, _vehicle_table())
+    if problems:
+        raise ScenarioError(problems)
+    return loaded
+
+
+# --- options -----------------------------------------------------------------------------------
+
+
+def _number(option: str, value, units: str | None = None, low_open: bool = False):
+    """A finite number within LIMITS[option] (given in scenario units when `units`); returns SI."""
+    from .units import from_si, length_label, speed_label, to_si
+
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise _option_error(option, value, "must be a number")
+    value = float(value)
+    if not math.isfinite(value):
+        raise _option_error(option, f"{value:g}", "must be a finite number")
+    si = to_si(value, units) if units else value
+    low, high = LIMITS[option]
+    if si < low or (low_open and si == low) or si > high:
+        if units:
+            label = speed_label(units) if option == "speed" else length_label(units)
+            low, high = from_si(low, units), from_si(high, units)
+        else:
+            label = "s"
+        relation = ">" if low_open else ">="
+        raise _option_error(option, f"{value:g}", f"must be {relation} {low:g} and <= {high:.6g} {label}")
+    return si
+
+
+def _seed(seed) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise _option_error("seed", seed, "must be a whole number")
+    low, high = LIMITS["seed"]
+    if not low <= seed <= high:
+        raise _option_error("seed", seed, f"must be from {low} to {high}")
+    return int(seed)
+
+
+def _regular_file(option: str, path: str | os.PathLike) -> Path:
+    """An input file that exists, is a regular file and is not absurdly large."""
+    path = Path(path)
+    if not path.exists():
+        raise _option_error(option, path, "no such file")
+    if path.is_dir():
+        raise _option_error(option, path, "is a folder, not a file")
+    if not path.is_file():
+        raise _option_error(option, path, "is not a regular file")
+    return path
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip() or type(error).__name__
+    return text.splitlines()[0]
+
+
+@functools.lru_cache(maxsize=16)
+def _read_model_description(path: str, stamp: tuple):
+    """fmpy's modelDescription of an FMU file, read once per file version (stamp: size, mtime)."""
+    from fmpy import read_model_description
+
+    return read_model_description(path, validate=False)
+
+
+def _description(fmu: Path):
+    stat = fmu.stat()
+    return _read_model_description(str(fmu.resolve()), (stat.st_size, stat.st_mtime_ns))
+
+
+def _model_description(fmu: Path, dynamics: str):
+    """The FMU's modelDescription, checked to be a co-simulation FMI 2.0 ego FMU for these dynamics."""
+    try:
+        description = _description(fmu)
+    except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
+        raise _option_error("fmu", fmu, f"is not a readable FMU ({_first_line(error)})") from None
+    if not str(description.fmiVersion).startswith("2.") or description.coSimulation is None:
+        raise _option_error("fmu", fmu, f"is FMI {description.fmiVersion} without FMI 2.0 co-simulation; "
+                            "sdl-fmu runs FMI 2.0 co-simulation FMUs")
+    names = {v.name for v in description.modelVariables}
+    wheels = [f"{'mu' if dynamics == 'simple' else 'surface'}_{w}" for w in ("fl", "fr", "rl", "rr")]
+    missing = [n for n in (*EGO_VARIABLES, *wheels) if n not in names]
+    if missing:
+        raise _option_error("fmu", fmu, f"lacks the {dynamics} ego variables {', '.join(missing[:6])}"
+                            f"{' ...' if len(missing) > 6 else ''} (see --dynamics)")
+    return description
+
+
+def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]:
+    """--param values checked against the FMU: an existing Real parameter, finite, within its min/max."""
+    checked = {}
+    variables = {v.name: v for v in description.modelVariables}
+    for name, value in (params or {}).items():
+        shown = f"{name}={value}"
+        variable = variables.get(name)
+        if variable is None or variable.causality != "parameter":
+            known = ", ".join(v.name for v in description.modelVariables
+                              if v.causality == "parameter" and not v.name.startswith("tire"))
+            raise _option_error("param", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
+                                "tire<slot>_<KEY>)")
+        if variable.type != "Real":
+            raise _option_error("param", shown, f"{name} is {variable.type}; only Real parameters can be set")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise _option_error("param", shown, "the value must be a number (SI units)")
+        value = float(value)
+        if not math.isfinite(value):
+            raise _option_error("param", shown, "the value must be a finite number")
+        unit = f" {variable.unit}" if variable.unit and variable.unit != "1" else ""
+        low = None if variable.min is None else float(variable.min)
+        high = None if variable.max is None else float(variable.max)
+        if low is not None and value < low:
+            raise _option_error("param", shown, f"below the declared minimum {low:g}{unit} of {name}")
+        if high is not None and value > high:
+            raise _option_error("param", shown, f"above the declared maximum {high:g}{unit} of {name}")
+        checked[name] = value
+    return checked
+
+
+def ego_fmu(dynamics: str = "simple", fmu: str | os.PathLike | None = None) -> Path:
+    """The ego FMU: `fmu` if given (checked), else the cached build for these dynamics (built on first use)."""
+    if fmu is not None:
+        import zipfile
+
+        import fmpy
+
+        path = _regular_file("fmu", fmu)
+        description = _model_description(path, dynamics)
+        binary = (f"binaries/{fmpy.platform}/{description.coSimulation.modelIdentifier}"
+                  f"{fmpy.sharedLibraryExtension}")
+        with zipfile.ZipFile(path) as archive:  # readable: _model_description read it
+            if binary not in archive.namelist():
+                raise _option_error("fmu", path, f"has no binary for this platform ({binary})")
+        return path
+    from .fmu.cache import cached_fmu
+
+    return cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache {path.parent.parent}"
+                                                            " (first use)", file=sys.stderr))
+
+
+def _tire_starts(tires, dynamics: str):
+    if dynamics != "advanced":
+        if tires is not None:
+            raise _option_error("tires", tires, "applies to --dynamics advanced only")
+        return {}, None, []
+    from .dynamics.tires import TireFileError, default_attribute_file, slot_parameters
+
+    path = _regular_file("tires", tires) if tires is not None else default_attribute_file()
+    try:
+        return slot_parameters(path)
+    except TireFileError as error:
+        raise InputError("tires", _first_line(error)) from None
+
+
+def _whole_attributes(scenario: Scenario) -> None:
+    """With advanced dynamics an RSA value is an attribute number: a fraction is an error naming the line."""
+    errors = []
+    for event in scenario.events:
+        if isinstance(event, SurfaceAttribute):
+            for index, (_lane, value) in enumerate(event.settings):
+                if value != int(value):
+                    errors.append(SdlError(scenario.path, event.line, f"RSA parameter {2 * index + 2} (value)",
+                                           f"{value:g}: with advanced dynamics the value is a surface attribute "
+                                           "number and must be whole"))
+    if errors:
+        raise ScenarioError(errors)
+
+
+# --- the result ----------------------------------------------------------------------------------
+
+
+@dataclass
+class Result:
+    """What a run produced. `raw` is the orchestrator's RunResult (SI); everything else is in the
+    scenario's units, as in the results files."""
+
+    raw: RunResult
+    scenario: Scenario
+
+    @property
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The time series as NumPy arrays, keyed by the timeseries.csv headers (units in the names)."""
+        return {header: np.asarray(values) for header, values, _ in timeseries_table(self.raw)}
+
+    @property
+    def time(self) -> np.ndarray:
+        return np.asarray(self.raw.columns["time"], dtype=float)
+
+    def dataframe(self):
+        """The time series as a pandas DataFrame (needs pandas, which sdl-fmu does not depend on)."""
+        try:
+            import pandas
+        except ImportError:
+            raise ImportError("Result.dataframe() needs pandas (pip install pandas); "
+                              "Result.arrays has the same columns as NumPy arrays") from None
+        return pandas.DataFrame(self.arrays)
+
+    @property
+    def events(self) -> list[dict]:
+        return self.raw.events
+
+    @property
+    def warnings(self) -> list[str]:
+        return self.raw.warnings
+
+    @property
+    def collisions(self) -> int:
+        return self.raw.collisions
+
+    @property
+    def final(self) -> dict:
+        return self.raw.final
+
+    @property
+    def summary(self) -> dict:
+        """summary.json's content."""
+        return summary(self.raw)
+
+    def write(self, out: str | os.PathLike, plot: bool = True) -> Path:
+        """Writes a results folder (timeseries.csv, summary.json, plot.png); see results_folder for the rules."""
+        from .results_folder import ResultsFolderError
+
+        try:
+            return write_results(self.raw, Path(out), plot=plot)
+        except ResultsFolderError as error:
+            raise InputError("out", f"--out {error}") from None
+
+    def plot(self, path: str | os.PathLike) -> Path:
+        """Only the plot, as a PNG at `path`."""
+        from . import plots
+
+        plots.plot_run(self.raw, Path(path))
+        return Path(path)
+
+
+# --- running -------------------------------------------------------------------------------------
+
+
+def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
+    """A tqdm bar on stderr (by default only when stderr is a terminal), fed by the master each step."""
+    if enabled is None:
+        enabled = sys.stderr.isatty()
+    if not enabled:
+        return None
+    from tqdm import tqdm
+
+    from .units import from_si, length_label
+
+    state_of = {}
+
+    def update(cosimulation, state) -> None:
+        bar = state_of.get("bar")
+        if bar is None:
+            if math.isfinite(cosimulation.end_distance):
+                total, unit, key = from_si(cosimulation.end_distance, scenario.units), length_label(scenario.units), "s"
+            else:
+                total, unit, key = cosimulation.options.until_time or MAX_TIME, "s", "time"
+            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=sys.stderr, leave=False,
+                                         dynamic_ncols=True, bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} {unit}")
+            state_of["key"] = key
+        value = state.s if state_of["key"] == "s" else state.time
+        if state_of["key"] == "s":
+            value = from_si(value, scenario.units)
+        value = min(value, bar.total)
+        bar.update(value - bar.n)
+        if cosimulation.finished:
+            bar.close()
+
+    return update
+
+
+def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu: str | os.PathLike | None = None,
+        speed: float | None = None, seed: int = 1, step: float | None = None,
+        driver_period: float | None = None, until_distance: float | None = None,
+        until_time: float | None = None, params: dict[str, float] | None = None,
+        tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
+        out: str | os.PathLike | None = None, plot: bool = True) -> Result:
+    """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
+
+    speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
+    step is the longest communication step (default 1 s; results do not depend on it), driver_period the
+    driver model's sampling period (default 0.05 s),
+    params are FMU start values (SI) within each parameter's declared min/max. fmu defaults to the cached
+    build for `dynamics`. tires: Tire Attribute File (advanced only). progress: a bar on stderr (None: only
+    when stderr is a terminal). out: also write the results folder; it is checked before the simulation.
+    Raises InputError or ScenarioError for user mistakes."""
+    from .cosim.ego import FmuError
+    from .cosim.master import RunOptions, run_scenario
+    from .results_folder import ResultsFolderError, check_results_folder
+
+    if dynamics not in MODELS:
+        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(MODELS)}")
+    seed = _seed(seed)
+    from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
+
+    step = DEFAULT_STEP if step is None else _number("step", step)
+    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _number("driver_period", driver_period)
+    until_time = _number("until_time", until_time, low_open=True)
+    if not isinstance(scenario, Scenario):
+        scenario = load(scenario, skip_unsupported=skip_unsupported)
+    units = scenario.units
+    speed = _number("speed", speed, units)
+    until_distance = _number("until_distance", until_distance, units, low_open=True)
+    if dynamics == "advanced":
+        _whole_attributes(scenario)
+    tire_starts, known_attributes, tire_warnings = _tire_starts(tires, dynamics)
+    if out is not None:
+        try:
+            check_results_folder(out)
+        except ResultsFolderError as error:
+            raise InputError("out", f"--out {error}") from None
+    fmu_path = ego_fmu(dynamics, fmu)
+    parameters = _parameters(params, _description(fmu_path), fmu_path)
+    options = RunOptions(dynamics=dynamics, speed=speed, seed=seed, step=step, driver_period=driver_period,
+                         until_distance=until_distance,
+                         until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
+                         known_attributes=None if known_attributes is None else set(known_attributes))
+    options.progress = _progress_bar(progress, scenario)
+    try:
+        raw = run_scenario(scenario, fmu_path, options, _vehicle_table())
+    except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
+        raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
+    raw.warnings[:0] = [*scenario.warnings, *tire_warnings]
+    result = Result(raw, scenario)
+    if out is not None:
+        result.write(out, plot=plot)
+    return result

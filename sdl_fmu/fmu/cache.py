@@ -1,0 +1,96 @@
+"""The per-user FMU cache: FMUs are built on first use, keyed by a hash of everything that goes into them.
+
+Location: $SDL_FMU_CACHE if set, else $XDG_CACHE_HOME/sdl-fmu, else ~/.cache/sdl-fmu. One folder per
+(model, FMI version, input hash) holds `fmi<version>/<Model>.fmu`. A changed model, interface, tire
+file, runtime source, compiler or flag changes the hash, so a stale FMU is never found. Each build goes
+into a private temporary folder inside the cache that is renamed into place in one step, so two
+processes building at once never see or leave a half-built FMU (the loser of the race discards its copy).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+from .. import __version__
+from ..interface import PACKAGE_DIRECTORY
+from .package import MODELS, build_fmu, fmu_path
+
+CACHE_VARIABLE = "SDL_FMU_CACHE"
+# Everything a build reads, relative to the package: the model and build code, interface data, the tire
+# files the Advanced FMU's start values come from, the C runtime.
+BUILD_INPUTS = ("interface.py", "units.py", "dynamics", "fmu", "interfaces", "scenarios/tires")
+BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
+
+
+def cache_directory() -> Path:
+    """Where built FMUs are kept for this user."""
+    if os.environ.get(CACHE_VARIABLE):
+        return Path(os.environ[CACHE_VARIABLE]).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "sdl-fmu"
+
+
+@functools.lru_cache(maxsize=None)
+def _compiler_identity(compiler: str) -> str:
+    """The compiler's own version banner (a different gcc builds a different binary)."""
+    try:
+        completed = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
+        return completed.stdout
+    except (OSError, subprocess.SubprocessError) as error:
+        return f"unavailable: {error}"  # build_fmu reports the missing compiler itself
+
+
+def _input_files() -> list[Path]:
+    files = []
+    for entry in BUILD_INPUTS:
+        path = PACKAGE_DIRECTORY / entry
+        candidates = sorted(path.rglob("*")) if path.is_dir() else [path]
+        files += [f for f in candidates if f.is_file() and f.suffix in BUILD_SUFFIXES and "__pycache__" not in f.parts]
+    return files
+
+
+def build_key(dynamics: str, fmi_version: int = 2) -> str:
+    """SHA-256 of every input of one FMU build: sources, data, compiler identity and flags, versions."""
+    import casadi
+    import fmpy
+
+    digest = hashlib.sha256()
+    compiler = os.environ.get("CC", "gcc")
+    for part in (f"sdl-fmu {__version__}", f"model {MODELS[dynamics][0]}", f"fmi {fmi_version}",
+                 f"casadi {casadi.__version__}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
+                 _compiler_identity(compiler)):
+        digest.update(part.encode() + b"\0")
+    for path in _input_files():
+        digest.update(path.relative_to(PACKAGE_DIRECTORY).as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest()
+
+
+def cached_fmu(dynamics: str = "simple", fmi_version: int = 2, announce=None) -> Path:
+    """The FMU for these dynamics from the cache, built (and announced through `announce(path)`) if missing."""
+    model = MODELS[dynamics][0]
+    root = cache_directory()
+    folder = root / f"{model}-fmi{fmi_version}-{build_key(dynamics, fmi_version)[:24]}"
+    target = fmu_path(folder, dynamics, fmi_version)
+    if target.is_file():
+        return target
+    root.mkdir(parents=True, exist_ok=True)
+    if announce is not None:
+        announce(target)
+    work = Path(tempfile.mkdtemp(prefix=f".{model}-building-", dir=root))
+    try:
+        build_fmu(dynamics, work, fmi_version)
+        try:
+            os.rename(work, folder)  # atomic; fails if another process got there first
+        except OSError:
+            if not target.is_file():
+                raise
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return target

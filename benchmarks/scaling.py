@@ -54,7 +54,9 @@ def length_scenario(lines: int) -> str:
 
 def run(path: Path, fmu: Path, out: Path, plot: bool) -> dict:
     done = subprocess.run([sys.executable, "-c", CHILD, str(path), str(fmu), str(out), "plot" if plot else "no"],
-                          check=True, capture_output=True, text=True)
+                          capture_output=True, text=True)
+    if done.returncode:
+        raise SystemExit(f"{path.name}: {done.stderr.strip()}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

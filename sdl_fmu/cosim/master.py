@@ -96,8 +96,11 @@ class Cosimulation:
                                                              if options.dynamics == "simple" else ())
         if options.dynamics == "simple":
             mu_max = max([self.surfaces.default, *(v for values in self.surfaces.values.values() for v in values)]) / 10
-        else:
-            mu_max = ADVANCED_MU_MAX
+        else:  # the tire slots' peak friction at zero load (Magic Formula: mu = (PDX1 + PDX2 dfz) LMUX, dfz >= -1)
+            mu_max = max([(abs(parameters[f"tire{k}_PD{axis}1"]) + abs(parameters.get(f"tire{k}_PD{axis}2", 0.0)))
+                          * parameters.get(f"tire{k}_LMU{axis}", 1.0)
+                          for k in range(16) for axis in "XY" if f"tire{k}_PD{axis}1" in parameters],
+                         default=ADVANCED_MU_MAX)
         g = self.geometry
         wheel_arm = max(math.hypot(g.front, g.half_track_front), math.hypot(g.rear, g.half_track_rear))
         self.bounds = ego_bounds(parameters, mu_max, self.speed, wheel_arm, MAX_STEER)

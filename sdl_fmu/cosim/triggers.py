@@ -29,7 +29,7 @@ from .traffic import Traffic
 ACCELERATION_MARGIN = 1.25  # x the physical bound, + ACCELERATION_SLACK: model transients, round-off
 ACCELERATION_SLACK = 0.5  # m/s2
 YAW_RATE_MARGIN = 2.0
-ADVANCED_MU_MAX = 1.5  # peak friction bound for the Advanced FMU's tire files (their peak mu is below 1.3)
+ADVANCED_MU_MAX = 1.5  # peak friction bound for an Advanced FMU whose tire slots are not parameters
 REFERENCE_SPEED = 60.0  # m/s, drag is bounded at max(this, 2 x the start speed)
 
 

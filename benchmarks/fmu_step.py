@@ -1,5 +1,5 @@
 """Per-step cost of one ego FMU through fmpy: set the inputs, fmi2DoStep / integrate 10 ms, get the outputs.
-Side by side in one process:
+CPU time of this process (robust on a shared machine). Side by side in one process:
   - the native Simple and Advanced FMUs (sdl-fmu build), FMI 2.0 co-simulation, RODAS4 at 1 ms inside;
   - the same Simple dynamics packaged with PythonFMU (benchmarks/simple_pythonfmu.py, RK4 at 1 ms);
   - the same Simple dynamics exported by CasADi's own DaeBuilder.export_fmu (FMI 3.0 model exchange),
@@ -93,13 +93,13 @@ def cost_cosimulation(path: Path, steps: int, start: dict[str, float] | None = N
         inputs = [variables[n].valueReference for n in ("throttle", "brake", "steer")]
         outputs = [variables[n].valueReference for n in ("x", "y", "psi", "s", "v")]
         t = 0.0
-        began = time.perf_counter()
+        began = time.process_time()
         for k in range(steps):
             slave.setReal(inputs, [0.3, 0.0, 0.001 * (k % 2)])
             slave.doStep(currentCommunicationPoint=t, communicationStepSize=STEP)
             slave.getReal(outputs)
             t += STEP
-        return (time.perf_counter() - began) / steps * 1e6
+        return (time.process_time() - began) / steps * 1e6
     finally:
         slave.terminate()
         slave.freeInstance()
@@ -108,10 +108,10 @@ def cost_cosimulation(path: Path, steps: int, start: dict[str, float] | None = N
 
 def cost_model_exchange(path: Path, steps: int) -> float:
     """Microseconds per 10 ms output interval of fmpy.simulate_fmu (CVode) on a model-exchange FMU."""
-    began = time.perf_counter()
+    began = time.process_time()
     fmpy.simulate_fmu(str(path), stop_time=steps * STEP, output_interval=STEP, start_values={"throttle": 0.3},
                       output=["x", "y", "psi", "s", "v"])
-    return (time.perf_counter() - began) / steps * 1e6
+    return (time.process_time() - began) / steps * 1e6
 
 
 def main() -> int:
@@ -137,7 +137,7 @@ def main() -> int:
             results["CasADi export simple (fmpy CVode, FMI 3 ME)"] = f"failed: {error}"
     width = max(map(len, results))
     for name, cost in results.items():
-        print(f"{name:<{width}}  " + (f"{cost:9.1f} us per 10 ms step" if isinstance(cost, float) else cost))
+        print(f"{name:<{width}}  " + (f"{cost:9.1f} us CPU per 10 ms step" if isinstance(cost, float) else cost))
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
     return 0

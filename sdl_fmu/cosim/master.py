@@ -236,8 +236,9 @@ class Cosimulation:
                 kinematics = EgoKinematics.of(state)
                 return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)
             if len(due):
-                action, overlap, leave = vehicle_conditions(traffic, due, EgoKinematics.of(state), self.bounds)
-                return bool((action | (overlap != traffic.in_contact[due]) | leave).any())
+                action, overlap, away = vehicle_conditions(traffic, due, EgoKinematics.of(state), self.bounds)
+                in_contact = traffic.in_contact[due]
+                return bool((action | (overlap != in_contact) | (away & ~in_contact)).any())
         return False
 
     # ---- what happens at an instant -------------------------------------------------------------
@@ -261,16 +262,17 @@ class Cosimulation:
         traffic = self.traffic
         kinematics = EgoKinematics.of(state)
         active = traffic.active
-        action, _, _ = vehicle_conditions(traffic, active, kinematics, self.bounds)
-        for i in active[action]:
-            while True:  # each action once, the next armed as the previous fires; several may be due at once
-                index = int(traffic.next_action[i]) + 1
-                traffic.start_action(i, state.time, -state.y, state.v)
-                self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
-                again, _, _ = vehicle_conditions(traffic, np.array([i]), kinematics, self.bounds)
-                if not again[0]:
-                    break
-        _, overlap, _ = vehicle_conditions(traffic, active, kinematics, self.bounds)
+        action, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+        if action.any():
+            for i in active[action]:
+                while True:  # each action once, the next armed as the previous fires; several may be due at once
+                    index = int(traffic.next_action[i]) + 1
+                    traffic.start_action(i, state.time, -state.y, state.v)
+                    self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
+                    again, _, _ = vehicle_conditions(traffic, np.array([i]), kinematics, self.bounds)
+                    if not again[0]:
+                        break
+            _, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
         for i in active[overlap & ~traffic.in_contact[active]]:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)
@@ -279,8 +281,7 @@ class Cosimulation:
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
-        _, _, leave = vehicle_conditions(traffic, active, kinematics, self.bounds)
-        for i in active[leave]:
+        for i in active[away & ~overlap]:
             traffic.remove(i)
             self.leave_sample[i] = self.sample_count
             self.log("A", "despawn", state, vehicle=self.vehicle_ids[i])

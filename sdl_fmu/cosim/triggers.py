@@ -114,7 +114,8 @@ def _penetrations(ego: EgoKinematics, bounds: EgoBounds, d_station, d_lateral, l
 
 
 def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bounds: EgoBounds):
-    """(action due, footprints overlap, may leave) for vehicles idx at the ego's instant."""
+    """(action due, footprints overlap, wholly behind and moving away with no action that could still fire)
+    for vehicles idx at the ego's instant; a vehicle may leave when the last holds and it is not in contact."""
     station, lateral, speed, _, _ = traffic.motion(idx, ego.time)
     gap = station - ego.station
     gap_rate = -speed - ego.station_rate
@@ -126,8 +127,8 @@ def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bo
     length, width = traffic.length[idx], traffic.width[idx]
     overlap = _penetrations(ego, bounds, gap, lateral - ego.lateral, length, width)[2] > 0
     leave_allowed = np.isnan(seconds) | (seconds > 0) | (where == 1)
-    leave = (leave_allowed & ~traffic.in_contact[idx] & (gap < -(bounds.length + length) / 2) & (gap_rate < 0))
-    return due, overlap, leave
+    away = leave_allowed & (gap < -(bounds.length + length) / 2) & (gap_rate < 0)
+    return due, overlap, away
 
 
 def vehicle_triggered(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> bool:

@@ -32,11 +32,13 @@ table = load_vehicle_table(default_vehicle_table_path())
 cpu = time.process_time()
 result = run_scenario(scenario, Path(sys.argv[2]), RunOptions(), table)
 cpu = time.process_time() - cpu
+peak_simulation = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 began = time.perf_counter()
 write_results(result, Path(sys.argv[3]), plot=sys.argv[4] == "plot")
 write = time.perf_counter() - began
 print(json.dumps({**result.timing, "cpu_s": cpu, "simulated_s": result.final["time_s"], "write_s": write,
                   "events": len(result.events), "vehicles": len(result.vehicles), "collisions": result.collisions,
+                  "peak_rss_simulation_mb": peak_simulation,
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
@@ -83,8 +85,12 @@ def plot(series: dict, out: Path) -> None:
         ax.set_xlabel(label)
         ax.grid(True, which="both", alpha=0.3)
         memory = ax.twinx()
-        memory.plot(x, [row["peak_rss_mb"] for row in rows], "^:", color="tab:red", label="peak RSS [MB]")
+        memory.plot(x, [row["peak_rss_simulation_mb"] for row in rows], "^:", color="tab:red",
+                    label="peak RSS simulating [MB]")
+        memory.plot(x, [row["peak_rss_mb"] for row in rows], "v:", color="tab:pink", label="peak RSS with writing [MB]")
         memory.set_ylabel("peak RSS [MB]", color="tab:red")
+        memory.set_ylim(bottom=0)
+        memory.legend(loc="lower right", fontsize=8)
         ax.legend(loc="upper left", fontsize=8)
         ax.set_title(f"scaling in {label} (one core)", fontsize=10, loc="left")
     figure.savefig(out)
@@ -114,7 +120,8 @@ def main() -> int:
                 series[key].append(row)
                 print(f"{key} {size:>7}: {row['simulated_s']:8.1f} s simulated, {row['wall_s']:7.2f} s wall "
                       f"({row['real_time_factor']:.0f}x), {row['cpu_s']:7.2f} s CPU, {row['steps']} steps, write {row['write_s']:.2f} s, "
-                      f"peak RSS {row['peak_rss_mb']:.0f} MB, {row['events']} events", flush=True)
+                      f"peak RSS {row['peak_rss_simulation_mb']:.0f} MB simulating, {row['peak_rss_mb']:.0f} MB with writing, "
+                      f"{row['events']} events", flush=True)
     (out / "scaling.json").write_text(json.dumps(series, indent=2) + "\n")
     plot(series, out / "scaling.png")
     print(f"wrote {out / 'scaling.json'} and {out / 'scaling.png'}")

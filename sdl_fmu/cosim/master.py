@@ -427,14 +427,21 @@ class Cosimulation:
         names = [*EGO_COLUMNS, *self.wheel_inputs]
         table = self.ego_rows.finish()
         columns = {name: table[:, i] for i, name in enumerate(names)}
-        tracks = []
-        for i, vehicle in enumerate(self.vehicle_ids):
+        # each vehicle's samples from its closed-form motion, into one disk-backed table (memory stays bounded)
+        track_rows = ChunkedTable(3)
+        spans = []
+        for i in range(len(self.vehicle_ids)):
             first = self.spawn_sample[i]
             last = self.leave_sample[i] if self.leave_sample[i] is not None else self.sample_count
-            station, lateral, speed = self.traffic.track(i, np.asarray(columns["time"][first:last]))
+            spans.append((first, track_rows.rows, track_rows.rows + last - first))
+            track_rows.extend(np.column_stack(self.traffic.track(i, np.asarray(columns["time"][first:last]))))
+        track_table = track_rows.finish()
+        tracks = []
+        for i, (vehicle, (first, start, stop)) in enumerate(zip(self.vehicle_ids, spans)):
             model = self.traffic.models[i]
-            tracks.append(VehicleTrack(vehicle, model.number, model.name, model.length, model.width, station,
-                                       lateral, speed, first=first))
+            block = track_table[start:stop]
+            tracks.append(VehicleTrack(vehicle, model.number, model.name, model.length, model.width, block[:, 0],
+                                       block[:, 1], block[:, 2], first=first))
         final = {"time_s": state.time, "distance": self._scenario_units(state.s),
                  "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,

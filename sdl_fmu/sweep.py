@@ -301,42 +301,58 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     spec = {"scenario": scenario_path, "vary": varied,
             "fixed": json.loads(json.dumps(fixed, default=str))}
     done = _check_folder(out, spec)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
     runs = combinations(varied)
     finished = {row["key"]: row for row in done if "key" in row}
     todo = [(index, values) for index, values in enumerate(runs) if _key(values) not in finished]
     rows = list(finished.values())
-    if todo:
-        rows += _run_all(scenario_path, todo, fixed, timeout, out, workers, scheduler, client, progress)
+    owned = []
+    try:
+        if todo and client is None:  # connect before anything is written
+            client, owned = _client(workers, scheduler)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
+        if todo:
+            rows += _run_all(scenario_path, todo, fixed, timeout, out, client, progress)
+    finally:
+        for thing in owned:
+            thing.close()
     write_table(rows, out, list(varied))
     return sorted(rows, key=lambda r: r["run"])
 
 
-def _run_all(scenario_path, todo, fixed, timeout, out, workers, scheduler, client, progress) -> list[dict]:
+def _client(workers: int | None, scheduler: str | None):
+    """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes; and what to
+    close afterwards."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=10)
+        except (OSError, ValueError, TypeError) as error:
+            raise SweepError(f"--scheduler {scheduler}: cannot connect: {str(error).splitlines()[0]}") from None
+        return client, [client]
+    try:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    except (OSError, RuntimeError) as error:
+        raise SweepError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
+    client = Client(cluster)
+    return client, [client, cluster]
+
+
+def _run_all(scenario_path, todo, fixed, timeout, out, client, progress) -> list[dict]:
     """Submits the runs, journals each row as it arrives. Every run stops itself at `timeout`; if no run at
     all comes back for GRACE x timeout (+ 10 s), the runs still processing are given up (cancelled and
     recorded as timeouts), so a stuck worker never hangs the sweep."""
-    from distributed import Client, LocalCluster
     from tqdm import tqdm
 
-    owned = []
-    if client is None:
-        if scheduler:
-            client = Client(scheduler, timeout=30)
-        else:
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                   processes=True, dashboard_address=None)
-            owned.append(cluster)
-            client = Client(cluster)
-        owned.insert(0, client)
     rows = []
     patience = GRACE * timeout + 10.0
+    bar = tqdm(total=len(todo), unit="run", disable=progress is False or (progress is None
+                                                                          and not _stderr_is_terminal()))
     try:
         futures = {client.submit(run_one, scenario_path, values, fixed, timeout, pure=False): (index, values)
                    for index, values in todo}
-        bar = tqdm(total=len(todo), unit="run",
-                   disable=progress is False or (progress is None and not _stderr_is_terminal()))
         pending = set(futures)
         last_progress = time.monotonic()
         with open(out / JOURNAL_NAME, "a", encoding="utf-8") as journal:
@@ -365,10 +381,8 @@ def _run_all(scenario_path, todo, fixed, timeout, out, workers, scheduler, clien
                         bar.update()
                     last_progress = now
                 time.sleep(0.05)
-        bar.close()
     finally:
-        for thing in owned:
-            thing.close()
+        bar.close()
     return rows
 
 

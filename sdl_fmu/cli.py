@@ -101,8 +101,13 @@ def _sweep(args) -> int:
     out = Path(args.out) if args.out is not None else Path("sweeps") / scenario.stem
     if args.workers is not None and args.workers < 1:
         raise sweeping.SweepError(f"--workers {args.workers}: must be >= 1")
-    rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
-                          timeout=args.timeout, progress=None, **fixed)
+    try:
+        rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
+                              timeout=args.timeout, progress=None, **fixed)
+    except KeyboardInterrupt:
+        print(f"sdl-fmu: sweep interrupted (Ctrl-C); the finished runs are in {out / sweeping.JOURNAL_NAME}: "
+              "the same command resumes the sweep", file=sys.stderr)
+        return EXIT_INTERRUPTED
     counts = {status: sum(row.get("status") == status for row in rows) for status in ("ok", "failed", "timeout")}
     print(f"{scenario.name}: {len(rows)} runs: {counts['ok']} ok, {counts['failed']} failed, "
           f"{counts['timeout']} timed out")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -33,9 +34,10 @@ def main() -> int:
             rows = sweeping.sweep("demo", {"speed": speeds}, Path(folder) / "sweep", client=client, progress=False)
             wall = time.perf_counter() - began
             assert all(row["status"] == "ok" for row in rows), rows
-            report[workers] = {"runs": len(rows), "wall_s": wall,
+            load = os.getloadavg()[0]
+            report[workers] = {"runs": len(rows), "wall_s": wall, "load_average_1min_after": load,
                                "sum_of_run_wall_s": sum(row["run_wall_s"] for row in rows)}
-            print(f"{workers} worker(s): {len(rows)} demo runs in {wall:.2f} s")
+            print(f"{workers} worker(s): {len(rows)} demo runs in {wall:.2f} s (load average {load:.1f} after)")
     report["speedup"] = report[1]["wall_s"] / report[2]["wall_s"]
     print(f"2 workers vs 1: {report['speedup']:.2f}x")
     if args.json:

@@ -88,11 +88,15 @@ def _timed_events(result: RunResult) -> list[dict]:
 
 
 def _mark_events(ax, events: list[dict]) -> None:
-    """Thin vertical lines at event instants (the speed panel adds the labels)."""
-    for event in events:
-        collision = event.get("action") == "collision"
-        ax.axvline(event["time_s"], color=_event_color(event), lw=1.6 if collision else 0.9,
-                   alpha=0.8 if collision else 0.35, ls="-" if collision else "--", zorder=1)
+    """Thin vertical lines at event instants (the speed panel adds the labels); one artist per style,
+    however many events."""
+    transform = ax.get_xaxis_transform()
+    fade = min(1.0, 100 / max(len(events), 1))  # thousands of markers would hide the curves: fainter
+    for collision, lw, alpha, ls in ((False, 0.9, 0.35 * fade, "--"), (True, 1.6, 0.8, "-")):
+        chosen = [event for event in events if (event.get("action") == "collision") == collision]
+        if chosen:
+            ax.vlines([event["time_s"] for event in chosen], 0, 1, transform=transform, lw=lw, alpha=alpha,
+                      linestyles=ls, colors=[_event_color(event) for event in chosen], zorder=1)
 
 
 def _label_rows(events: list[dict], t0: float, t1: float, axis_px: float) -> list[tuple[dict, int, str]]:
@@ -114,8 +118,19 @@ def _label_rows(events: list[dict], t0: float, t1: float, axis_px: float) -> lis
     return placed
 
 
+LABEL_PRIORITY = {"collision": 0, "BRK": 1, "ES": 1, "RSA": 2, "maneuver": 3, "spawn": 4, "despawn": 5}
+MAX_EVENT_LABELS = 48  # more events than this (long runs, many vehicles): the most telling ones are labelled
+
+
 def _label_events(ax, events: list[dict], t0: float, t1: float, axis_px: float) -> int:
-    """Event labels in rows at the top of the panel; returns how many rows they take."""
+    """Event labels in rows at the top of the panel; returns how many rows they take. With more than
+    MAX_EVENT_LABELS events only that many are labelled, collisions and BRK first, spawns and departures last."""
+    if len(events) > MAX_EVENT_LABELS:
+        # within one priority, a low-discrepancy order (k x golden ratio mod 1) spreads the labels over the run
+        ranked = sorted(range(len(events)), key=lambda k: (LABEL_PRIORITY.get(events[k].get("action"),
+                                                           LABEL_PRIORITY.get(events[k].get("code"), 3)),
+                                                           (k * 0.6180339887) % 1.0))
+        events = [events[k] for k in sorted(ranked[:MAX_EVENT_LABELS])]
     placed = _label_rows(events, t0, t1, axis_px)
     transform = ax.get_xaxis_transform()
     for event, row, align in placed:
@@ -181,9 +196,10 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
     _shade_brk(ax, time, brk_runs, label=False)
     ax.plot(t, distance[::step], color=EGO_COLOR, lw=1.5)
     _mark_events(ax, events)
-    for event in events:
-        if isinstance(event.get("distance"), (int, float)):
-            ax.plot(event["time_s"], event["distance"], "o", ms=4, color=_event_color(event))
+    dots = [event for event in events if isinstance(event.get("distance"), (int, float))]
+    if dots:
+        ax.scatter([event["time_s"] for event in dots], [event["distance"] for event in dots], s=16, zorder=3,
+                   color=[_event_color(event) for event in dots])
     ax.set_ylabel(f"distance travelled [{length_label(units)}]")
     ax.set_title("distance travelled (dots: events)", fontsize=10, loc="left")
 

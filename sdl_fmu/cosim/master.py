@@ -82,6 +82,7 @@ class Cosimulation:
         self.surfaces = surface_map(scenario, options.dynamics)
         self.surface_changes = _surface_changes(self.surfaces)
         self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
+        self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
         start = {"v0": self.speed, "x0": 0.0, "y0": -start_lateral, "psi0": 0.0,
@@ -203,9 +204,20 @@ class Cosimulation:
                     continue  # beyond the shoulders' outer edges nothing changes
                 toward = side * kin.lateral_rate
                 beyond = road.lane_at(edge + side * width / 2)
-                if beyond != lane and not _same_surface(surfaces, lane, beyond, station - reach, station + reach):
+                if beyond != lane and self._surfaces_differ(lane, beyond, station - reach, station + reach):
                     horizon = min(horizon, reach_time_scalar(abs(edge - lateral), toward + turn, a))
         return horizon
+
+    def _surfaces_differ(self, lane: int, other: int, low: float, high: float) -> bool:
+        """Whether two lanes' surfaces differ anywhere between stations low and high (the stretches where
+        they differ are worked out once per pair of lanes)."""
+        key = (min(lane, other), max(lane, other))
+        stretches = self._differing.get(key)
+        if stretches is None:
+            stretches = self._differing[key] = _differing_stretches(self.surfaces, *key)
+        starts, ends = stretches
+        k = bisect.bisect_right(starts, high)  # stretches starting at or before `high`
+        return k > 0 and ends[k - 1] > low
 
     def traffic_horizon(self, state: EgoState, limit: float) -> float:
         """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
@@ -454,13 +466,20 @@ class Cosimulation:
         )
 
 
-def _same_surface(surfaces, lane: int, other: int, low: float, high: float) -> bool:
-    """Whether two lanes have the same surface everywhere between stations low and high."""
-    stations = [low]
-    for each in (lane, other):
-        starts = surfaces.starts.get(each, [])
-        stations += starts[bisect.bisect_right(starts, low):bisect.bisect_right(starts, high)]
-    return all(surfaces.value(lane, station) == surfaces.value(other, station) for station in stations)
+def _differing_stretches(surfaces, lane: int, other: int) -> tuple[list[float], list[float]]:
+    """(starts, ends) of the stretches of road where two lanes' surface values differ, in station order,
+    disjoint (adjacent ones merged); an end may be inf."""
+    stations = sorted({*surfaces.starts.get(lane, []), *surfaces.starts.get(other, [])})
+    starts, ends = [], []
+    for k, station in enumerate(stations):
+        end = stations[k + 1] if k + 1 < len(stations) else math.inf
+        if surfaces.value(lane, station) != surfaces.value(other, station):
+            if ends and ends[-1] == station:
+                ends[-1] = end
+            else:
+                starts.append(station)
+                ends.append(end)
+    return starts, ends
 
 
 def _surface_changes(surfaces) -> dict[int, list[float]]:

@@ -82,6 +82,7 @@ class Cosimulation:
         self.surfaces = surface_map(scenario, options.dynamics)
         self.surface_changes = _surface_changes(self.surfaces)
         self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
+        self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
         self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
@@ -223,13 +224,16 @@ class Cosimulation:
         """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
         kept until it could bind (it holds while the vehicle's own motion is unchanged); only those are
         recomputed, vectorised."""
+        if self.traffic_earliest >= limit:  # no vehicle's bound can bind before the limit: nothing to redo
+            return self.traffic_earliest
         traffic = self.traffic
         active = traffic.active
         stale = active[traffic.next_check[active] < limit]
         if len(stale):
             traffic.next_check[stale] = state.time + vehicle_horizons(traffic, stale, EgoKinematics.of(state),
                                                                       self.bounds)
-        return float(traffic.next_check[active].min())
+        self.traffic_earliest = float(traffic.next_check[active].min())
+        return self.traffic_earliest
 
     def triggered(self, state: EgoState, kinds) -> bool:
         """Whether a trigger of the given kinds is true at this state (all are false at a step's start)."""
@@ -420,6 +424,7 @@ class Cosimulation:
                 driver_sample = state.time >= sample * period
                 if fired:
                     self.fire_due(state)
+                    self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import shutil
 import sys
 import time
 from dataclasses import dataclass
@@ -361,8 +362,12 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
                 total, unit, key = from_si(cosimulation.end_distance, scenario.units), length_label(scenario.units), "s"
             else:
                 total, unit, key = cosimulation.options.until_time or MAX_TIME, "s", "time"
+            # the terminal's size, 80 x 24 where it reports none (a fresh pseudo-terminal says 0 x 0, which
+            # makes tqdm print nothing)
+            size = shutil.get_terminal_size()
             bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=sys.stderr, leave=False,
-                                         dynamic_ncols=True, bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} {unit}")
+                                         ncols=size.columns, nrows=size.lines,
+                                         bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} {unit}")
             state_of["key"] = key
         value = state.s if state_of["key"] == "s" else state.time
         if state_of["key"] == "s":

@@ -51,7 +51,7 @@ CASES += [_case(["run", "{good}", "--param", value, "--fmu", "{fmu}"], 2, "--par
 PARAM_ADVANCED = ["brake_front_share=1.5", "brake_front_share=-0.1", "brake_front_share=1e308",
                   "roll_stiffness_front_share=2", "drive_front_share=-1", "cg_to_front_axle=0", "wheel_radius=0",
                   "yaw_inertia=0", "wheel_inertia=0", "track_front=0", "load_transfer_time_constant=0", "mass=0",
-                  "mu_fl=0.5", "surface_fl=1"]
+                  "mu_fl=0.5", "surface_fl=1", "tire0_LMUX=-1", "tire7_LYKA=-0.5", "tire3_PDX1=nan"]
 CASES += [_case(["run", "{good}", "--dynamics", "advanced", "--param", value, "--fmu", "{advanced_fmu}"], 2,
                 "--param") for value in PARAM_ADVANCED]
 

@@ -4,7 +4,8 @@ Location: $SDL_FMU_CACHE if set, else $XDG_CACHE_HOME/sdl-fmu, else ~/.cache/sdl
 (model, FMI version, input hash) holds `fmi<version>/<Model>.fmu`. A changed model, interface, tire
 file, runtime source, compiler or flag changes the hash, so a stale FMU is never found. Each build goes
 into a private temporary folder inside the cache that is renamed into place in one step, so two
-processes building at once never see or leave a half-built FMU (the loser of the race discards its copy).
+processes building at once never see or leave a half-built FMU (the loser of the race discards its copy);
+the temporary folder of a killed build is removed by the next build.
 """
 
 from __future__ import annotations
@@ -72,6 +73,20 @@ def build_key(dynamics: str, fmi_version: int = 2) -> str:
     return digest.hexdigest()
 
 
+def _remove_abandoned_builds(root: Path) -> None:
+    """Temporary build folders of processes that no longer exist (killed during a build)."""
+    for folder in root.glob(".building-*-*"):
+        pid = folder.name.split("-")[1]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except OSError:
+            pass  # alive, someone else's
+
+
 def cached_fmu(dynamics: str = "simple", fmi_version: int = 2, announce=None) -> Path:
     """The FMU for these dynamics from the cache, built (and announced through `announce(path)`) if missing."""
     model = MODELS[dynamics][0]
@@ -81,9 +96,10 @@ def cached_fmu(dynamics: str = "simple", fmi_version: int = 2, announce=None) ->
     if target.is_file():
         return target
     root.mkdir(parents=True, exist_ok=True)
+    _remove_abandoned_builds(root)
     if announce is not None:
         announce(target)
-    work = Path(tempfile.mkdtemp(prefix=f".{model}-building-", dir=root))
+    work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
     try:
         build_fmu(dynamics, work, fmi_version)
         try:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import hashlib
 import uuid
-from importlib import resources
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import casadi as ca

@@ -1,0 +1,116 @@
+"""The Python API (issue 7, item 5): the README's example runs as written; results as NumPy arrays and a
+pandas DataFrame; events, warnings; the progress bar; user mistakes as InputError / ScenarioError."""
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sdl_fmu import api
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def readme_example() -> str:
+    section = README.read_text().split("## Python API", 1)[1]
+    return re.search(r"```python\n(.*?)```", section, re.S)[1]
+
+
+def test_the_readme_example_runs_as_written(tmp_path, monkeypatch, capsys, simple_fmu):
+    monkeypatch.chdir(tmp_path)
+    namespace = {}
+    exec(compile(readme_example(), "README.md", "exec"), namespace)
+    result, frame = namespace["result"], namespace["frame"]
+    printed = capsys.readouterr().out
+    assert re.match(r"\d+ samples, top speed [\d.]+ ft/s, 0 collision\(s\)", printed)
+    assert result.final["time_s"] == pytest.approx(20.0)
+    # the written files and the arrays are the same run
+    with open(tmp_path / "runs" / "demo-heavy" / "timeseries.csv") as file:
+        rows = list(csv.reader(file))
+    assert rows[0] == list(result.arrays) == list(frame.columns)
+    assert len(rows) - 1 == len(result.time) == len(frame)
+    column = rows[0].index("speed_ft/s")
+    # 4 decimals in the file (LENGTH_FORMAT %.4f): half a unit of the last digit
+    assert np.allclose([float(row[column]) for row in rows[1:]], result.arrays["speed_ft/s"], rtol=0, atol=5e-5)
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [
+        ".sdl-fmu-results.json", "plot.png", "summary.json", "timeseries.csv"]
+
+
+def test_result_holds_events_warnings_and_the_summary(simple_fmu):
+    scenario = api.load("brake_examples")
+    result = api.run(scenario, fmu=simple_fmu, until_distance=1500, params={"drag_area": 0.0})
+    assert isinstance(result.arrays["time_s"], np.ndarray) and result.arrays["time_s"].dtype == float
+    assert [(e["code"], e["action"]) for e in result.events][:2] == [("BRK", "on"), ("BRK", "off")]
+    assert result.summary["events"][0]["code"] == "BRK" and result.summary["units"] == scenario.units
+    assert result.final["distance"] == pytest.approx(1500, abs=1e-3)
+    assert result.warnings == []
+
+
+def test_progress_bar_on_stderr_only_when_asked_or_a_terminal(capsys, simple_fmu):
+    api.run("head_on", fmu=simple_fmu, until_time=1.0, progress=True)
+    assert "%|" in capsys.readouterr().err  # tqdm's bar
+    api.run("head_on", fmu=simple_fmu, until_time=1.0, progress=None)  # stderr is not a terminal here
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("options, option, message", [
+    ({"until_time": float("nan")}, "until_time", "--until-time nan: must be a finite number"),
+    ({"speed": -1.0}, "speed", "--speed -1: must be >= 0"),
+    ({"step": 0}, "step", "--step 0: must be >= 1e-05"),
+    ({"seed": -1}, "seed", "--seed -1: must be from 0"),
+    ({"dynamics": "turbo"}, "dynamics", "--dynamics turbo: must be one of simple, advanced"),
+    ({"params": {"mass": 0.0}}, "param", "--param mass=0.0: below the declared minimum 1 kg of mass"),
+    ({"params": {"wheelbase": 0.0}}, "param", "--param wheelbase=0.0: below the declared minimum 0.1 m"),
+    ({"params": {"brake_decel_max": -9.81}}, "param", "below the declared minimum 0 m/s2 of brake_decel_max"),
+    ({"tires": "attributes.txt"}, "tires", "applies to --dynamics advanced only"),
+    ({"fmu": "nowhere.fmu"}, "fmu", "--fmu nowhere.fmu: no such file"),
+])
+def test_user_mistakes_raise_input_error_naming_the_option(options, option, message, simple_fmu):
+    options.setdefault("fmu", simple_fmu)
+    with pytest.raises(api.InputError) as caught:
+        api.run("head_on", **options)
+    assert caught.value.option == option and message in str(caught.value)
+
+
+def test_the_fmu_itself_refuses_parameters_outside_their_declared_range(simple_fmu):
+    # the same ranges as the command line's, enforced by fmi2SetReal in the FMU's own runtime
+    from sdl_fmu.cosim.ego import EgoFMU, FmuError
+
+    for name, value in (("mass", 0.0), ("wheelbase", 0.0), ("brake_decel_max", -9.81)):
+        with pytest.raises(FmuError, match="fmi2SetReal failed"):
+            EgoFMU(simple_fmu, {name: value})
+    EgoFMU(simple_fmu, {"mass": 1.0, "wheelbase": 0.1, "brake_decel_max": 0.0}).close()  # the bounds themselves
+
+
+def test_scenario_errors_raise_scenario_error(tmp_path):
+    path = tmp_path / "bad.sdl"
+    path.write_text("10,BRK,50,9,1\n")
+    with pytest.raises(api.ScenarioError, match=r"bad.sdl:1: BRK parameter 2"):
+        api.run(path)
+
+
+def test_the_command_line_shows_the_bar_when_stderr_is_a_terminal(tmp_path, simple_fmu):
+    import os
+    import pty
+    import subprocess
+    import sys
+
+    controller, terminal = pty.openpty()
+    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "head_on", "--fmu", str(simple_fmu),
+                                "--until-time", "2", "--out", str(tmp_path / "out")], cwd=tmp_path,
+                               stdout=subprocess.PIPE, stderr=terminal, text=True, timeout=120)
+    os.close(terminal)
+    shown = b""
+    while True:
+        try:
+            chunk = os.read(controller, 65536)
+        except OSError:  # the terminal's other end is closed and drained
+            break
+        if not chunk:
+            break
+        shown += chunk
+    os.close(controller)
+    assert completed.returncode == 0
+    assert b"%|" in shown and "%|" not in completed.stdout  # the bar is on the terminal, never in stdout

@@ -83,6 +83,7 @@ class Cosimulation:
         self.surface_changes = _surface_changes(self.surfaces)
         self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
         self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
+        self.cached_bounds: dict[str, float] = {}  # event, end, brake: bounds kept until something fires
         self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
@@ -162,17 +163,24 @@ class Cosimulation:
     # ---- when the next trigger could be ---------------------------------------------------------
 
     def horizons(self, state: EgoState, limit: float) -> dict[str, float]:
-        """Per kind of trigger, a lower bound on the instant it could become true (absolute time)."""
+        """Per kind of trigger, a lower bound on the instant it could become true (absolute time). A bound
+        holds until it is reached or something fires (the bounds on the ego hold at all times), so each is
+        kept and recomputed only when it could bind before `limit`."""
         a = self.bounds.acceleration
         t = state.time
+        cached = self.cached_bounds
         near = {}
         for kind, distance in (("event", self.pending_distance()), ("end", self.end_distance)):
             if distance < math.inf:
-                near[kind] = t + reach_time_scalar(distance - state.s, state.v, a)
+                if cached.get(kind, -math.inf) < limit:
+                    cached[kind] = t + reach_time_scalar(distance - state.s, state.v, a)
+                near[kind] = cached[kind]
         if self.brake_hold is not None:
-            near["brake"] = self.brake_hold.earliest_release(state, a)
+            if cached.get("brake", -math.inf) < limit:
+                cached["brake"] = self.brake_hold.earliest_release(state, a)
+            near["brake"] = cached["brake"]
         if self.surface_changes:
-            if self.surface_next < limit:  # a bound stays valid until it is reached: recompute it only then
+            if self.surface_next < limit:
                 self.surface_next = t + self.surface_horizon(state)
             near["surface"] = self.surface_next
         if len(self.traffic.active):
@@ -425,6 +433,7 @@ class Cosimulation:
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
+                    self.cached_bounds.clear()  # the next event, a BRK on or off
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:

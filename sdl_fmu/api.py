@@ -19,6 +19,7 @@ import math
 import os
 import shutil
 import sys
+import time
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -30,7 +31,7 @@ from .fmu.package import MODELS
 from .results import RunResult, summary, timeseries_table, write_results
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 
-__all__ = ["InputError", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
+__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
            "ego_fmu", "LIMITS"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
@@ -40,6 +41,7 @@ MAX_TIME = 3600.0  # s
 LIMITS = {
     "speed": (0.0, MAX_SPEED),  # scenario units on input, checked in m/s
     "step": (1e-5, 10.0),  # s
+    "driver_period": (1e-3, 1.0),  # s
     "until_time": (0.0, MAX_TIME),  # s, > 0
     "until_distance": (0.0, MAX_SPEED * MAX_TIME),  # m, > 0
     "seed": (0, 2**63 - 1),
@@ -57,6 +59,10 @@ class InputError(ValueError):
     def __init__(self, option: str | None, message: str):
         self.option = option
         super().__init__(message)
+
+
+class RunTimeout(RuntimeError):
+    """A run stopped because it exceeded its wall-clock `timeout` (run(..., timeout=...))."""
 
 
 def _option_error(option: str, value, reason: str) -> InputError:
@@ -374,17 +380,35 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
     return update
 
 
+def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
+    """The master's per-step callback, raising RunTimeout once `timeout` wall seconds have passed."""
+    deadline = time.monotonic() + timeout
+
+    def check(cosimulation, state) -> None:
+        if progress is not None:
+            progress(cosimulation, state)
+        if time.monotonic() > deadline:
+            raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock) at simulated "
+                             f"t = {state.time:.2f} s")
+
+    return check
+
+
 def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu: str | os.PathLike | None = None,
-        speed: float | None = None, seed: int = 1, step: float = 0.01, until_distance: float | None = None,
+        speed: float | None = None, seed: int = 1, step: float | None = None,
+        driver_period: float | None = None, until_distance: float | None = None,
         until_time: float | None = None, params: dict[str, float] | None = None,
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
-        out: str | os.PathLike | None = None, plot: bool = True) -> Result:
+        out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None) -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
+    step is the longest communication step (default 1 s; results do not depend on it), driver_period the
+    driver model's sampling period (default 0.05 s),
     params are FMU start values (SI) within each parameter's declared min/max. fmu defaults to the cached
     build for `dynamics`. tires: Tire Attribute File (advanced only). progress: a bar on stderr (None: only
     when stderr is a terminal). out: also write the results folder; it is checked before the simulation.
+    timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
     Raises InputError or ScenarioError for user mistakes."""
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
@@ -393,9 +417,10 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
     if dynamics not in MODELS:
         raise _option_error("dynamics", dynamics, f"must be one of {', '.join(MODELS)}")
     seed = _seed(seed)
-    step = _number("step", step)
-    if step is None:
-        raise _option_error("step", step, "must be a number")
+    from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
+
+    step = DEFAULT_STEP if step is None else _number("step", step)
+    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _number("driver_period", driver_period)
     until_time = _number("until_time", until_time, low_open=True)
     if not isinstance(scenario, Scenario):
         scenario = load(scenario, skip_unsupported=skip_unsupported)
@@ -412,10 +437,13 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
             raise InputError("out", f"--out {error}") from None
     fmu_path = ego_fmu(dynamics, fmu)
     parameters = _parameters(params, _description(fmu_path), fmu_path)
-    options = RunOptions(dynamics=dynamics, speed=speed, seed=seed, step=step, until_distance=until_distance,
+    options = RunOptions(dynamics=dynamics, speed=speed, seed=seed, step=step, driver_period=driver_period,
+                         until_distance=until_distance,
                          until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
                          known_attributes=None if known_attributes is None else set(known_attributes))
     options.progress = _progress_bar(progress, scenario)
+    if timeout is not None:
+        options.progress = _with_deadline(options.progress, timeout)
     try:
         raw = run_scenario(scenario, fmu_path, options, _vehicle_table())
     except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate

@@ -1,4 +1,4 @@
-"""The `sdl-fmu` command line: build, check, run, verify. It only parses arguments, calls sdl_fmu.api and
+"""The `sdl-fmu` command line: build, check, run, sweep, verify. It only parses arguments, calls sdl_fmu.api and
 prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130."""
 
@@ -74,7 +74,8 @@ def _run(args) -> int:
     scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported)
     out = Path(args.out) if args.out is not None else Path("runs") / Path(scenario.path).stem
     result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, speed=args.speed, seed=args.seed,
-                     step=args.step, until_distance=args.until_distance, until_time=args.until_time,
+                     step=args.step, driver_period=args.driver_period,
+                     until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out)
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {args.dynamics} dynamics, {result.collisions} collision(s), "
@@ -84,6 +85,37 @@ def _run(args) -> int:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"results: {out / 'timeseries.csv'}, {out / 'summary.json'}")
     print(f"plot: {out / 'plot.png'}")
+    return 0
+
+
+def _sweep(args) -> int:
+    from . import api
+    from . import sweep as sweeping
+
+    varied = sweeping.parse_vary(args.vary, args.sample_seed)
+    fixed = {"dynamics": args.dynamics}
+    if args.fmu:
+        fixed["fmu"] = args.fmu
+    if args.param:
+        fixed["params"] = _parse_parameters(args.param)
+    if args.skip_unsupported:
+        fixed["skip_unsupported"] = True
+    scenario = api.resolve_scenario(args.scenario)
+    out = Path(args.out) if args.out is not None else Path("sweeps") / scenario.stem
+    if args.workers is not None and args.workers < 1:
+        raise sweeping.SweepError(f"--workers {args.workers}: must be >= 1")
+    try:
+        rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
+                              timeout=args.timeout, progress=None, **fixed)
+    except KeyboardInterrupt:
+        print(f"sdl-fmu: sweep interrupted (Ctrl-C); the finished runs are in {out / sweeping.JOURNAL_NAME}: "
+              "the same command resumes the sweep", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    counts = {status: sum(row.get("status") == status for row in rows) for status in ("ok", "failed", "timeout")}
+    print(f"{scenario.name}: {len(rows)} runs: {counts['ok']} ok, {counts['failed']} failed, "
+          f"{counts['timeout']} timed out")
+    print(f"table: {out / sweeping.TABLE_NAME}, {out / sweeping.CSV_NAME}")
+    print(f"plot: {out / sweeping.PLOT_NAME}")
     return 0
 
 
@@ -133,7 +165,10 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics, built on first use)")
     run.add_argument("--speed", type=_number, help="driver's start and target speed, scenario units (default 88 ft/s)")
     run.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
-    run.add_argument("--step", type=_number, default=0.01, help="communication step, s (default 0.01)")
+    run.add_argument("--step", type=_number, help="longest communication step, s (default 1); triggers are "
+                     "located exactly at any step; driver samples and triggers cut steps shorter")
+    run.add_argument("--driver-period", type=_number,
+                     help="the driver model's sampling period, s (default 0.05)")
     run.add_argument("--until-distance", type=_number, help="end at this distance, scenario units")
     run.add_argument("--until-time", type=_number, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -144,6 +179,26 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)
+
+    sweep = commands.add_parser("sweep", help="many runs over varied values on Dask, one table of summaries")
+    sweep.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    sweep.add_argument("--vary", action="append", default=[], metavar="NAME=VALUES", required=True,
+                       help="speed, seed, until_distance, until_time, an FMU parameter (param.NAME) or rsa.LINE"
+                            "[.LANE]; VALUES: a,b,c | start:stop:step | uniform(lo,hi,n) | integers(lo,hi,n)")
+    where = sweep.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
+    sweep.add_argument("--dynamics", choices=DYNAMICS, default="simple")
+    sweep.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics)")
+    sweep.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                       help="FMU start value for every run, SI (repeatable)")
+    sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
+    sweep.add_argument("--timeout", type=_number, default=600.0, help="wall-clock limit per run, s (default 600)")
+    sweep.add_argument("--skip-unsupported", action="store_true",
+                       help="skip event codes sdl-fmu does not simulate (one warning per code)")
+    sweep.add_argument("--out", help="table folder: new, empty or an interrupted sweep's (resumed); "
+                                     "default sweeps/<scenario name>")
+    sweep.set_defaults(handler=_sweep)
 
     verify = commands.add_parser("verify", help="simulated braking distances against the closed forms")
     verify.add_argument("--fmu", help="Simple FMU to verify (default: the cached build)")
@@ -157,6 +212,7 @@ def main(argv: list[str] | None = None) -> int:
         from .api import InputError
         from .fmu.package import BuildError
         from .sdl import ScenarioError
+        from .sweep import SweepError
 
         try:
             args = parser().parse_args(argv)
@@ -170,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
         except ScenarioError as error:
             print(error, file=sys.stderr)
             return EXIT_SCENARIO
-        except (InputError, BuildError) as error:
+        except (InputError, BuildError, SweepError) as error:
             print(f"sdl-fmu: {error}", file=sys.stderr)
             return EXIT_USAGE
     except KeyboardInterrupt:

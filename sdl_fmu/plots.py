@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.cm import ScalarMappable
-from matplotlib.collections import PolyCollection
+from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -29,6 +29,7 @@ LABEL_CHAR_PX = 6.5  # rough width of one 7.5 pt label character at 110 dpi
 LABEL_TOP = 0.97  # axis fraction of the first row of event labels
 LABEL_ROW = 0.075  # axis fraction per row of event labels
 MAX_LABEL_ROWS = 6
+MAX_LABELLED_VEHICLES = 12  # vehicles named in the legend and on the road; the rest summarised
 MAX_LINE_POINTS = 4000  # lines are decimated to this many points: the figure is ~1800 px wide anyway
 NOMINAL_MU = 0.8
 WHEELS = ("fl", "fr", "rl", "rr")
@@ -87,11 +88,15 @@ def _timed_events(result: RunResult) -> list[dict]:
 
 
 def _mark_events(ax, events: list[dict]) -> None:
-    """Thin vertical lines at event instants (the speed panel adds the labels)."""
-    for event in events:
-        collision = event.get("action") == "collision"
-        ax.axvline(event["time_s"], color=_event_color(event), lw=1.6 if collision else 0.9,
-                   alpha=0.8 if collision else 0.35, ls="-" if collision else "--", zorder=1)
+    """Thin vertical lines at event instants (the speed panel adds the labels); one artist per style,
+    however many events."""
+    transform = ax.get_xaxis_transform()
+    fade = min(1.0, 100 / max(len(events), 1))  # thousands of markers would hide the curves: fainter
+    for collision, lw, alpha, ls in ((False, 0.9, 0.35 * fade, "--"), (True, 1.6, 0.8, "-")):
+        chosen = [event for event in events if (event.get("action") == "collision") == collision]
+        if chosen:
+            ax.vlines([event["time_s"] for event in chosen], 0, 1, transform=transform, lw=lw, alpha=alpha,
+                      linestyles=ls, colors=[_event_color(event) for event in chosen], zorder=1)
 
 
 def _label_rows(events: list[dict], t0: float, t1: float, axis_px: float) -> list[tuple[dict, int, str]]:
@@ -113,8 +118,19 @@ def _label_rows(events: list[dict], t0: float, t1: float, axis_px: float) -> lis
     return placed
 
 
+LABEL_PRIORITY = {"collision": 0, "BRK": 1, "ES": 1, "RSA": 2, "maneuver": 3, "spawn": 4, "despawn": 5}
+MAX_EVENT_LABELS = 48  # more events than this (long runs, many vehicles): the most telling ones are labelled
+
+
 def _label_events(ax, events: list[dict], t0: float, t1: float, axis_px: float) -> int:
-    """Event labels in rows at the top of the panel; returns how many rows they take."""
+    """Event labels in rows at the top of the panel; returns how many rows they take. With more than
+    MAX_EVENT_LABELS events only that many are labelled, collisions and BRK first, spawns and departures last."""
+    if len(events) > MAX_EVENT_LABELS:
+        # within one priority, a low-discrepancy order (k x golden ratio mod 1) spreads the labels over the run
+        ranked = sorted(range(len(events)), key=lambda k: (LABEL_PRIORITY.get(events[k].get("action"),
+                                                           LABEL_PRIORITY.get(events[k].get("code"), 3)),
+                                                           (k * 0.6180339887) % 1.0))
+        events = [events[k] for k in sorted(ranked[:MAX_EVENT_LABELS])]
     placed = _label_rows(events, t0, t1, axis_px)
     transform = ax.get_xaxis_transform()
     for event, row, align in placed:
@@ -180,9 +196,10 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
     _shade_brk(ax, time, brk_runs, label=False)
     ax.plot(t, distance[::step], color=EGO_COLOR, lw=1.5)
     _mark_events(ax, events)
-    for event in events:
-        if isinstance(event.get("distance"), (int, float)):
-            ax.plot(event["time_s"], event["distance"], "o", ms=4, color=_event_color(event))
+    dots = [event for event in events if isinstance(event.get("distance"), (int, float))]
+    if dots:
+        ax.scatter([event["time_s"] for event in dots], [event["distance"] for event in dots], s=16, zorder=3,
+                   color=[_event_color(event) for event in dots])
     ax.set_ylabel(f"distance travelled [{length_label(units)}]")
     ax.set_title("distance travelled (dots: events)", fontsize=10, loc="left")
 
@@ -292,14 +309,18 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float
     ax.add_patch(Rectangle((x_min - span, left), 3 * span, right - left, color=LANE_FILL, lw=0, zorder=0))
 
     color, _, _ = _surface_style(result)
+    boxes, colors = [], []  # one collection however many sections: thousands stay fast
     for section in result.surfaces:
         start = from_si(section.start, units)
         end = x_max + span if section.end is None else from_si(section.end, units)
         if end < x_min or start > x_max or section.lane not in road.valid_lanes:  # a lane the road lacks
             continue
-        centre = from_si(road.lane_center(section.lane), units)
-        ax.add_patch(Rectangle((start, centre - width / 2), end - start, width, color=color(section.value),
-                               alpha=0.6, lw=0, zorder=1))
+        start, end = max(start, x_min - span), min(end, x_max + span)
+        low = from_si(road.lane_center(section.lane), units) - width / 2
+        boxes.append(((start, low), (start, low + width), (end, low + width), (end, low)))
+        colors.append(color(section.value))
+    if boxes:
+        ax.add_collection(PolyCollection(boxes, facecolors=colors, alpha=0.6, lw=0, zorder=1), autolim=False)
 
     line = dict(zorder=2, solid_capstyle="butt")
     for edge in (left, right):
@@ -348,20 +369,39 @@ def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, ann
     if len(station):
         ax.plot(station[0], lateral[0], ">", color=EGO_COLOR, ms=8, zorder=5)
 
+    # Traffic: one line collection and one marker call however many vehicles; legend entries and labels
+    # for the first few only (MAX_LABELLED_VEHICLES), the rest summarised in one legend entry.
+    many = len(result.vehicles) > MAX_LABELLED_VEHICLES
+    paths, path_colors, spawns, spawn_colors = [], [], [], []
     for number, track in enumerate(result.vehicles):
         color = TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)]
         x = from_si(np.asarray(track.station, dtype=float), units)
         y = from_si(np.asarray(track.lateral, dtype=float), units)
-        label = f"A{track.vehicle} {track.name}"
-        ax.plot(x[::step], y[::step], color=color, lw=1.6, zorder=4)
-        handles.append(Line2D([], [], color=color, lw=1.6, label=label))
         present = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
-        if len(present):
-            spawn = present[0]
-            ax.plot(x[spawn], y[spawn], "o", color=color, ms=6, zorder=5)
+        if not len(present) or x[present].max() < x_min or x[present].min() > x_max:
+            continue
+        stride = max(1, math.ceil(len(present) / 200)) if many else step
+        keep = present[::stride]
+        if keep[-1] != present[-1]:
+            keep = np.append(keep, present[-1])
+        paths.append(np.column_stack([x[keep], y[keep]]))
+        path_colors.append(color)
+        spawn = present[0]
+        spawns.append((x[spawn], y[spawn]))
+        spawn_colors.append(color)
+        if number < MAX_LABELLED_VEHICLES:
+            handles.append(Line2D([], [], color=color, lw=1.6, label=f"A{track.vehicle} {track.name}"))
             if annotate and x_min <= x[spawn] <= x_max:
                 ax.annotate(f"A{track.vehicle}", (x[spawn], y[spawn]), xytext=(0, 7), textcoords="offset points",
                             ha="center", va="bottom", fontsize=8, color=color, fontweight="bold", zorder=6)
+    if paths:
+        ax.add_collection(LineCollection(paths, colors=path_colors, lw=1.0 if many else 1.6, zorder=4),
+                          autolim=False)
+        points = np.array(spawns)
+        ax.scatter(points[:, 0], points[:, 1], c=spawn_colors, s=12 if many else 36, zorder=5)
+    if many:
+        handles.append(Line2D([], [], color="gray", lw=1.0, marker="o", ms=4,
+                              label=f"... {len(result.vehicles) - MAX_LABELLED_VEHICLES} more vehicles"))
 
     if result.collision_points:
         points = np.array([(from_si(s, units), from_si(d, units)) for s, d in result.collision_points])
@@ -383,9 +423,10 @@ def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
         index = int(np.argmin(np.abs(station - target)))
         return index, f"first collision, t = {time[index]:.2f} s"
     for track in result.vehicles:
-        gap = np.abs(np.asarray(track.station, dtype=float) - station)
+        own = np.asarray(track.station, dtype=float)
+        gap = np.abs(own - station[track.first:track.first + len(own)])
         if np.isfinite(gap).any():
-            index = int(np.nanargmin(gap))
+            index = track.first + int(np.nanargmin(gap))
             return index, f"closest approach of A{track.vehicle} {track.name}, t = {time[index]:.2f} s"
     return None
 
@@ -394,7 +435,9 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
     """Traffic vehicles' footprints and the ego's position at one sample (zoom panel)."""
     units = result.units
     for number, track in enumerate(result.vehicles):
-        x, y = float(track.station[index]), float(track.lateral[index])
+        if not track.first <= index < track.first + len(track.station):
+            continue
+        x, y = float(track.station[index - track.first]), float(track.lateral[index - track.first])
         if not (math.isfinite(x) and math.isfinite(y)):
             continue
         length, width = from_si(track.length, units), from_si(track.width, units)

@@ -26,6 +26,16 @@ class VehicleTrack:
     station: np.ndarray  # m along the road from the ego's start
     lateral: np.ndarray  # m from the dividing line, + right
     speed: np.ndarray  # m/s, + toward the ego's start (approaching)
+    first: int = 0  # sample index of the arrays' first entry: they cover samples first .. first + len - 1
+
+    def dense(self, name: str, samples: int) -> np.ndarray:
+        """One of station / lateral / speed over all `samples` samples, NaN where the vehicle is absent."""
+        values = np.asarray(getattr(self, name), dtype=float)
+        if self.first == 0 and len(values) == samples:
+            return values
+        out = np.full(samples, np.nan)
+        out[self.first:self.first + len(values)] = values[:max(samples - self.first, 0)]
+        return out
 
 
 @dataclass(frozen=True)
@@ -58,6 +68,7 @@ class RunResult:
     surfaces: list[SurfaceSection]
     warnings: list[str] = field(default_factory=list)
     final: dict = field(default_factory=dict)  # summary "final", scenario units
+    timing: dict = field(default_factory=dict)  # summary "timing": wall_s, real_time_factor, steps, samples
 
 
 WHEELS = ("fl", "fr", "rl", "rr")
@@ -75,50 +86,86 @@ def _ego_column(result: RunResult, name: str) -> np.ndarray:
         raise KeyError(f"RunResult.columns has no {name!r} (has {sorted(result.columns)})") from None
 
 
-def timeseries_table(result: RunResult) -> list[tuple[str, np.ndarray, str]]:
-    """The timeseries.csv columns as (header with unit, values in scenario units, printf format)."""
+WIDE_VEHICLE_LIMIT = 100  # more traffic vehicles than this: their columns go to traffic.csv, one row per sample
+CSV_CHUNK_ROWS = 20000  # rows formatted at a time: memory stays bounded however long the run
+
+
+def _vehicle_slice(track: VehicleTrack, name: str, first: int, stop: int) -> np.ndarray:
+    """Samples first..stop-1 of a vehicle's station / lateral / speed, NaN where it is not on the road."""
+    values = getattr(track, name)
+    out = np.full(stop - first, np.nan)
+    low, high = max(track.first, first), min(track.first + len(values), stop)
+    if high > low:
+        out[low - first:high - first] = values[low - track.first:high - track.first]
+    return out
+
+
+def _timeseries_columns(result: RunResult) -> list[tuple[str, object, str]]:
+    """The timeseries.csv columns as (header with unit, values of samples [first, stop) in scenario units,
+    printf format)."""
     units = result.units
     length, speed = length_label(units), speed_label(units)
     accel = f"{length}/s2"
 
-    def scenario(name: str) -> np.ndarray:
-        return from_si(_ego_column(result, name), units)
+    def ego(name: str, convert: bool = False, transform=None):
+        column = _ego_column(result, name)
 
-    station = _ego_column(result, "station")
+        def values(first: int, stop: int) -> np.ndarray:
+            part = np.asarray(column[first:stop], dtype=float)
+            part = from_si(part, units) if convert else part
+            return transform(part) if transform else part
+        return values
+
     table = [
-        ("time_s", _ego_column(result, "time"), TIME_FORMAT),
-        (f"distance_{length}", scenario("s"), LENGTH_FORMAT),
-        (f"station_{length}", from_si(station, units), LENGTH_FORMAT),
-        (f"lateral_{length}", scenario("lateral"), LENGTH_FORMAT),
-        (f"speed_{speed}", scenario("v"), LENGTH_FORMAT),
-        (f"vx_{speed}", scenario("vx"), LENGTH_FORMAT),
-        (f"vy_{speed}", scenario("vy"), LENGTH_FORMAT),
-        (f"ax_{accel}", scenario("ax"), GENERAL_FORMAT),
-        (f"ay_{accel}", scenario("ay"), GENERAL_FORMAT),
-        ("yaw_rate_rad/s", _ego_column(result, "yaw_rate"), GENERAL_FORMAT),
-        ("psi_rad", _ego_column(result, "psi"), GENERAL_FORMAT),
-        ("throttle_1", _ego_column(result, "throttle"), GENERAL_FORMAT),
-        ("brake_1", _ego_column(result, "brake"), GENERAL_FORMAT),
-        ("steer_rad", _ego_column(result, "steer"), GENERAL_FORMAT),
-        ("brk_active", (_ego_column(result, "brk") > 0.5).astype(float), "%d"),
-        ("stopped", (_ego_column(result, "stopped") > 0.5).astype(float), "%d"),
+        ("time_s", ego("time"), TIME_FORMAT),
+        (f"distance_{length}", ego("s", True), LENGTH_FORMAT),
+        (f"station_{length}", ego("station", True), LENGTH_FORMAT),
+        (f"lateral_{length}", ego("lateral", True), LENGTH_FORMAT),
+        (f"speed_{speed}", ego("v", True), LENGTH_FORMAT),
+        (f"vx_{speed}", ego("vx", True), LENGTH_FORMAT),
+        (f"vy_{speed}", ego("vy", True), LENGTH_FORMAT),
+        (f"ax_{accel}", ego("ax", True), GENERAL_FORMAT),
+        (f"ay_{accel}", ego("ay", True), GENERAL_FORMAT),
+        ("yaw_rate_rad/s", ego("yaw_rate"), GENERAL_FORMAT),
+        ("psi_rad", ego("psi"), GENERAL_FORMAT),
+        ("throttle_1", ego("throttle"), GENERAL_FORMAT),
+        ("brake_1", ego("brake"), GENERAL_FORMAT),
+        ("steer_rad", ego("steer"), GENERAL_FORMAT),
+        ("brk_active", ego("brk", transform=lambda v: (v > 0.5).astype(float)), "%d"),
+        ("stopped", ego("stopped", transform=lambda v: (v > 0.5).astype(float)), "%d"),
     ]
     for wheel in WHEELS:
         if f"mu_{wheel}" in result.columns:
-            table.append((f"mu_{wheel}_1", _ego_column(result, f"mu_{wheel}"), GENERAL_FORMAT))
+            table.append((f"mu_{wheel}_1", ego(f"mu_{wheel}"), GENERAL_FORMAT))
     for wheel in WHEELS:
         if f"surface_{wheel}" in result.columns:
-            table.append((f"surface_{wheel}", np.round(_ego_column(result, f"surface_{wheel}")), "%d"))
+            table.append((f"surface_{wheel}", ego(f"surface_{wheel}", transform=np.round), "%d"))
+    if len(result.vehicles) > WIDE_VEHICLE_LIMIT:
+        return table
+    ego_station = _ego_column(result, "station")
     for track in result.vehicles:
         prefix = f"A{track.vehicle}"
-        vehicle_station = np.asarray(track.station, dtype=float)
+
+        def vehicle(name: str, track=track, gap: bool = False):
+            def values(first: int, stop: int) -> np.ndarray:
+                part = _vehicle_slice(track, name, first, stop)
+                if gap:
+                    part = part - np.asarray(ego_station[first:stop], dtype=float)
+                return from_si(part, units)
+            return values
         table += [
-            (f"{prefix}_station_{length}", from_si(vehicle_station, units), LENGTH_FORMAT),
-            (f"{prefix}_lateral_{length}", from_si(np.asarray(track.lateral, dtype=float), units), LENGTH_FORMAT),
-            (f"{prefix}_speed_{speed}", from_si(np.asarray(track.speed, dtype=float), units), LENGTH_FORMAT),
-            (f"{prefix}_gap_{length}", from_si(vehicle_station - station, units), LENGTH_FORMAT),
+            (f"{prefix}_station_{length}", vehicle("station"), LENGTH_FORMAT),
+            (f"{prefix}_lateral_{length}", vehicle("lateral"), LENGTH_FORMAT),
+            (f"{prefix}_speed_{speed}", vehicle("speed"), LENGTH_FORMAT),
+            (f"{prefix}_gap_{length}", vehicle("station", gap=True), LENGTH_FORMAT),
         ]
-    samples = len(table[0][1])
+    return table
+
+
+def timeseries_table(result: RunResult) -> list[tuple[str, np.ndarray, str]]:
+    """The timeseries.csv columns as (header with unit, values in scenario units, printf format)."""
+    samples = len(_ego_column(result, "time"))
+    table = [(header, values(0, samples), fmt) for header, values, fmt in _timeseries_columns(result)]
     for header, values, _ in table:
         if len(values) != samples:
             raise ValueError(f"column {header} has {len(values)} samples, time has {samples}")
@@ -131,12 +178,45 @@ def _format_column(values: np.ndarray, fmt: str) -> list[str]:
 
 
 def write_timeseries_csv(result: RunResult, path: Path) -> None:
-    """timeseries.csv: one row per sample, units in the headers, scenario units for lengths and speeds."""
-    table = timeseries_table(result)
-    cells = [_format_column(values, fmt) for _, values, fmt in table]
-    lines = [",".join(header for header, _, _ in table)]
-    lines += [",".join(row) for row in zip(*cells)]
-    Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    """timeseries.csv: one row per sample, units in the headers, scenario units for lengths and speeds;
+    written CSV_CHUNK_ROWS rows at a time. With more than WIDE_VEHICLE_LIMIT traffic vehicles their
+    columns would make the table unusably wide: they go to traffic.csv instead (`write_traffic_csv`)."""
+    columns = _timeseries_columns(result)
+    time = _ego_column(result, "time")
+    samples = len(time)
+    for name, column in result.columns.items():
+        if len(column) != samples:
+            raise ValueError(f"column {name} has {len(column)} samples, time has {samples}")
+    with open(path, "w", encoding="utf-8", newline="") as file:
+        file.write(",".join(header for header, _, _ in columns) + "\n")
+        for first in range(0, samples, CSV_CHUNK_ROWS):
+            stop = min(first + CSV_CHUNK_ROWS, samples)
+            cells = [_format_column(values(first, stop), fmt) for _, values, fmt in columns]
+            file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
+    if len(result.vehicles) > WIDE_VEHICLE_LIMIT:
+        write_traffic_csv(result, Path(path).with_name("traffic.csv"))
+
+
+def write_traffic_csv(result: RunResult, path: Path) -> None:
+    """traffic.csv (runs with many vehicles): one row per vehicle per sample while it is on the road."""
+    units = result.units
+    length, speed = length_label(units), speed_label(units)
+    time = _ego_column(result, "time")
+    ego_station = _ego_column(result, "station")
+    with open(path, "w", encoding="utf-8", newline="") as file:
+        file.write(f"time_s,vehicle,model,station_{length},lateral_{length},speed_{speed},gap_{length}\n")
+        for track in result.vehicles:
+            rows = slice(track.first, track.first + len(track.station))
+            station = np.asarray(track.station, dtype=float)
+            cells = [_format_column(np.asarray(time[rows], dtype=float), TIME_FORMAT),
+                     [str(track.vehicle)] * len(station), [str(track.model)] * len(station),
+                     _format_column(from_si(station, units), LENGTH_FORMAT),
+                     _format_column(from_si(np.asarray(track.lateral, dtype=float), units), LENGTH_FORMAT),
+                     _format_column(from_si(np.asarray(track.speed, dtype=float), units), LENGTH_FORMAT),
+                     _format_column(from_si(station - np.asarray(ego_station[rows], dtype=float), units),
+                                    LENGTH_FORMAT)]
+            if len(station):
+                file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
 
 
 def _json_ready(value):
@@ -170,6 +250,7 @@ def summary(result: RunResult) -> dict:
         "final": result.final,
         "events": result.events,
         "warnings": list(result.warnings),
+        "timing": result.timing,
     })
 
 

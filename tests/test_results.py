@@ -122,7 +122,8 @@ def test_summary_json_keys_per_spec(tmp_path):
     result = make_result()
     out = write_results(result, tmp_path / "run", plot=False)
     data = json.loads((out / "summary.json").read_text())
-    assert set(data) == {"scenario", "seed", "units", "dynamics", "collisions", "final", "events", "warnings"}
+    assert set(data) == {"scenario", "seed", "units", "dynamics", "collisions", "final", "events", "warnings",
+                         "timing"}
     assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
     assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
     assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}
@@ -211,3 +212,31 @@ def test_plot_handles_long_runs(tmp_path):
         track.speed = np.where(t < 10, NAN, 6.0)
     plots.plot_run(result, tmp_path / "plot.png")
     assert (tmp_path / "plot.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_plot_of_many_vehicles_sections_and_events_uses_few_artists(tmp_path, monkeypatch):
+    # 300 vehicles (each on the road for 50 samples, arrays offset by `first`), 1000 RSA sections and 900
+    # events: drawn as a handful of collections, not one artist each (what keeps such plots fast; the
+    # speed itself is a benchmark, not a test)
+    from matplotlib.figure import Figure
+
+    result = make_result()
+    n = 3000
+    t = np.arange(n) * 0.05
+    for name, values in list(result.columns.items()):
+        result.columns[name] = np.resize(values, n)
+    result.columns.update(time=t, s=15.24 * t, station=15.24 * t, x=15.24 * t)
+    result.vehicles = [VehicleTrack(k + 1, 1, "car", 4.5, 1.8, station=600.0 + 9 * k - 10 * np.arange(50) * 0.05,
+                                    lateral=np.full(50, -1.8288), speed=np.full(50, 10.0), first=9 * k)
+                       for k in range(300)]
+    result.surfaces = [SurfaceSection(lane=1, start=2.0 * k, end=2.0 * k + 1, value=3 + k % 5) for k in range(1000)]
+    result.events = [{"code": "A", "action": "spawn" if k % 2 else "despawn", "vehicle": k // 2 + 1,
+                      "time_s": 0.15 * k, "distance": 2.286 * k, "speed": 50.0, "lateral": 6.0} for k in range(900)]
+    figures = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figures.append(self), original(self, *a, **k)))
+    plots.plot_run(result, tmp_path / "plot.png")
+    assert (tmp_path / "plot.png").read_bytes().startswith(b"\x89PNG")
+    artists = sum(len(ax.lines) + len(ax.collections) + len(ax.patches) + len(ax.texts)
+                  for ax in figures[0].axes)
+    assert artists < 200

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from ..sdl.events import Brake
 from .ego import EgoState
+from .triggers import reach_time_scalar
 
 
 @dataclass(frozen=True)
@@ -20,7 +21,7 @@ class BrakeHold:
     def release_reason(self, state: EgoState) -> str | None:
         """Why the brakes come off at this state, or None while they stay on."""
         threshold, magnitude = self.event.threshold, self.event.magnitude
-        if threshold == "time" and state.time - self.time_on >= magnitude:
+        if threshold == "time" and state.time >= self.time_on + magnitude:
             return "time"
         if threshold == "distance" and state.s - self.distance_on >= magnitude:
             return "distance"
@@ -31,3 +32,19 @@ class BrakeHold:
         if state.stopped:
             return "stopped"
         return None
+
+    def earliest_release(self, state: EgoState, acceleration: float) -> float:
+        """A lower bound on the instant the brakes could come off, with |dv/dt| <= acceleration; the time
+        threshold is that instant exactly (the master steps to it)."""
+        threshold, magnitude = self.event.threshold, self.event.magnitude
+        stop = state.time + state.v / acceleration
+        if threshold == "time":
+            return min(self.time_on + magnitude, stop)
+        if threshold == "distance":
+            margin = self.distance_on + magnitude - state.s
+            return min(state.time + reach_time_scalar(margin, state.v, acceleration), stop)
+        if threshold == "velocity":
+            return state.time + max(state.v - magnitude, 0.0) / acceleration
+        if threshold == "relative_velocity":
+            return state.time + max(state.v - (self.speed_on - magnitude), 0.0) / acceleration
+        return stop

@@ -3,18 +3,18 @@
 from __future__ import annotations
 
 import shutil
-from dataclasses import dataclass
+from typing import NamedTuple
 from pathlib import Path
 
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, fmi2Boolean, fmi2Real, fmi2ValueReference
 
 REAL_OUTPUTS = ("x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate")
 
 
-@dataclass(frozen=True)
-class EgoState:
-    """The ego's outputs at one instant (SI, ISO 8855 inertial frame)."""
+class EgoState(NamedTuple):
+    """The ego's outputs at one instant (SI, ISO 8855 inertial frame); a named tuple: made at every
+    communication point and bisection probe, it must be cheap."""
 
     time: float
     x: float
@@ -64,6 +64,16 @@ class EgoFMU:
             raise FmuError(f"{fmu_path}: the FMU's binary cannot be loaded: {error}") from None
         self._real_outputs = [self.reference(name) for name in REAL_OUTPUTS]
         self._stopped = [self.reference("stopped")]
+        # read() is called at every communication point and bisection probe: its ctypes buffers are made once
+        self._output_refs = (fmi2ValueReference * len(REAL_OUTPUTS))(*self._real_outputs)
+        self._output_values = (fmi2Real * len(REAL_OUTPUTS))()
+        self._stopped_ref = (fmi2ValueReference * 1)(*self._stopped)
+        self._stopped_value = (fmi2Boolean * 1)()
+        self._input_buffers: dict[tuple[str, ...], tuple] = {}
+        # the raw ctypes functions for the per-step path: fmpy's wrappers add a Python call layer per call
+        functions = getattr(self.slave, "_functions", {})
+        self._raw = {name: functions.get(name) or getattr(self.slave, name)
+                     for name in ("fmi2DoStep", "fmi2GetReal", "fmi2GetBoolean", "fmi2SetReal")}
         self.time = 0.0
         try:
             self.slave.instantiate()
@@ -103,19 +113,38 @@ class EgoFMU:
             raise FmuError(f"the FMU refused the values {values}: {error}") from None
 
     def read(self) -> EgoState:
-        values = self.slave.getReal(self._real_outputs)
-        stopped = bool(self.slave.getBoolean(self._stopped)[0])
-        return EgoState(self.time, *values, stopped)
+        component = self.slave.component
+        if (self._raw["fmi2GetReal"](component, self._output_refs, len(REAL_OUTPUTS), self._output_values) > 1
+                or self._raw["fmi2GetBoolean"](component, self._stopped_ref, 1, self._stopped_value) > 1):
+            raise FmuError(f"the FMU refused to return its outputs at t = {self.time:.6f} s")
+        return EgoState(self.time, *self._output_values, bool(self._stopped_value[0]))
+
+    def set_reals(self, names: tuple[str, ...], values) -> None:
+        """Sets Real inputs by name in one call, through ctypes buffers made once per name tuple (the
+        master's per-step path; `set` is the general one)."""
+        buffers = self._input_buffers.get(names)
+        if buffers is None:
+            refs = [self.reference(name) for name in names]
+            if any(self.variables[name].type != "Real" for name in names):
+                raise FmuError(f"set_reals: not all of {names} are Real variables")
+            buffers = self._input_buffers[names] = ((fmi2ValueReference * len(names))(*refs),
+                                                    (fmi2Real * len(names))())
+        refs, buffer = buffers
+        buffer[:] = values
+        if self._raw["fmi2SetReal"](self.slave.component, refs, len(names), buffer) > 1:
+            raise FmuError(f"the FMU refused the values {dict(zip(names, values))}")
 
     def get(self, name: str) -> float:
         return self.slave.getReal([self.reference(name)])[0]
 
     def step(self, h: float) -> None:
-        try:
-            self.slave.doStep(currentCommunicationPoint=self.time, communicationStepSize=h)
-        except Exception as error:
-            raise FmuError(f"fmi2DoStep at t = {self.time:.6f} s failed: {error}") from None
-        self.time += h
+        self.step_to(self.time + h)
+
+    def step_to(self, end: float) -> None:
+        """Steps to exactly `end` (the communication point's time is `end` itself, not a sum of steps)."""
+        if self._raw["fmi2DoStep"](self.slave.component, self.time, end - self.time, 1) > 1:
+            raise FmuError(f"fmi2DoStep at t = {self.time:.6f} s (step {end - self.time:g} s) failed")
+        self.time = end
 
     def save(self):
         """A snapshot of the instance (FMI GetFMUstate) to step again from."""
@@ -144,22 +173,28 @@ def step_until(ego: EgoFMU, h: float, condition, tolerance: float = 1e-9) -> boo
     """Steps by h; if `condition(ego.read())` becomes true inside the step, rolls back and bisects so
     the instance ends just past the instant it became true (within `tolerance` seconds).
     Returns whether the condition became true in this step."""
-    base = ego.save()  # the snapshot sits at offset `low` into the step
-    ego.step(h)
+    return step_until_time(ego, ego.time + h, condition, tolerance)
+
+
+def step_until_time(ego: EgoFMU, end: float, condition, tolerance: float = 1e-9) -> bool:
+    """step_until to the absolute time `end`, every probe stepped to an absolute time."""
+    base = ego.save()  # the snapshot sits at time `low`
+    low = ego.time
+    ego.step_to(end)
     if not condition(ego.read()):
         ego.discard(base)
         return False
-    low, high = 0.0, h
+    high = end
     while high - low > tolerance:
         middle = 0.5 * (low + high)
         ego.restore(base)
-        ego.step(middle - low)
+        ego.step_to(middle)
         if condition(ego.read()):
             high = middle
         else:
             ego.discard(base)
             base, low = ego.save(), middle
     ego.restore(base)
-    ego.step(high - low)
+    ego.step_to(high)
     ego.discard(base)
     return True

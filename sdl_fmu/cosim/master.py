@@ -1,16 +1,24 @@
 """The co-simulation master: steps the ego FMU through fmpy together with the road, the BRK
-controller, the driver model and the traffic model, and fires every trigger at its true instant.
+controller, the driver model and the traffic model, and fires every trigger at its true instant,
+whatever the communication step.
 
-Each communication step is taken from a saved FMU state; if any trigger (an event distance, a BRK
-threshold, a closure time, a contact, a wheel crossing onto another surface) became true inside it,
-the step is rolled back and bisected (fmi2GetFMUstate / fmi2SetFMUstate) until the instant is known
-within TIME_TOLERANCE. Traffic motion is closed-form in time, so it needs no rollback of its own.
+Before each step the master bounds, from the ego's kinematics and its acceleration and yaw-rate limits
+(triggers.py), the earliest instant at which any trigger (an event distance, a BRK threshold, a closure
+time, a contact starting or ending, a departure, a wheel crossing onto another surface) could become
+true. Where nothing can happen it steps long: to the next driver sample, the `step` limit or that
+instant, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
+and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate /
+fmi2SetFMUstate) until the instant is known within TIME_TOLERANCE. Traffic motion is closed-form in
+time, so it needs no rollback of its own. The driver model is a sampled controller with its own period
+(`driver_period`): its samples are instants the master steps to, independent of `step`.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 import random
+import time as wall_clock
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -22,15 +30,27 @@ from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, Sur
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
-from .driver import make_driver
-from .ego import EgoFMU, EgoState, parameter_defaults, step_until
+from .driver import MAX_STEER, make_driver
+from .ego import EgoFMU, EgoState, parameter_defaults, step_until_time
+from .recorder import ChunkedTable
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
-from .traffic import TrafficVehicle, choose_model, footprints_overlap, spawn
+from .traffic import Traffic, choose_model
+from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_conditions,
+                       vehicle_horizons, vehicle_triggered)
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
 MAX_TIME = 3600.0  # s, a run never goes beyond
 TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
+# s: closer than this to a possible trigger the master steps this far from a saved state and bisects;
+# a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly)
+MIN_LOOKAHEAD = 1e-3
+SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
+DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
+DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
+
+EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
+               "lateral", "throttle", "brake", "steer", "brk")
 
 
 @dataclass
@@ -38,7 +58,8 @@ class RunOptions:
     dynamics: str = "simple"
     speed: float | None = None  # m/s
     seed: int = 1
-    step: float = 0.01  # s, communication step
+    step: float = DEFAULT_STEP  # s, longest communication step; results do not depend on it
+    driver_period: float = DEFAULT_DRIVER_PERIOD  # s, the driver model's sampling period
     until_distance: float | None = None  # m
     until_time: float | None = None  # s
     parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
@@ -51,12 +72,19 @@ class Cosimulation:
     """One run of a scenario against one ego FMU."""
 
     def __init__(self, scenario: Scenario, fmu: Path, options: RunOptions, vehicle_table: dict[int, VehicleModel]):
+        if not options.step > 0 or not options.driver_period > 0:
+            raise ValueError("the communication step and the driver period must be > 0")
         self.scenario = scenario
         self.options = options
         self.road = scenario.road
         self.vehicle_table = vehicle_table
         self.rng = random.Random(options.seed)
         self.surfaces = surface_map(scenario, options.dynamics)
+        self.surface_changes = _surface_changes(self.surfaces)
+        self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
+        self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
+        self.cached_bounds: dict[str, float] = {}  # event, end, brake: bounds kept until something fires
+        self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
         start = {"v0": self.speed, "x0": 0.0, "y0": -start_lateral, "psi0": 0.0,
@@ -67,18 +95,36 @@ class Cosimulation:
         self.ego_size = (parameters["length"], parameters["width"])
         self.driver = make_driver(self.speed, start_lateral, parameters)
         self.wheel_inputs = [f"mu_{w}" if options.dynamics == "simple" else f"surface_{w}" for w in WHEELS]
-        self.pending = list(scenario.events)
-        self.traffic: list[TrafficVehicle] = []
+        self.input_names = ("throttle", "brake", "steer") + (tuple(self.wheel_inputs)
+                                                             if options.dynamics == "simple" else ())
+        if options.dynamics == "simple":
+            mu_max = max([self.surfaces.default, *(v for values in self.surfaces.values.values() for v in values)]) / 10
+        else:  # the tire slots' peak friction at zero load (Magic Formula: mu = (PDX1 + PDX2 dfz) LMUX, dfz >= -1)
+            mu_max = max([(abs(parameters[f"tire{k}_PD{axis}1"]) + abs(parameters.get(f"tire{k}_PD{axis}2", 0.0)))
+                          * parameters.get(f"tire{k}_LMU{axis}", 1.0)
+                          for k in range(16) for axis in "XY" if f"tire{k}_PD{axis}1" in parameters],
+                         default=ADVANCED_MU_MAX)
+        g = self.geometry
+        wheel_arm = max(math.hypot(g.front, g.half_track_front), math.hypot(g.rear, g.half_track_rear))
+        self.bounds = ego_bounds(parameters, mu_max, self.speed, wheel_arm, MAX_STEER)
+        self.events_in_order = scenario.events
+        self.next_event = 0  # index of the first event not yet fired
+        self.traffic = Traffic()
+        self.vehicle_ids: list[int] = []
         self.brake_hold: BrakeHold | None = None
         self.applied_surfaces: tuple[float, ...] | None = None
         self.wheel_values: list[float] = []  # the FMU's wheel inputs for the applied surfaces
         self.controls = (0.0, 0.0, 0.0)
+        self.sent_inputs: tuple | None = None
         self.events: list[dict] = []
         self.warnings: list[str] = []
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
-        self.samples: list[tuple] = []
-        self.traffic_samples: list[dict[int, tuple[float, float, float]]] = []
+        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(self.wheel_inputs))
+        self.spawn_sample: list[int] = []  # per vehicle, its first sample and the sample it left at
+        self.leave_sample: list[int | None] = []
+        self.sample_count = 0
+        self.steps = 0
         self.finished = False
         self.end_distance, self.end_reason = self._end_distance()
 
@@ -106,70 +152,173 @@ class Cosimulation:
 
     # ---- the ego's surroundings at an instant ---------------------------------------------------
 
-    def station_rate(self, state: EgoState) -> float:
-        return state.vx * math.cos(state.psi) - state.vy * math.sin(state.psi)
-
     def surfaces_under_wheels(self, state: EgoState) -> tuple[float, ...]:
         return wheel_surfaces(self.road, self.surfaces, self.geometry.contact_points(state.x, state.y, state.psi))
 
-    def in_contact(self, vehicle: TrafficVehicle, state: EgoState) -> bool:
-        station, lateral, _ = vehicle.at(state.time)
-        return footprints_overlap((state.x, state.y), state.psi, self.ego_size, (station, -lateral), 0.0,
-                                  (vehicle.model.length, vehicle.model.width))
+    def pending_distance(self) -> float:
+        if self.next_event < len(self.events_in_order):
+            return self.events_in_order[self.next_event].distance
+        return math.inf
 
-    def triggered(self, state: EgoState) -> bool:
-        """Whether anything must happen at this state (false at the start of every step)."""
-        if self.pending and self.pending[0].distance <= state.s:
+    # ---- when the next trigger could be ---------------------------------------------------------
+
+    def horizons(self, state: EgoState, limit: float) -> dict[str, float]:
+        """Per kind of trigger, a lower bound on the instant it could become true (absolute time). A bound
+        holds until it is reached or something fires (the bounds on the ego hold at all times), so each is
+        kept and recomputed only when it could bind before `limit`."""
+        a = self.bounds.acceleration
+        t = state.time
+        cached = self.cached_bounds
+        near = {}
+        for kind, distance in (("event", self.pending_distance()), ("end", self.end_distance)):
+            if distance < math.inf:
+                if cached.get(kind, -math.inf) < limit:
+                    cached[kind] = t + reach_time_scalar(distance - state.s, state.v, a)
+                near[kind] = cached[kind]
+        if self.brake_hold is not None:
+            if cached.get("brake", -math.inf) < limit:
+                cached["brake"] = self.brake_hold.earliest_release(state, a)
+            near["brake"] = cached["brake"]
+        if self.surface_changes:
+            if self.surface_next < limit:
+                self.surface_next = t + self.surface_horizon(state)
+            near["surface"] = self.surface_next
+        if len(self.traffic.active):
+            near["traffic"] = self.traffic_horizon(state, limit)
+        return near
+
+    def surface_horizon(self, state: EgoState) -> float:
+        """How long every wheel surely stays on its surface: the nearest station in its lane where the value
+        changes, and its lane's edges where the lane beyond differs within the reach of SURFACE_WINDOW (a
+        bound then valid for that window only), each reached at the ego's bounded rates."""
+        kin = EgoKinematics.of(state)
+        bounds, road, surfaces = self.bounds, self.road, self.surfaces
+        a = bounds.acceleration
+        turn = bounds.wheel_arm * bounds.yaw_rate
+        width = road.lane_width
+        reach = (abs(kin.station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
+        horizon = SURFACE_WINDOW
+        for station, lateral in self.geometry.contact_points(state.x, state.y, state.psi):
+            lane = road.lane_at(lateral)
+            changes = self.surface_changes.get(lane)
+            if changes:
+                k = bisect.bisect_right(changes, station)
+                if k < len(changes):
+                    horizon = min(horizon, reach_time_scalar(changes[k] - station, kin.station_rate + turn, a))
+                if k > 0:
+                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -kin.station_rate + turn, a))
+            k = math.floor(lateral / width)
+            for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
+                if not road.left_edge <= edge <= road.right_edge:
+                    continue  # beyond the shoulders' outer edges nothing changes
+                toward = side * kin.lateral_rate
+                beyond = road.lane_at(edge + side * width / 2)
+                if beyond != lane and self._surfaces_differ(lane, beyond, station - reach, station + reach):
+                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), toward + turn, a))
+        return horizon
+
+    def _surfaces_differ(self, lane: int, other: int, low: float, high: float) -> bool:
+        """Whether two lanes' surfaces differ anywhere between stations low and high (the stretches where
+        they differ are worked out once per pair of lanes)."""
+        key = (min(lane, other), max(lane, other))
+        stretches = self._differing.get(key)
+        if stretches is None:
+            stretches = self._differing[key] = _differing_stretches(self.surfaces, *key)
+        starts, ends = stretches
+        k = bisect.bisect_right(starts, high)  # stretches starting at or before `high`
+        return k > 0 and ends[k - 1] > low
+
+    def traffic_horizon(self, state: EgoState, limit: float) -> float:
+        """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
+        kept until it could bind (it holds while the vehicle's own motion is unchanged); only those are
+        recomputed, vectorised."""
+        if self.traffic_earliest >= limit:  # no vehicle's bound can bind before the limit: nothing to redo
+            return self.traffic_earliest
+        traffic = self.traffic
+        active = traffic.active
+        stale = active[traffic.next_check[active] < limit]
+        if len(stale):
+            traffic.next_check[stale] = state.time + vehicle_horizons(traffic, stale, EgoKinematics.of(state),
+                                                                      self.bounds)
+        self.traffic_earliest = float(traffic.next_check[active].min())
+        return self.traffic_earliest
+
+    def triggered(self, state: EgoState, kinds) -> bool:
+        """Whether a trigger of the given kinds is true at this state (all are false at a step's start)."""
+        if "event" in kinds and self.pending_distance() <= state.s:
             return True
-        if state.s >= self.end_distance:
+        if "end" in kinds and state.s >= self.end_distance:
             return True
-        if self.brake_hold is not None and self.brake_hold.release_reason(state):
+        if "brake" in kinds and self.brake_hold.release_reason(state):
             return True
-        if self.surfaces_under_wheels(state) != self.applied_surfaces:
+        if "surface" in kinds and self.surfaces_under_wheels(state) != self.applied_surfaces:
             return True
-        rate = self.station_rate(state)
-        for vehicle in self.traffic:
-            if vehicle.present and (vehicle.action_due(state.time, state.x, rate)
-                                    or (not vehicle.in_contact and self.in_contact(vehicle, state))):
-                return True
+        if "traffic" in kinds:
+            traffic = self.traffic
+            due = traffic.active[traffic.next_check[traffic.active] <= state.time]
+            if 0 < len(due) <= 4:
+                kinematics = EgoKinematics.of(state)
+                return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)
+            if len(due):
+                action, overlap, away = vehicle_conditions(traffic, due, EgoKinematics.of(state), self.bounds)
+                in_contact = traffic.in_contact[due]
+                return bool((action | (overlap != in_contact) | (away & ~in_contact)).any())
         return False
 
     # ---- what happens at an instant -------------------------------------------------------------
 
     def fire_due(self, state: EgoState) -> None:
         """Fires everything due at this state, in file order, until nothing more is due."""
-        while self.pending and self.pending[0].distance <= state.s and not self.finished:
-            self.fire_event(self.pending.pop(0), state)
+        while self.next_event < len(self.events_in_order) and self.pending_distance() <= state.s \
+                and not self.finished:
+            self.next_event += 1
+            self.fire_event(self.events_in_order[self.next_event - 1], state)
         if self.brake_hold is not None:
             reason = self.brake_hold.release_reason(state)
             if reason:
                 self.release_brakes(state, reason)
-        rate = self.station_rate(state)
-        for vehicle in self.traffic:
-            if not vehicle.present:
-                continue
-            while vehicle.action_due(state.time, state.x, rate):
-                index = vehicle.next_action + 1
-                vehicle.start_action(state.time, -state.y, state.v)
-                self.log("A", "maneuver", state, vehicle=vehicle.vehicle, index=index)
-            contact = self.in_contact(vehicle, state)
-            if contact and not vehicle.in_contact:
-                self.collisions += 1
-                station, lateral, _ = vehicle.at(state.time)
-                self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
-                self.log("A", "collision", state, vehicle=vehicle.vehicle)
-            vehicle.in_contact = contact
+        if len(self.traffic.active):
+            self.fire_traffic(state)
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
+
+    def fire_traffic(self, state: EgoState) -> None:
+        traffic = self.traffic
+        kinematics = EgoKinematics.of(state)
+        active = traffic.active
+        action, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+        if action.any():
+            for i in active[action]:
+                while True:  # each action once, the next armed as the previous fires; several may be due at once
+                    index = int(traffic.next_action[i]) + 1
+                    traffic.start_action(i, state.time, -state.y, state.v)
+                    self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
+                    again, _, _ = vehicle_conditions(traffic, np.array([i]), kinematics, self.bounds)
+                    if not again[0]:
+                        break
+            _, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+        for i in active[overlap & ~traffic.in_contact[active]]:
+            self.collisions += 1
+            station, lateral, _ = traffic.at(i, state.time)
+            self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
+            self.log("A", "collision", state, vehicle=self.vehicle_ids[i])
+        changed = active[overlap != traffic.in_contact[active]]
+        traffic.in_contact[active] = overlap
+        traffic.next_check[changed] = state.time
+        for i in active[away & ~overlap]:
+            traffic.remove(i)
+            self.leave_sample[i] = self.sample_count
+            self.log("A", "despawn", state, vehicle=self.vehicle_ids[i])
 
     def fire_event(self, event, state: EgoState) -> None:
         if isinstance(event, ApproachingVehicle):
             model_number = choose_model(event, self.rng)
-            vehicle = spawn(len(self.traffic) + 1, event, self.vehicle_table[model_number], state.time, state.x,
-                            -state.y, state.v)
-            self.traffic.append(vehicle)
-            self.log("A", "spawn", state, vehicle=vehicle.vehicle, model=model_number, name=vehicle.model.name,
-                     line=event.line)
+            model = self.vehicle_table[model_number]
+            index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
+            self.vehicle_ids.append(index + 1)
+            self.spawn_sample.append(self.sample_count)
+            self.leave_sample.append(None)
+            self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
             if self.options.dynamics != "simple":
                 self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics "
@@ -192,9 +341,12 @@ class Cosimulation:
             self.finish(state, "scenario")
 
     def release_brakes(self, state: EgoState, reason: str) -> None:
+        """Control returns to the driver model at this instant, its speed integral reset."""
         self.log("BRK", "off", state, reason=reason, line=self.brake_hold.event.line)
         self.brake_hold = None
         self.driver.reset_integral()
+        throttle, brake = self.driver.pedals(state)
+        self.controls = (throttle, brake, self.controls[2])
 
     def finish(self, state: EgoState, reason: str) -> None:
         """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
@@ -205,88 +357,157 @@ class Cosimulation:
         self.log("ES", "end", state, reason=reason)
         self.finished = True
 
-    def leave(self, state: EgoState) -> None:
-        rate = self.station_rate(state)
-        for vehicle in self.traffic:
-            if vehicle.present and not vehicle.in_contact and vehicle.may_leave(state.time, state.x, rate, self.ego_size[0]):
-                vehicle.present = False
-                self.log("A", "despawn", state, vehicle=vehicle.vehicle)
-
     # ---- inputs and records ---------------------------------------------------------------------
 
-    def apply_controls(self, state: EgoState) -> None:
+    def sample_driver(self, state: EgoState, period: float | None) -> None:
+        """A driver sample: integrate the speed error over the period (not while BRK holds the pedals),
+        then new steer and, unless BRK holds them, new pedals."""
+        if period is not None and self.brake_hold is None:
+            self.driver.update(state, period, self.controls[0])
         steer = self.driver.steer(state)
-        if self.brake_hold is not None:
-            throttle, brake = 0.0, self.brake_hold.event.pedal
-        else:
-            throttle, brake = self.driver.pedals(state)
-        surfaces = self.surfaces_under_wheels(state)
-        self.applied_surfaces = surfaces
+        throttle, brake = self.driver.pedals(state) if self.brake_hold is None else self.controls[:2]
         self.controls = (throttle, brake, steer)
-        self.wheel_values = [value / 10 if self.options.dynamics == "simple" else int(value) for value in surfaces]
-        self.ego.set(throttle=throttle, brake=brake, steer=steer, **dict(zip(self.wheel_inputs, self.wheel_values)))
+
+    def apply_inputs(self, state: EgoState, surfaces_may_change: bool) -> None:
+        """Pedals (BRK's while it holds them), steer and the surfaces under the wheels, sent if changed."""
+        if self.brake_hold is not None:
+            self.controls = (0.0, self.brake_hold.event.pedal, self.controls[2])
+        if surfaces_may_change or self.applied_surfaces is None:
+            surfaces = self.surfaces_under_wheels(state)
+            if surfaces != self.applied_surfaces:
+                self.applied_surfaces = surfaces
+                self.wheel_values = [value / 10 if self.options.dynamics == "simple" else int(value)
+                                     for value in surfaces]
+                if self.options.dynamics != "simple":
+                    self.ego.set(**dict(zip(self.wheel_inputs, self.wheel_values)))
+        inputs = (*self.controls, *self.wheel_values) if self.options.dynamics == "simple" else self.controls
+        if inputs != self.sent_inputs:
+            self.ego.set_reals(self.input_names, inputs)
+            self.sent_inputs = inputs
 
     def record(self, state: EgoState) -> None:
         throttle, brake, steer = self.controls
-        self.samples.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
-                             state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
-                             throttle, brake, steer, float(self.brake_hold is not None), *self.wheel_values))
-        self.traffic_samples.append({v.vehicle: v.at(state.time) for v in self.traffic if v.present})
+        self.ego_rows.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
+                              state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
+                              throttle, brake, steer, float(self.brake_hold is not None), *self.wheel_values))
+        self.sample_count += 1  # traffic is closed-form in time: its samples are computed at the end
 
     # ---- the loop -------------------------------------------------------------------------------
 
     def run(self) -> RunResult:
+        started = wall_clock.perf_counter()
         try:
             state = self.ego.read()
             self.fire_due(state)
-            self.apply_controls(state)
+            self.sample_driver(state, None)
+            self.apply_inputs(state, True)
             self.record(state)
+            period = self.options.driver_period
+            sample = 1  # index of the next driver sample, at sample * period
+            until_time = self.options.until_time
             while not self.finished:
-                if state.time >= MAX_TIME:
+                t = state.time
+                if t >= MAX_TIME:
                     self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
                     self.finish(state, "time_limit")
                     break
-                until_time = self.options.until_time
-                h = self.options.step if until_time is None else min(self.options.step, until_time - state.time)
-                fired = step_until(self.ego, h, self.triggered, TIME_TOLERANCE)
-                previous, state = state, self.ego.read()
-                if self.brake_hold is None:
-                    self.driver.update(state, state.time - previous.time, self.controls[0])
+                limit = min(t + self.options.step, sample * period, MAX_TIME,
+                            math.inf if until_time is None else until_time)
+                horizons = self.horizons(state, limit)
+                earliest = min(horizons.values(), default=math.inf)
+                if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
+                    # nothing can become true before `end`; something may be true exactly at it
+                    end = min(limit, earliest)
+                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
+                    self.ego.step_to(end)
+                    state = self.ego.read()
+                    fired = bool(kinds) and self.triggered(state, kinds)
+                else:
+                    end = min(t + MIN_LOOKAHEAD, limit)
+                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
+                    fired = step_until_time(self.ego, end, lambda probe: self.triggered(probe, kinds),
+                                            TIME_TOLERANCE)
+                    state = self.ego.read()
+                self.steps += 1
+                driver_sample = state.time >= sample * period
                 if fired:
                     self.fire_due(state)
-                self.leave(state)
-                if until_time is not None and state.time >= until_time - 1e-12:
+                    self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
+                    self.cached_bounds.clear()  # the next event, a BRK on or off
+                if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
-                self.apply_controls(state)  # the inputs from this instant on, as recorded with it
+                if driver_sample:
+                    self.sample_driver(state, period)
+                    while sample * period <= state.time:
+                        sample += 1
+                self.apply_inputs(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
                 if self.options.progress is not None:
                     self.options.progress(self, state)
-            return self.result(state)
+            wall = wall_clock.perf_counter() - started
+            return self.result(state, wall)
         finally:
             self.ego.close()
 
-    def result(self, state: EgoState) -> RunResult:
-        names = ["time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
-                 "lateral", "throttle", "brake", "steer", "brk", *self.wheel_inputs]
-        table = np.array(self.samples, dtype=float)
+    def result(self, state: EgoState, wall: float) -> RunResult:
+        names = [*EGO_COLUMNS, *self.wheel_inputs]
+        table = self.ego_rows.finish()
         columns = {name: table[:, i] for i, name in enumerate(names)}
+        # each vehicle's samples from its closed-form motion, into one disk-backed table (memory stays bounded)
+        track_rows = ChunkedTable(3)
+        spans = []
+        for i in range(len(self.vehicle_ids)):
+            first = self.spawn_sample[i]
+            last = self.leave_sample[i] if self.leave_sample[i] is not None else self.sample_count
+            spans.append((first, track_rows.rows, track_rows.rows + last - first))
+            track_rows.extend(np.column_stack(self.traffic.track(i, np.asarray(columns["time"][first:last]))))
+        track_table = track_rows.finish()
         tracks = []
-        for vehicle in self.traffic:
-            rows = np.full((len(self.samples), 3), np.nan)
-            for i, present in enumerate(self.traffic_samples):
-                if vehicle.vehicle in present:
-                    rows[i] = present[vehicle.vehicle]
-            tracks.append(VehicleTrack(vehicle.vehicle, vehicle.model.number, vehicle.model.name,
-                                       vehicle.model.length, vehicle.model.width, rows[:, 0], rows[:, 1],
-                                       rows[:, 2]))
+        for i, (vehicle, (first, start, stop)) in enumerate(zip(self.vehicle_ids, spans)):
+            model = self.traffic.models[i]
+            block = track_table[start:stop]
+            tracks.append(VehicleTrack(vehicle, model.number, model.name, model.length, model.width, block[:, 0],
+                                       block[:, 1], block[:, 2], first=first))
         final = {"time_s": state.time, "distance": self._scenario_units(state.s),
                  "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
+        timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
+                  "steps": self.steps, "samples": self.sample_count}
         return RunResult(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=self.options.dynamics,
             seed=self.options.seed, road=self.road, columns=columns, vehicles=tracks, events=self.events,
             collisions=self.collisions, collision_points=self.collision_points,
-            surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final,
+            surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
         )
+
+
+def _differing_stretches(surfaces, lane: int, other: int) -> tuple[list[float], list[float]]:
+    """(starts, ends) of the stretches of road where two lanes' surface values differ, in station order,
+    disjoint (adjacent ones merged); an end may be inf."""
+    stations = sorted({*surfaces.starts.get(lane, []), *surfaces.starts.get(other, [])})
+    starts, ends = [], []
+    for k, station in enumerate(stations):
+        end = stations[k + 1] if k + 1 < len(stations) else math.inf
+        if surfaces.value(lane, station) != surfaces.value(other, station):
+            if ends and ends[-1] == station:
+                ends[-1] = end
+            else:
+                starts.append(station)
+                ends.append(end)
+    return starts, ends
+
+
+def _surface_changes(surfaces) -> dict[int, list[float]]:
+    """Per lane, the stations where its surface value actually changes (a value set again is no change)."""
+    changes = {}
+    for lane, starts in surfaces.starts.items():
+        previous, stations = surfaces.default, []
+        for start, value in zip(starts, surfaces.values[lane]):
+            if value != previous:
+                stations.append(start)
+            previous = value
+        if stations:
+            changes[lane] = stations
+    return changes
 
 
 def run_scenario(scenario: Scenario, fmu: Path, options: RunOptions,

@@ -12,6 +12,8 @@ import math
 import random
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..sdl.events import Action, ApproachingVehicle, ClosureTrigger
 from ..sdl.vehicles import VehicleModel
 
@@ -130,3 +132,126 @@ def footprints_overlap(a_center, a_heading, a_size, b_center, b_heading, b_size)
         if max(a) <= min(b) or max(b) <= min(a):
             return False
     return True
+
+
+# ---- all vehicles at once ---------------------------------------------------------------------------
+
+WHERE_CODES = {None: 0, "F": 1, "B": 2}
+
+
+class Traffic:
+    """Every traffic vehicle of a run in NumPy arrays (index = vehicle id - 1), so that the master checks
+    only the vehicles on the road (`active`), and those vectorised. Same motion law as `Motion`."""
+
+    _FLOATS = ("t0", "station0", "lateral0", "speed0", "lateral1", "speed1", "duration", "length", "width",
+               "trigger_seconds", "next_check")
+
+    def __init__(self, capacity: int = 16):
+        self.size = 0
+        for name in self._FLOATS:
+            setattr(self, name, np.zeros(capacity))
+        self.where = np.zeros(capacity, dtype=np.int8)
+        self.next_action = np.zeros(capacity, dtype=np.int64)
+        self.in_contact = np.zeros(capacity, dtype=bool)
+        self.present = np.zeros(capacity, dtype=bool)
+        self.events: list[ApproachingVehicle] = []
+        self.models: list[VehicleModel] = []
+        self.history: list[list[tuple]] = []  # per vehicle, its motions in time order (for the results)
+        self.active = np.zeros(0, dtype=np.int64)  # indices of the vehicles on the road, ascending
+
+    def _grow(self) -> None:
+        for name in (*self._FLOATS, "where", "next_action", "in_contact", "present"):
+            array = getattr(self, name)
+            setattr(self, name, np.concatenate([array, np.zeros_like(array)]))
+
+    def add(self, event: ApproachingVehicle, model: VehicleModel, t: float, ego_station: float, ego_lateral: float,
+            ego_speed: float) -> int:
+        """Spawns a vehicle (SPEC §3: gap and lateral from the event, starred values from the ego); its index."""
+        if self.size == len(self.t0):
+            self._grow()
+        i = self.size
+        self.size += 1
+        speed = event.speed.resolve(ego_speed)
+        lateral = event.lateral.resolve(ego_lateral)
+        self.t0[i], self.station0[i], self.duration[i] = t, ego_station + event.gap, 0.0
+        self.lateral0[i] = self.lateral1[i] = lateral
+        self.speed0[i] = self.speed1[i] = speed
+        self.length[i], self.width[i] = model.length, model.width
+        self.next_action[i], self.in_contact[i], self.present[i] = 0, False, True
+        self.next_check[i] = t
+        self.events.append(event)
+        self.models.append(model)
+        self.history.append([self._motion_row(i)])
+        self._arm(i)
+        self.active = np.append(self.active, i)
+        return i
+
+    def _arm(self, i: int) -> None:
+        action = self.armed(i)
+        self.trigger_seconds[i] = np.nan if action is None else action.trigger.seconds
+        self.where[i] = 0 if action is None else WHERE_CODES[action.trigger.where]
+
+    def armed(self, i: int) -> Action | None:
+        actions = self.events[i].actions
+        return actions[self.next_action[i]] if self.next_action[i] < len(actions) else None
+
+    def remove(self, i: int) -> None:
+        self.present[i] = False
+        self.active = self.active[self.active != i]
+
+    def motion(self, idx: np.ndarray, t: float):
+        """(station, lateral, speed, lateral rate, |speed rate|) of vehicles idx at time t (`Motion.at`)."""
+        elapsed = t - self.t0[idx]
+        duration = self.duration[idx]
+        speed0, speed1 = self.speed0[idx], self.speed1[idx]
+        lateral0, lateral1 = self.lateral0[idx], self.lateral1[idx]
+        moving = elapsed < duration
+        span = np.where(moving, duration, 1.0)
+        fraction = np.where(moving, elapsed / span, 1.0)
+        speed = speed0 + (speed1 - speed0) * fraction
+        travelled = np.where(moving, speed0 * elapsed + (speed1 - speed0) * elapsed**2 / (2 * span),
+                             (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration))
+        lateral = lateral0 + (lateral1 - lateral0) * fraction
+        lateral_rate = np.where(moving, (lateral1 - lateral0) / span, 0.0)
+        speed_rate = np.where(moving, np.abs(speed1 - speed0) / span, 0.0)
+        return self.station0[idx] - travelled, lateral, speed, lateral_rate, speed_rate
+
+    def at(self, i: int, t: float) -> tuple[float, float, float]:
+        return self.at_scalar(i, t)
+
+    def at_scalar(self, i: int, t: float) -> tuple[float, float, float]:
+        """(station, lateral, speed) of vehicle i at time t, in plain floats (`Motion.at`)."""
+        return Motion(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
+                      float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i])).at(t)
+
+    def start_action(self, i: int, t: float, ego_lateral: float, ego_speed: float) -> Action:
+        """Fires the armed action: a new transition from where the vehicle is now (interrupting any)."""
+        action = self.armed(i)
+        station, lateral, speed = self.at(i, t)
+        self.t0[i], self.station0[i], self.lateral0[i], self.speed0[i] = t, station, lateral, speed
+        self.lateral1[i] = action.lateral.resolve(ego_lateral)
+        self.speed1[i] = action.speed.resolve(ego_speed)
+        self.duration[i] = action.duration
+        self.next_action[i] += 1
+        self._arm(i)
+        self.next_check[i] = t
+        self.history[i].append(self._motion_row(i))
+        return action
+
+    def _motion_row(self, i: int) -> tuple:
+        return (self.t0[i], self.station0[i], self.lateral0[i], self.speed0[i], self.lateral1[i], self.speed1[i],
+                self.duration[i])
+
+    def track(self, i: int, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(station, lateral, speed) of vehicle i at the given times, from its motion history."""
+        motions = np.array(self.history[i])
+        k = np.maximum(np.searchsorted(motions[:, 0], times, side="right") - 1, 0)
+        t0, station0, lateral0, speed0, lateral1, speed1, duration = motions[k].T
+        elapsed = times - t0
+        moving = elapsed < duration
+        span = np.where(moving, duration, 1.0)
+        fraction = np.where(moving, elapsed / span, 1.0)
+        travelled = np.where(moving, speed0 * elapsed + (speed1 - speed0) * elapsed**2 / (2 * span),
+                             (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration))
+        return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction,
+                speed0 + (speed1 - speed0) * fraction)

@@ -1,0 +1,84 @@
+"""The demo's real-time factors (simulation phase: the co-simulation loop, as summary.json's `timing`),
+Simple and Advanced, at default settings, against the 10 ms reference run (--step 0.01): events within
+1e-3 s, final distance within 0.01 ft. Also CPU time (robust on a shared machine) and, to show where the
+time goes, the same run with the FMU's internal solver step at 10 ms instead of its default 1 ms.
+
+    python benchmarks/demo_speed.py [--repeat N] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from sdl_fmu.cosim.master import RunOptions, run_scenario
+from sdl_fmu.fmu.package import build_fmu
+from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
+
+
+def options(dynamics: str, **extra) -> RunOptions:
+    if dynamics == "advanced":
+        from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
+
+        starts, attributes, _ = slot_parameters(default_attribute_file())
+        return RunOptions(dynamics=dynamics, tire_parameters=starts, known_attributes=set(attributes), **extra)
+    return RunOptions(dynamics=dynamics, **extra)
+
+
+def compare(run, reference) -> dict:
+    same = [(e["code"], e["action"]) for e in run.events] == [(e["code"], e["action"]) for e in reference.events]
+    worst = max((abs(a["time_s"] - b["time_s"]) for a, b in zip(run.events, reference.events)), default=0.0)
+    return {"same_events": same, "worst_event_time_difference_s": worst,
+            "final_distance_difference_ft": abs(run.final["distance"] - reference.final["distance"])}
+
+
+def main() -> int:
+    arguments = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    arguments.add_argument("--repeat", type=int, default=3)
+    arguments.add_argument("--json")
+    args = arguments.parse_args()
+    scenario = load_scenario(SCENARIO_DIRECTORY / "demo.sdl")
+    table = load_vehicle_table(default_vehicle_table_path())
+    report = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for dynamics in ("simple", "advanced"):
+            fmu = build_fmu(dynamics, Path(folder))
+            runs, cpu = [], []
+            for _ in range(args.repeat):
+                began = time.process_time()
+                runs.append(run_scenario(scenario, fmu, options(dynamics), table))
+                cpu.append(time.process_time() - began)
+            best = min(runs, key=lambda r: r.timing["wall_s"])
+            coarse = run_scenario(scenario, fmu, options(dynamics, parameters={"solver_step": 0.01}), table)
+            reference = run_scenario(scenario, fmu, options(dynamics, step=0.01), table)
+            report[dynamics] = {"simulated_s": best.final["time_s"], "wall_s": best.timing["wall_s"],
+                                "real_time_factor": best.timing["real_time_factor"], "steps": best.timing["steps"],
+                                "reference_wall_s": reference.timing["wall_s"],
+                                "reference_steps": reference.timing["steps"], "cpu_s": min(cpu),
+                                "cpu_real_time_factor": best.final["time_s"] / min(cpu), **compare(best, reference),
+                                "solver_step_10ms": {"wall_s": coarse.timing["wall_s"],
+                                                     "real_time_factor": coarse.timing["real_time_factor"],
+                                                     **compare(coarse, reference)}}
+            r = report[dynamics]
+            print(f"{dynamics:8}: {r['simulated_s']:.1f} s simulated in {r['wall_s']:.3f} s wall = "
+                  f"{r['real_time_factor']:.0f}x real time ({r['steps']} steps; CPU {r['cpu_s']:.3f} s = "
+                  f"{r['cpu_real_time_factor']:.0f}x); 10 ms reference "
+                  f"{r['reference_wall_s']:.3f} s ({r['reference_steps']} steps); same events "
+                  f"{r['same_events']}, worst event time difference {r['worst_event_time_difference_s']:.2e} s, "
+                  f"final distance difference {r['final_distance_difference_ft']:.2e} ft")
+            c = r["solver_step_10ms"]
+            print(f"          with --param solver_step=0.01: {c['real_time_factor']:.0f}x real time; same events "
+                  f"{c['same_events']}, worst event time difference {c['worst_event_time_difference_s']:.2e} s, "
+                  f"final distance difference {c['final_distance_difference_ft']:.2e} ft")
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

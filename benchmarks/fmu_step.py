@@ -1,0 +1,147 @@
+"""Per-step cost of one ego FMU through fmpy: set the inputs, fmi2DoStep / integrate 10 ms, get the outputs.
+CPU time of this process (robust on a shared machine). Side by side in one process:
+  - the native Simple and Advanced FMUs (sdl-fmu build), FMI 2.0 co-simulation, RODAS4 at 1 ms inside;
+  - the same Simple dynamics packaged with PythonFMU (benchmarks/simple_pythonfmu.py, RK4 at 1 ms);
+  - the same Simple dynamics exported by CasADi's own DaeBuilder.export_fmu (FMI 3.0 model exchange),
+    simulated by fmpy.simulate_fmu (its default CVode solver; its Euler solver cannot run this FMU, see
+    BENCHMARKS.md), cost per 10 ms output interval.
+
+    python benchmarks/fmu_step.py [--steps N] [--json OUT]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import fmpy
+from fmpy.fmi2 import FMU2Slave
+
+HERE = Path(__file__).resolve().parent
+STEP = 0.01  # s, the communication step measured
+
+
+def native_fmus(out: Path) -> dict[str, Path]:
+    from sdl_fmu.fmu.package import build_fmu
+
+    return {name: build_fmu(name, out) for name in ("simple", "advanced")}
+
+
+def pythonfmu_fmu(out: Path) -> Path:
+    subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(HERE / "simple_pythonfmu.py"), "-d",
+                    str(out)], check=True, capture_output=True)
+    return out / "SimplePythonFmu.fmu"
+
+
+def casadi_fmu(out: Path) -> Path:
+    """The Simple dynamics' equations (the same CasADi expressions sdl-fmu compiles) through
+    DaeBuilder.export_fmu / compile_fmu / pack_fmu. No stop event: the benchmark drives, it never stops."""
+    import casadi as ca
+
+    from sdl_fmu.dynamics.simple import WHEELS, friction_limited_accelerations
+    from sdl_fmu.units import STANDARD_GRAVITY as g
+
+    dae = ca.DaeBuilder("SimpleCasadi")
+    s = {}
+    for name in ("throttle", "brake", "steer", *[f"mu_{w}" for w in WHEELS]):
+        s[name] = dae.add(name, "input", {"start": 0.8 if name.startswith("mu") else 0.0})
+    for name, value in {"mass": 1500.0, "brake_decel_max": 9.81, "drive_accel_max": 4.0, "drive_power_max": 1.1e5,
+                        "drag_area": 0.7, "air_density": 1.225, "rolling_resistance": 0.012,
+                        "wheelbase": 2.7}.items():
+        s[name] = dae.add(name, "parameter", "tunable", {"start": value})
+    x, y, psi = dae.add("x", {"start": 0.0}), dae.add("y", {"start": -1.8288}), dae.add("psi", {"start": 0.0})
+    distance, v = dae.add("s", {"start": 0.0}), dae.add("v", {"start": 26.8224})
+    tire, scale = friction_limited_accelerations(s, v)
+    drag = s["air_density"] * s["drag_area"] / (2 * s["mass"])
+    net = tire - s["rolling_resistance"] * g - drag * v**2
+    yaw = v * ca.tan(s["steer"]) / s["wheelbase"] * scale
+    for state, rhs in ((x, v * ca.cos(psi)), (y, v * ca.sin(psi)), (psi, yaw), (distance, v), (v, net)):
+        dae.eq(dae.der(state), rhs)
+    here = Path.cwd()
+    try:
+        import os
+
+        os.chdir(out)  # export_fmu / compile_fmu write into the current directory
+        files = dae.export_fmu({"no_warning": True})
+        files = dae.compile_fmu(files, {"include_dirs": [str(Path(fmpy.__file__).parent / "c-code")]})
+        return out / dae.pack_fmu(files, {})
+    finally:
+        os.chdir(here)
+
+
+def cost_cosimulation(path: Path, steps: int, start: dict[str, float] | None = None) -> float:
+    """Microseconds per set inputs + doStep(10 ms) + get outputs, through fmpy's public FMU2Slave calls."""
+    description = fmpy.read_model_description(str(path))
+    variables = {v.name: v for v in description.modelVariables}
+    unzipped = fmpy.extract(str(path))
+    slave = FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
+                      modelIdentifier=description.coSimulation.modelIdentifier, instanceName="bench")
+    try:
+        slave.instantiate()
+        slave.setupExperiment(startTime=0.0)
+        for name, value in (start or {}).items():
+            if variables[name].type == "Real":
+                slave.setReal([variables[name].valueReference], [value])
+        slave.enterInitializationMode()
+        slave.exitInitializationMode()
+        inputs = [variables[n].valueReference for n in ("throttle", "brake", "steer")]
+        outputs = [variables[n].valueReference for n in ("x", "y", "psi", "s", "v")]
+        t = 0.0
+        began = time.process_time()
+        for k in range(steps):
+            slave.setReal(inputs, [0.3, 0.0, 0.001 * (k % 2)])
+            slave.doStep(currentCommunicationPoint=t, communicationStepSize=STEP)
+            slave.getReal(outputs)
+            t += STEP
+        return (time.process_time() - began) / steps * 1e6
+    finally:
+        slave.terminate()
+        slave.freeInstance()
+        shutil.rmtree(unzipped, ignore_errors=True)
+
+
+def cost_model_exchange(path: Path, steps: int) -> float:
+    """Microseconds per 10 ms output interval of fmpy.simulate_fmu (CVode) on a model-exchange FMU."""
+    began = time.process_time()
+    fmpy.simulate_fmu(str(path), stop_time=steps * STEP, output_interval=STEP, start_values={"throttle": 0.3},
+                      output=["x", "y", "psi", "s", "v"])
+    return (time.process_time() - began) / steps * 1e6
+
+
+def main() -> int:
+    arguments = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    arguments.add_argument("--steps", type=int, default=2000)
+    arguments.add_argument("--json")
+    args = arguments.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder)
+        fmus = native_fmus(out)
+        from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
+
+        tires, _, _ = slot_parameters(default_attribute_file())
+        results = {
+            "native simple (fmpy, FMI 2 CS)": cost_cosimulation(fmus["simple"], args.steps, {"v0": 26.8224}),
+            "native advanced (fmpy, FMI 2 CS)": cost_cosimulation(fmus["advanced"], args.steps // 4,
+                                                                  {"v0": 26.8224, **tires}),
+            "PythonFMU simple (fmpy, FMI 2 CS)": cost_cosimulation(pythonfmu_fmu(out), args.steps // 4),
+        }
+        try:
+            results["CasADi export simple (fmpy CVode, FMI 3 ME)"] = cost_model_exchange(casadi_fmu(out), args.steps)
+        except Exception as error:  # reported, not hidden: the note says why
+            results["CasADi export simple (fmpy CVode, FMI 3 ME)"] = f"failed: {error}"
+    width = max(map(len, results))
+    for name, cost in results.items():
+        print(f"{name:<{width}}  " + (f"{cost:9.1f} us CPU per 10 ms step" if isinstance(cost, float) else cost))
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,210 @@
+"""When can a trigger first become true? Lower bounds on that instant from the ego's and the traffic's
+kinematics, so that the master steps long where nothing can happen and never past a trigger unchecked.
+
+Every bound rests on two constants of the ego, derived once from its FMU parameters (`ego_bounds`):
+the magnitude A of its centre of gravity's acceleration (tire forces cannot exceed mu_max g per unit mass,
+plus rolling resistance and drag, with a margin) and its yaw rate r_max. Over a time tau from now a point
+of the ego at arm l from the CG moves, along any road axis, at most
+    |rate now| tau + A tau^2 / 2 + l r_max tau,
+and a traffic vehicle moves by its closed-form motion (speed ramps, lateral moves at a constant rate
+during a transition). The instant a gap, speed or time margin could close is then the positive root of a
+quadratic (`reach_time`). The bounds are valid whatever the ego's inputs do, so a per-vehicle bound
+stays valid until that vehicle's own motion changes (an action fires), and the master caches it.
+
+Traffic conditions here are the vectorised forms of `closure_reached`, `footprints_overlap` and
+`TrafficVehicle.may_leave`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..units import STANDARD_GRAVITY
+from .ego import EgoState
+from .traffic import Traffic
+
+ACCELERATION_MARGIN = 1.25  # x the physical bound, + ACCELERATION_SLACK: model transients, round-off
+ACCELERATION_SLACK = 0.5  # m/s2
+YAW_RATE_MARGIN = 2.0
+ADVANCED_MU_MAX = 1.5  # peak friction bound for an Advanced FMU whose tire slots are not parameters
+REFERENCE_SPEED = 60.0  # m/s, drag is bounded at max(this, 2 x the start speed)
+
+
+@dataclass(frozen=True)
+class EgoBounds:
+    acceleration: float  # m/s2, |a| of the CG
+    yaw_rate: float  # rad/s
+    length: float  # m, footprint
+    width: float
+    radius: float  # m, CG to a footprint corner
+    wheel_arm: float  # m, CG to the farthest contact point
+
+
+def ego_bounds(parameters: dict[str, float], mu_max: float, start_speed: float, wheel_arm: float,
+               max_steer: float) -> EgoBounds:
+    """A from the friction limit (the Simple FMU clamps each wheel to mu g; the Advanced FMU's tire forces
+    saturate at its peak friction), the drive and brake limits, rolling resistance and drag; r_max from the
+    lateral friction limit with the driver's steer limit (steady turning: r <= min(v tan(d)/L, mu g / v),
+    whose maximum over v is sqrt(mu g tan(d) / L))."""
+    g = STANDARD_GRAVITY
+    mass = parameters["mass"]
+    drag = parameters.get("air_density", 1.225) * parameters.get("drag_area", 0.0) / (2 * mass)
+    speed = max(REFERENCE_SPEED, 2 * start_speed)
+    tire = max(mu_max * g, parameters.get("brake_decel_max", 0.0), parameters.get("drive_accel_max", 0.0))
+    resist = parameters.get("rolling_resistance", 0.0) * g + drag * speed**2
+    acceleration = ACCELERATION_MARGIN * (math.sqrt(2) * tire + resist) + ACCELERATION_SLACK
+    wheelbase = parameters.get("wheelbase") or parameters["cg_to_front_axle"] + parameters["cg_to_rear_axle"]
+    yaw_rate = YAW_RATE_MARGIN * math.sqrt(mu_max * g * math.tan(max_steer) / wheelbase)
+    length, width = parameters["length"], parameters["width"]
+    return EgoBounds(acceleration, yaw_rate, length, width, math.hypot(length / 2, width / 2), wheel_arm)
+
+
+def reach_time(distance, rate, acceleration):
+    """Smallest tau >= 0 with rate tau + acceleration tau^2 / 2 >= distance: the earliest instant a margin
+    `distance` can be used up when it shrinks now at `rate` (signed, + shrinking) and that rate grows at
+    most by `acceleration`. Zero for a margin already used up. Scalars or arrays."""
+    distance = np.maximum(distance, 0.0)
+    root = np.sqrt(rate * rate + 2 * acceleration * distance)
+    # two forms of the same root, each free of cancellation on its side of rate = 0
+    return np.where(rate > 0, 2 * distance / np.maximum(rate + root, 1e-300), (root - rate) / acceleration)
+
+
+def reach_time_scalar(distance: float, rate: float, acceleration: float) -> float:
+    """`reach_time` for plain floats (the per-step path: no array overhead)."""
+    if distance <= 0.0:
+        return 0.0
+    root = math.sqrt(rate * rate + 2 * acceleration * distance)
+    return 2 * distance / (rate + root) if rate > 0 else (root - rate) / acceleration
+
+
+@dataclass(frozen=True)
+class EgoKinematics:
+    """The ego in the road frame at one instant: station X, lateral Y (+ right) and their rates."""
+
+    time: float
+    station: float
+    lateral: float
+    station_rate: float
+    lateral_rate: float
+    psi: float
+
+    @staticmethod
+    def of(state: EgoState) -> EgoKinematics:
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        return EgoKinematics(state.time, state.x, -state.y, state.vx * c - state.vy * s,
+                             -(state.vx * s + state.vy * c), state.psi)
+
+
+def _penetrations(ego: EgoKinematics, bounds: EgoBounds, d_station, d_lateral, length, width):
+    """Overlap depth of the two footprints along the four separating axes (all > 0: they overlap).
+    d_* = vehicle - ego; the ego's footprint is turned by psi, the vehicle's is aligned with the road."""
+    c, s = abs(math.cos(ego.psi)), abs(math.sin(ego.psi))
+    cos_psi, sin_psi = math.cos(ego.psi), math.sin(ego.psi)
+    half_l, half_w = bounds.length / 2, bounds.width / 2
+    # ISO frame of the ego: y = -lateral
+    dx, dy = d_station, -d_lateral
+    along_x = half_l * c + half_w * s + length / 2 - np.abs(dx)
+    along_y = half_l * s + half_w * c + width / 2 - np.abs(dy)
+    along_u = half_l + length / 2 * c + width / 2 * s - np.abs(dx * cos_psi + dy * sin_psi)
+    along_v = half_w + length / 2 * s + width / 2 * c - np.abs(-dx * sin_psi + dy * cos_psi)
+    return along_x, along_y, np.minimum(np.minimum(along_x, along_y), np.minimum(along_u, along_v))
+
+
+def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bounds: EgoBounds):
+    """(action due, footprints overlap, wholly behind and moving away with no action that could still fire)
+    for vehicles idx at the ego's instant; a vehicle may leave when the last holds and it is not in contact."""
+    station, lateral, speed, _, _ = traffic.motion(idx, ego.time)
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    seconds, where = traffic.trigger_seconds[idx], traffic.where[idx]
+    closing = -gap_rate * np.sign(gap)
+    allowed = (gap != 0) & ~((where == 1) & (gap < 0)) & ~((where == 2) & (gap > 0))
+    due = allowed & (((seconds > 0) & (closing > 0) & (np.abs(gap) <= seconds * closing))
+                     | ((seconds < 0) & (closing < 0) & (np.abs(gap) >= seconds * closing)))
+    length, width = traffic.length[idx], traffic.width[idx]
+    overlap = _penetrations(ego, bounds, gap, lateral - ego.lateral, length, width)[2] > 0
+    leave_allowed = np.isnan(seconds) | (seconds > 0) | (where == 1)
+    away = leave_allowed & (gap < -(bounds.length + length) / 2) & (gap_rate < 0)
+    return due, overlap, away
+
+
+def vehicle_triggered(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> bool:
+    """`vehicle_conditions` for one vehicle in plain floats (the bisection probes' path): whether its
+    action is due, its contact state changes or it may leave."""
+    station, lateral, speed = traffic.at_scalar(i, ego.time)
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    seconds, where = traffic.trigger_seconds[i], traffic.where[i]
+    if seconds == seconds and gap != 0 and not (where == 1 and gap < 0) and not (where == 2 and gap > 0):
+        closing = -gap_rate if gap > 0 else gap_rate
+        if seconds > 0 and closing > 0 and abs(gap) <= seconds * closing:
+            return True
+        if seconds < 0 and closing < 0 and abs(gap) >= seconds * closing:
+            return True
+    length, width = traffic.length[i], traffic.width[i]
+    c, s = math.cos(ego.psi), math.sin(ego.psi)
+    ac, as_ = abs(c), abs(s)
+    half_l, half_w = bounds.length / 2, bounds.width / 2
+    dx, dy = gap, -(lateral - ego.lateral)
+    overlap = (half_l * ac + half_w * as_ + length / 2 - abs(dx) > 0
+               and half_l * as_ + half_w * ac + width / 2 - abs(dy) > 0
+               and half_l + length / 2 * ac + width / 2 * as_ - abs(dx * c + dy * s) > 0
+               and half_w + length / 2 * as_ + width / 2 * ac - abs(-dx * s + dy * c) > 0)
+    in_contact = bool(traffic.in_contact[i])
+    if overlap != in_contact:
+        return True
+    leave_allowed = seconds != seconds or seconds > 0 or where == 1
+    return leave_allowed and not in_contact and gap < -(bounds.length + length) / 2 and gap_rate < 0
+
+
+def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bounds: EgoBounds) -> np.ndarray:
+    """Lower bounds (s from the ego's instant) on when each vehicle's action, contact change or departure
+    can first become true."""
+    station, lateral, speed, lateral_rate, speed_rate = traffic.motion(idx, ego.time)
+    a = bounds.acceleration
+    relative_acceleration = a + speed_rate  # bound on |d2 gap / dt2|
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    sign = np.where(gap >= 0, 1.0, -1.0)
+    closing = -gap_rate * sign  # rate at which |gap| shrinks
+    seconds, where = traffic.trigger_seconds[idx], traffic.where[idx]
+    inf = np.full(len(idx), np.inf)
+
+    # closure-time actions (see closure_reached)
+    pass_time = reach_time(np.abs(gap), closing, relative_acceleration)  # earliest instant gap = 0
+    blocked = ((where == 1) & (gap <= 0)) | ((where == 2) & (gap >= 0))
+    closing_margin = np.abs(gap) - seconds * closing  # <= 0: a positive T is due
+    positive = reach_time(closing_margin, closing + seconds * relative_acceleration, relative_acceleration)
+    separating = -closing
+    separating_margin = -seconds * separating - np.abs(gap)  # <= 0 with separating > 0: a negative T is due
+    negative = np.where(
+        separating <= 0,
+        np.minimum(-separating / relative_acceleration, pass_time),
+        reach_time(separating_margin, separating - seconds * relative_acceleration, relative_acceleration))
+    action = np.where(np.isnan(seconds), inf,
+                      np.where(blocked, pass_time, np.where(seconds > 0, positive, negative)))
+
+    # footprint contact: starts once both road-axis separations have closed; ends once any penetration has
+    length, width = traffic.length[idx], traffic.width[idx]
+    d_lateral = lateral - ego.lateral
+    along_x, along_y, depth = _penetrations(ego, bounds, gap, d_lateral, length, width)
+    turn = bounds.radius * bounds.yaw_rate
+    lateral_closing = np.sign(d_lateral) * ego.lateral_rate
+    start = np.maximum(reach_time(-along_x, closing + turn, relative_acceleration),
+                       reach_time(-along_y, lateral_closing + np.abs(lateral_rate) + turn, a))
+    vehicle_radius = np.hypot(length / 2, width / 2)
+    relative_speed = np.abs(gap_rate) + np.abs(ego.lateral_rate) + np.abs(lateral_rate)
+    end = reach_time(depth, relative_speed + 2 * (bounds.radius + vehicle_radius) * bounds.yaw_rate,
+                     relative_acceleration)
+    in_contact = traffic.in_contact[idx]
+    contact = np.where(in_contact, end, start)
+
+    # departure: wholly behind the ego and moving away (may_leave)
+    leave_allowed = (np.isnan(seconds) | (seconds > 0) | (where == 1)) & ~in_contact
+    behind = reach_time(gap + (bounds.length + length) / 2, -gap_rate, relative_acceleration)
+    away = np.where(gap_rate >= 0, gap_rate / relative_acceleration, 0.0)
+    leave = np.where(leave_allowed, np.maximum(behind, away), inf)
+    return np.minimum(np.minimum(action, contact), leave)

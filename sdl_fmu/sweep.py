@@ -1,0 +1,405 @@
+"""Sweeps: many runs of one scenario over varied values, on Dask `distributed`, into one table.
+
+    sdl-fmu sweep SCENARIO --vary NAME=VALUES ... [--workers N | --scheduler ADDRESS] [--out DIR]
+
+NAME is `speed` (scenario units), `seed`, `until_distance` (scenario units), `until_time` (s), an FMU
+parameter (SI, e.g. `brake_decel_max`, or `param.NAME`), or an RSA value `rsa.LINE` (every lane of the
+RSA event on that line of the scenario) / `rsa.LINE.LANE` (one lane). VALUES is a list `a,b,c`, a range
+`start:stop:step` (stop included), or random samples `uniform(lo,hi,n)` / `integers(lo,hi,n)` drawn from
+`--sample-seed`. The runs are every combination of the varied values. Each run goes through sdl_fmu.api.
+
+The table (DIR/sweep.parquet and DIR/sweep.csv, one row per run) holds the varied values, the status
+(ok, failed, timeout) and error, collisions, per BRK event its on/off times, reason and the distance
+travelled while it held (a stop distance when it ended with the stop), the minimum longitudinal gap to
+each traffic vehicle, the final state, the wall time and real-time factor. Every finished row is appended
+to DIR/sweep-rows.jsonl at once, so an interrupted sweep resumes from it: rows already there are not run
+again. A run that fails is a row with its error; one that exceeds `--timeout` is stopped by its own
+deadline, and the sweep stops waiting for it after twice that, so the sweep never hangs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import os
+import random
+import re
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
+    "sweep.parquet", "sweep.csv", "sweep-rows.jsonl", "sweep.json", "sweep.png")
+OWN_FILES = {TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME}
+RUN_OPTIONS = {"speed", "seed", "until_distance", "until_time"}
+DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
+GRACE = 2.0  # x timeout without any run coming back: the runs still processing are given up
+
+
+class SweepError(ValueError):
+    """A mistake in the sweep's arguments or output folder (one line)."""
+
+
+# ---- what varies ----------------------------------------------------------------------------------
+
+def parse_values(name: str, text: str, rng: random.Random) -> list:
+    """`a,b,c`, `start:stop:step` (stop included) or `uniform(lo,hi,n)` / `integers(lo,hi,n)`."""
+    text = text.strip()
+    sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
+    try:
+        if sample:
+            kind, low, high, count = sample.group(1), float(sample.group(2)), float(sample.group(3)), \
+                int(sample.group(4))
+            if count < 1 or high < low:
+                raise ValueError
+            if kind == "integers":
+                return [rng.randint(int(low), int(high)) for _ in range(count)]
+            return [rng.uniform(low, high) for _ in range(count)]
+        if ":" in text:
+            start, stop, step = (float(part) for part in text.split(":"))
+            if step <= 0 or stop < start:
+                raise ValueError
+            count = int(math.floor((stop - start) / step + 1e-9)) + 1
+            values = [start + k * step for k in range(count)]
+        else:
+            values = [float(part) for part in text.split(",")]
+    except ValueError:
+        raise SweepError(f"--vary {name}={text}: expected a,b,c or start:stop:step (step > 0, stop >= start) "
+                         "or uniform(lo,hi,n) / integers(lo,hi,n)") from None
+    if name == "seed" or not values:
+        if any(v != int(v) for v in values) or not values:
+            raise SweepError(f"--vary {name}={text}: seeds are whole numbers")
+        return [int(v) for v in values]
+    return values
+
+
+def parse_vary(assignments: list[str], sample_seed: int = 0) -> dict[str, list]:
+    rng = random.Random(sample_seed)
+    varied: dict[str, list] = {}
+    for assignment in assignments:
+        name, separator, text = assignment.partition("=")
+        name = name.strip()
+        if not separator or not name or not text.strip():
+            raise SweepError(f"--vary {assignment!r}: expected NAME=VALUES")
+        if name in varied:
+            raise SweepError(f"--vary {name} is given twice")
+        varied[name] = parse_values(name, text, rng)
+    if not varied:
+        raise SweepError("give at least one --vary NAME=VALUES")
+    return varied
+
+
+def combinations(varied: dict[str, list]) -> list[dict]:
+    names = list(varied)
+    return [dict(zip(names, values)) for values in itertools.product(*(varied[n] for n in names))]
+
+
+def _with_rsa(scenario, name: str, value: float):
+    """The scenario with the RSA event on line LINE (every lane, or lane LANE) set to `value`."""
+    from .sdl import SurfaceAttribute
+
+    parts = name.split(".")
+    try:
+        line = int(parts[1])
+        lane = int(parts[2]) if len(parts) == 3 else None
+        if len(parts) > 3:
+            raise ValueError
+    except (IndexError, ValueError):
+        raise SweepError(f"--vary {name}: expected rsa.LINE or rsa.LINE.LANE") from None
+    events, found = [], False
+    for event in scenario.events:
+        if isinstance(event, SurfaceAttribute) and event.line == line:
+            settings = tuple((l, value if lane is None or l == lane else v) for l, v in event.settings)
+            if lane is not None and all(l != lane for l, _ in event.settings):
+                raise SweepError(f"--vary {name}: the RSA event on line {line} does not set lane {lane}")
+            event, found = dataclasses.replace(event, settings=settings), True
+        events.append(event)
+    if not found:
+        raise SweepError(f"--vary {name}: line {line} of {scenario.path} is not an RSA event")
+    return dataclasses.replace(scenario, events=tuple(events))
+
+
+# ---- one run (on a worker) ------------------------------------------------------------------------
+
+def run_one(scenario_path: str, values: dict, fixed: dict, timeout: float) -> dict:
+    """One run through sdl_fmu.api; always returns a row, with the error if it failed."""
+    from . import api
+
+    began = time.perf_counter()
+    row = {"status": "ok", "error": None}
+    try:
+        scenario = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))
+        options = {key: value for key, value in fixed.items() if key != "skip_unsupported"}
+        params = dict(options.pop("params", {}))
+        for name, value in values.items():
+            if name.startswith("rsa."):
+                scenario = _with_rsa(scenario, name, value)
+            elif name in RUN_OPTIONS:
+                options[name] = value
+            else:
+                params[name.removeprefix("param.")] = value
+        result = api.run(scenario, params=params, timeout=timeout, **options)
+        row.update(_summarise(result))
+    except api.RunTimeout as error:
+        row.update(status="timeout", error=str(error))
+    except (api.InputError, api.ScenarioError, SweepError) as error:
+        row.update(status="failed", error=str(error).strip().splitlines()[0])
+    except Exception as error:  # a bug or an unexpected failure: still a row, never a lost run
+        row.update(status="failed", error=f"{type(error).__name__}: {error}",
+                   traceback=traceback.format_exc(limit=5))
+    row["run_wall_s"] = time.perf_counter() - began
+    return row
+
+
+def _summarise(result) -> dict:
+    raw = result.raw
+    final = result.final
+    row = {"collisions": int(result.collisions), "final_time_s": final["time_s"], "final_distance": final["distance"],
+           "final_speed": final["speed"], "final_lateral": final["lateral"],
+           "sim_wall_s": raw.timing.get("wall_s"), "real_time_factor": raw.timing.get("real_time_factor"),
+           "warnings": len(result.warnings)}
+    on = None
+    count = 0
+    for event in result.events:
+        if event["code"] != "BRK":
+            continue
+        if event["action"] == "on":
+            on, count = event, count + 1
+            row[f"brk{count}_on_time_s"] = event["time_s"]
+        elif event["action"] == "off" and on is not None:
+            row[f"brk{count}_off_time_s"] = event["time_s"]
+            row[f"brk{count}_reason"] = event.get("reason")
+            row[f"brk{count}_distance"] = event["distance"] - on["distance"]
+            if event.get("reason") == "stopped":
+                row[f"brk{count}_stop_distance"] = event["distance"] - on["distance"]
+    from .units import from_si
+
+    station = np.asarray(raw.columns["station"], dtype=float)
+    for track in raw.vehicles:
+        own = np.asarray(track.station, dtype=float)
+        gap = np.abs(own - station[track.first:track.first + len(own)])
+        row[f"A{track.vehicle}_min_gap"] = float(from_si(np.nanmin(gap), raw.units)) if len(gap) else None
+    return row
+
+
+# ---- the table ------------------------------------------------------------------------------------
+
+def _key(values: dict) -> str:
+    return json.dumps({name: values[name] for name in sorted(values)}, sort_keys=True)
+
+
+def _check_folder(out: Path, spec: dict) -> list[dict]:
+    """The rows of an earlier, interrupted run of the same sweep in `out` (resume), or [] for a new folder.
+    A folder holding anything sdl-fmu's sweep did not write, or another sweep's table, is refused."""
+    if out.exists() and not out.is_dir():
+        raise SweepError(f"--out {out}: exists and is not a folder")
+    if not out.exists():
+        return []
+    foreign = sorted(entry.name for entry in out.iterdir() if entry.name not in OWN_FILES)
+    if foreign:
+        raise SweepError(f"--out {out}: holds files a sweep did not write ({', '.join(foreign[:3])}); "
+                         "choose a new or empty folder")
+    if not (out / SPEC_NAME).exists():
+        return []
+    earlier = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
+    if earlier != spec:
+        raise SweepError(f"--out {out}: holds a different sweep ({earlier.get('scenario')}, varying "
+                         f"{', '.join(earlier.get('vary', {}))}); choose another folder")
+    rows = []
+    if (out / JOURNAL_NAME).exists():
+        for line in (out / JOURNAL_NAME).read_text(encoding="utf-8").splitlines():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                pass  # a line cut short by the interruption: that run is simply run again
+    return rows
+
+
+def write_table(rows: list[dict], out: Path, varied: list[str]) -> None:
+    """sweep.parquet and sweep.csv (same columns: varied values first, then the outcome), and sweep.png."""
+    import pyarrow as pa
+    import pyarrow.csv as pa_csv
+    import pyarrow.parquet as pq
+
+    rows = sorted(rows, key=lambda r: r["run"])
+    first = ["run", *varied, "status", "error"]
+    rest = sorted({key for row in rows for key in row} - set(first) - {"key", "traceback"},
+                  key=_column_order)
+    columns = {name: [row.get(name) for row in rows] for name in [*first, *rest]}
+    table = pa.table({name: pa.array(values, from_pandas=True) for name, values in columns.items()})
+    pq.write_table(table, out / (TABLE_NAME + ".partial"))
+    pa_csv.write_csv(table, out / (CSV_NAME + ".partial"))
+    os.replace(out / (TABLE_NAME + ".partial"), out / TABLE_NAME)
+    os.replace(out / (CSV_NAME + ".partial"), out / CSV_NAME)
+    plot_sweep(rows, varied, out / PLOT_NAME)
+
+
+def _column_order(name: str):
+    match = re.match(r"(brk|A)(\d+)_(.*)", name)
+    if match:
+        return (1 if match.group(1) == "brk" else 2, int(match.group(2)), match.group(3))
+    return (0, 0, name)
+
+
+def plot_sweep(rows: list[dict], varied: list[str], path: Path) -> None:
+    """Outcome against the first varied value: collisions, the first BRK's distance and the smallest gap to
+    any vehicle, failed and timed-out runs marked at the bottom."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    name = varied[0]
+    figure = Figure(figsize=(12, 3.8), dpi=100, layout="constrained")
+    FigureCanvasAgg(figure)
+    panels = [("collisions", lambda r: r.get("collisions")),
+              ("first BRK: distance while on", lambda r: r.get("brk1_distance")),
+              ("smallest gap to a vehicle", lambda r: min((v for k, v in r.items() if k.endswith("_min_gap")
+                                                           and v is not None), default=None))]
+    colours = {"ok": "tab:blue", "failed": "tab:red", "timeout": "tab:orange"}
+    for k, (title, value) in enumerate(panels):
+        ax = figure.add_subplot(1, 3, k + 1)
+        for status, colour in colours.items():
+            points = [(r[name], value(r)) for r in rows if r.get("status") == status and isinstance(r.get(name),
+                                                                                                      (int, float))]
+            if status != "ok":
+                points = [(x, 0.0) for x, _ in points]
+            points = [(x, y) for x, y in points if y is not None]
+            if points:
+                xs, ys = zip(*points)
+                ax.scatter(xs, ys, s=18, color=colour, marker="o" if status == "ok" else "x",
+                           label=status if status != "ok" else None)
+        ax.set_xlabel(name)
+        ax.set_title(title, fontsize=10, loc="left")
+        ax.grid(True, alpha=0.3)
+        if k == 0 and any(r.get("status") != "ok" for r in rows):
+            ax.legend(fontsize=8)
+    figure.suptitle(f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok", fontsize=11)
+    figure.savefig(path)
+
+
+# ---- the sweep ------------------------------------------------------------------------------------
+
+def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, workers: int | None = None,
+          scheduler: str | None = None, client=None, timeout: float = DEFAULT_TIMEOUT, progress: bool | None = None,
+          **fixed) -> list[dict]:
+    """Runs every combination of `varied` (see the module docstring) on Dask and writes the table into `out`.
+    `client`: an existing distributed.Client (tests); else `scheduler` (an address) or a LocalCluster of
+    `workers` processes (default: one per core). `fixed`: keyword options of sdl_fmu.api.run for every run.
+    Returns the rows, in run order."""
+    from . import api
+
+    scenario_path = str(api.resolve_scenario(scenario))
+    api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))  # a bad file fails now
+    if not timeout > 0:
+        raise SweepError(f"--timeout {timeout}: must be > 0")
+    fixed = dict(fixed)
+    fixed["fmu"] = str(api.ego_fmu(fixed.get("dynamics", "simple"), fixed.get("fmu")))  # built once, here
+    out = Path(out).absolute()
+    spec = {"scenario": scenario_path, "vary": varied,
+            "fixed": json.loads(json.dumps(fixed, default=str))}
+    done = _check_folder(out, spec)
+    runs = combinations(varied)
+    finished = {row["key"]: row for row in done if "key" in row}
+    todo = [(index, values) for index, values in enumerate(runs) if _key(values) not in finished]
+    rows = list(finished.values())
+    owned = []
+    try:
+        if todo and client is None:  # connect before anything is written
+            client, owned = _client(workers, scheduler)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
+        if todo:
+            rows += _run_all(scenario_path, todo, fixed, timeout, out, client, progress)
+    finally:
+        for thing in owned:
+            thing.close()
+    write_table(rows, out, list(varied))
+    return sorted(rows, key=lambda r: r["run"])
+
+
+def _client(workers: int | None, scheduler: str | None):
+    """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes; and what to
+    close afterwards."""
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout=10)
+        except (OSError, ValueError, TypeError) as error:
+            raise SweepError(f"--scheduler {scheduler}: cannot connect: {str(error).splitlines()[0]}") from None
+        return client, [client]
+    try:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    except (OSError, RuntimeError) as error:
+        raise SweepError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
+    client = Client(cluster)
+    return client, [client, cluster]
+
+
+def _run_all(scenario_path, todo, fixed, timeout, out, client, progress) -> list[dict]:
+    """Submits the runs, journals each row as it arrives. Every run stops itself at `timeout`; if no run at
+    all comes back for GRACE x timeout (+ 10 s), the runs still processing are given up (cancelled and
+    recorded as timeouts), so a stuck worker never hangs the sweep."""
+    from tqdm import tqdm
+
+    rows = []
+    patience = GRACE * timeout + 10.0
+    bar = tqdm(total=len(todo), unit="run", disable=progress is False or (progress is None
+                                                                          and not _stderr_is_terminal()))
+    try:
+        futures = {client.submit(run_one, scenario_path, values, fixed, timeout, pure=False): (index, values)
+                   for index, values in todo}
+        pending = set(futures)
+        last_progress = time.monotonic()
+        with open(out / JOURNAL_NAME, "a", encoding="utf-8") as journal:
+            while pending:
+                finished = [future for future in pending if future.done()]
+                now = time.monotonic()
+                for future in finished:
+                    pending.discard(future)
+                    try:
+                        row = future.result()
+                    except Exception as error:  # the worker died or the task could not run
+                        row = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
+                    rows.append(_record(journal, row, *futures[future]))
+                    bar.update()
+                    last_progress = now
+                if finished or not pending:
+                    continue
+                if now - last_progress > patience:
+                    processing = {key for keys in client.processing().values() for key in keys}
+                    stuck = [future for future in pending if future.key in processing] or list(pending)
+                    for future in stuck:
+                        pending.discard(future)
+                        future.cancel()
+                        rows.append(_record(journal, {"status": "timeout", "error": f"no result within "
+                                                      f"{patience:.0f} s: given up"}, *futures[future]))
+                        bar.update()
+                    last_progress = now
+                time.sleep(0.05)
+    finally:
+        bar.close()
+    return rows
+
+
+def _record(journal, row: dict, index: int, values: dict) -> dict:
+    row = {"run": index, **values, **row, "key": _key(values)}
+    journal.write(json.dumps(row, default=_plain) + "\n")
+    journal.flush()
+    return row
+
+
+def _plain(value):
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    return str(value)
+
+
+def _stderr_is_terminal() -> bool:
+    import sys
+
+    return sys.stderr.isatty()

@@ -27,6 +27,9 @@ SCENARIOS = {
     "head_on": (lambda: load_scenario(SCENARIO_DIRECTORY / "head_on.sdl"), None),
     "seed_a": (lambda: load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl"), None),
     "short_patch": (lambda: parse_text(SHORT_PATCH, "short_patch.sdl"), None),
+    # BRK on split friction: the car yaws, the driver counter-steers and the wheels cross 5 ft lane edges
+    # onto other surfaces sideways (the surface triggers' lateral bounds under yaw)
+    "spin": (lambda: load_scenario(SCENARIO_DIRECTORY / "spin.sdl"), None),
 }
 
 
@@ -55,3 +58,19 @@ def test_same_events_and_collisions_at_any_step(simple_fmu, name):
         assert len(rsa_crossings) == 2
     # long steps are long: at --step 10 the run takes about one step per driver sample, not more
     assert runs[10.0].timing["steps"] < 1.2 * reference.final["time_s"] / 0.05 + 200
+
+
+def test_a_run_that_leaves_the_prediction_bounds_says_so(simple_fmu, monkeypatch):
+    """The trigger prediction assumes bounds on the ego's yaw rate and acceleration; a run whose ego exceeds
+    them (here: bounds shrunk below the spin scenario's 0.77 rad/s) carries one warning instead of silently
+    risking a late trigger."""
+    import dataclasses
+
+    from sdl_fmu.cosim import master
+
+    normal = run_scenario(load_scenario(SCENARIO_DIRECTORY / "spin.sdl"), simple_fmu, RunOptions(), TABLE)
+    assert normal.warnings == []
+    original = master.ego_bounds
+    monkeypatch.setattr(master, "ego_bounds", lambda *args: dataclasses.replace(original(*args), yaw_rate=0.1))
+    result = run_scenario(load_scenario(SCENARIO_DIRECTORY / "spin.sdl"), simple_fmu, RunOptions(), TABLE)
+    assert sum("exceeded the bounds the trigger prediction assumes" in w for w in result.warnings) == 1

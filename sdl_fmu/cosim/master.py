@@ -118,6 +118,7 @@ class Cosimulation:
         self.sent_inputs: tuple | None = None
         self.events: list[dict] = []
         self.warnings: list[str] = []
+        self.bounds_exceeded = False  # whether the ego ever left the bounds of the trigger prediction
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
         self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(self.wheel_inputs))
@@ -387,6 +388,15 @@ class Cosimulation:
 
     def record(self, state: EgoState) -> None:
         throttle, brake, steer = self.controls
+        if not self.bounds_exceeded and (abs(state.yaw_rate) > self.bounds.yaw_rate
+                                         or math.hypot(state.ax, state.ay) > self.bounds.acceleration):
+            # the trigger predictions rest on these bounds: say so rather than silently risk a late trigger
+            self.bounds_exceeded = True
+            self.warnings.append(
+                f"at t = {state.time:.3f} s the ego's yaw rate ({state.yaw_rate:.3g} rad/s) or acceleration "
+                f"({math.hypot(state.ax, state.ay):.3g} m/s2) exceeded the bounds the trigger prediction assumes "
+                f"({self.bounds.yaw_rate:.3g} rad/s, {self.bounds.acceleration:.3g} m/s2): later triggers may be "
+                "located late; rerun with a shorter --step")
         self.ego_rows.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
                               state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
                               throttle, brake, steer, float(self.brake_hold is not None), *self.wheel_values))

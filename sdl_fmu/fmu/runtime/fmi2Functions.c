@@ -259,39 +259,20 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *instance = checked(c, "fmi2GetFMUstate", ANY_MODE & ~MODE_ERROR);
-    Snapshot *snapshot;
-    if (!instance || !FMUstate) return fmi2Error;
-    snapshot = (Snapshot *)*FMUstate;
-    if (snapshot && !snapshot_handle_valid(instance, snapshot, "fmi2GetFMUstate")) return fmi2Error;
-    if (!snapshot) snapshot = snapshot_create(instance);
-    if (!snapshot) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2GetFMUstate: out of memory");
-        return fmi2Error;
-    }
-    snapshot_copy(instance, snapshot, &instance->now);
-    *FMUstate = snapshot;
-    return fmi2OK;
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_get_state(instance, FMUstate, "fmi2GetFMUstate");
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     Instance *instance = checked(c, "fmi2SetFMUstate", ANY_MODE);
     if (!instance) return fmi2Error;
-    if (!snapshot_handle_valid(instance, FMUstate, "fmi2SetFMUstate") ||
-        snapshot_check(instance, (const Snapshot *)FMUstate) != STATUS_OK)
-        return fmi2Error;
-    snapshot_copy(instance, &instance->now, (const Snapshot *)FMUstate);
-    instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
-    instance_invalidate(instance);
-    return fmi2OK;
+    return (fmi2Status)instance_set_state(instance, FMUstate, "fmi2SetFMUstate");
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     Instance *instance = checked(c, "fmi2FreeFMUstate", ANY_MODE);
-    if (!instance || !FMUstate) return fmi2Error;
-    if (*FMUstate && !snapshot_handle_valid(instance, *FMUstate, "fmi2FreeFMUstate")) return fmi2Error;
-    snapshot_free(instance, (Snapshot *)*FMUstate);
-    *FMUstate = NULL;
-    return fmi2OK;
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_free_state(instance, FMUstate, "fmi2FreeFMUstate");
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
@@ -305,29 +286,16 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
     Instance *instance = checked(c, "fmi2SerializeFMUstate", ANY_MODE);
-    if (!instance || !serializedState || !snapshot_handle_valid(instance, FMUstate, "fmi2SerializeFMUstate"))
-        return fmi2Error;
-    if (size < snapshot_serialized_size(instance)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2SerializeFMUstate: buffer too small");
-        return fmi2Error;
-    }
-    snapshot_serialize(instance, (const Snapshot *)FMUstate, serializedState);
-    return fmi2OK;
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_serialize_state(instance, FMUstate, serializedState, size, "fmi2SerializeFMUstate");
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
     Instance *instance = checked(c, "fmi2DeSerializeFMUstate", ANY_MODE);
-    Snapshot *snapshot;
-    if (!instance || !FMUstate) return fmi2Error;
-    snapshot = snapshot_create(instance);
-    if (!snapshot) return fmi2Error;
-    if (snapshot_deserialize(instance, serializedState, size, snapshot) != STATUS_OK) {
-        snapshot_free(instance, snapshot);
-        return fmi2Error;
-    }
-    *FMUstate = snapshot;
-    return fmi2OK;
+    if (!instance) return fmi2Error;
+    return (fmi2Status)instance_deserialize_state(instance, serializedState, size, FMUstate, 0,
+                                                  "fmi2DeSerializeFMUstate");
 }
 
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,

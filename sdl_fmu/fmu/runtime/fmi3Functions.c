@@ -438,39 +438,20 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance c, fmi3ValueReference depend
 
 fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
     Instance *instance = checked(c, "fmi3GetFMUState", ANY_MODE & ~MODE_ERROR);
-    Snapshot *snapshot;
-    if (!instance || !FMUState) return fmi3Error;
-    snapshot = (Snapshot *)*FMUState;
-    if (snapshot && !snapshot_handle_valid(instance, snapshot, "fmi3GetFMUState")) return fmi3Error;
-    if (!snapshot) snapshot = snapshot_create(instance);
-    if (!snapshot) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3GetFMUState: out of memory");
-        return fmi3Error;
-    }
-    snapshot_copy(instance, snapshot, &instance->now);
-    *FMUState = snapshot;
-    return fmi3OK;
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_get_state(instance, FMUState, "fmi3GetFMUState");
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState FMUState) {
     Instance *instance = checked(c, "fmi3SetFMUState", ANY_MODE);
     if (!instance) return fmi3Error;
-    if (!snapshot_handle_valid(instance, FMUState, "fmi3SetFMUState") ||
-        snapshot_check(instance, (const Snapshot *)FMUState) != STATUS_OK)
-        return fmi3Error;
-    snapshot_copy(instance, &instance->now, (const Snapshot *)FMUState);
-    instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
-    instance_invalidate(instance);
-    return fmi3OK;
+    return (fmi3Status)instance_set_state(instance, FMUState, "fmi3SetFMUState");
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
     Instance *instance = checked(c, "fmi3FreeFMUState", ANY_MODE);
-    if (!instance || !FMUState) return fmi3Error;
-    if (*FMUState && !snapshot_handle_valid(instance, *FMUState, "fmi3FreeFMUState")) return fmi3Error;
-    snapshot_free(instance, (Snapshot *)*FMUState);
-    *FMUState = NULL;
-    return fmi3OK;
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_free_state(instance, FMUState, "fmi3FreeFMUState");
 }
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, size_t *size) {
@@ -483,38 +464,17 @@ fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, siz
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size) {
     Instance *instance = checked(c, "fmi3SerializeFMUState", ANY_MODE);
-    if (!instance || !serializedState || !snapshot_handle_valid(instance, FMUState, "fmi3SerializeFMUState"))
-        return fmi3Error;
-    if (size < snapshot_serialized_size(instance)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3SerializeFMUState: buffer too small");
-        return fmi3Error;
-    }
-    snapshot_serialize(instance, (const Snapshot *)FMUState, (char *)serializedState);
-    return fmi3OK;
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_serialize_state(instance, FMUState, (char *)serializedState, size,
+                                                "fmi3SerializeFMUState");
 }
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedState[], size_t size,
                                    fmi3FMUState *FMUState) {
     Instance *instance = checked(c, "fmi3DeserializeFMUState", ANY_MODE);
-    Snapshot *snapshot;
-    if (!instance || !FMUState) return fmi3Error;
-    snapshot = snapshot_create(instance);
-    if (!snapshot) return fmi3Error;
-    if (snapshot_deserialize(instance, (const char *)serializedState, size, snapshot) != STATUS_OK) {
-        snapshot_free(instance, snapshot);
-        return fmi3Error;
-    }
-    if (*FMUState && !snapshot_handle_valid(instance, *FMUState, "fmi3DeserializeFMUState")) {
-        snapshot_free(instance, snapshot);
-        return fmi3Error;
-    }
-    if (*FMUState) { /* an existing state is overwritten */
-        snapshot_copy(instance, (Snapshot *)*FMUState, snapshot);
-        snapshot_free(instance, snapshot);
-    } else {
-        *FMUState = snapshot;
-    }
-    return fmi3OK;
+    if (!instance) return fmi3Error;
+    return (fmi3Status)instance_deserialize_state(instance, (const char *)serializedState, size, FMUState, 1,
+                                                  "fmi3DeserializeFMUState");
 }
 
 /* ---- partial derivatives ---------------------------------------------------------------------- */

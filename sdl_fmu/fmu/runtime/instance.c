@@ -592,3 +592,83 @@ Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, 
     get_doubles(cursor, snapshot->p, info->np);
     return snapshot_check(instance, snapshot);
 }
+
+/* ---- the FMU-state calls of both FMI versions ---------------------------------------------- */
+
+Status instance_get_state(Instance *instance, void **state, const char *function) {
+    Snapshot *snapshot;
+    if (!state) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: null state pointer", function);
+        return STATUS_ERROR;
+    }
+    snapshot = (Snapshot *)*state;
+    if (snapshot && !snapshot_handle_valid(instance, snapshot, function)) return STATUS_ERROR;
+    if (!snapshot) snapshot = snapshot_create(instance);
+    if (!snapshot) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: out of memory", function);
+        return STATUS_ERROR;
+    }
+    snapshot_copy(instance, snapshot, &instance->now);
+    *state = snapshot;
+    return STATUS_OK;
+}
+
+Status instance_set_state(Instance *instance, const void *state, const char *function) {
+    if (!snapshot_handle_valid(instance, state, function) || snapshot_check(instance, (const Snapshot *)state) != STATUS_OK)
+        return STATUS_ERROR;
+    snapshot_copy(instance, &instance->now, (const Snapshot *)state);
+    instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
+    instance_invalidate(instance);
+    return STATUS_OK;
+}
+
+Status instance_free_state(Instance *instance, void **state, const char *function) {
+    if (!state) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: null state pointer", function);
+        return STATUS_ERROR;
+    }
+    if (*state && !snapshot_handle_valid(instance, *state, function)) return STATUS_ERROR;
+    snapshot_free(instance, (Snapshot *)*state);
+    *state = NULL;
+    return STATUS_OK;
+}
+
+Status instance_serialize_state(Instance *instance, const void *state, char *bytes, size_t size, const char *function) {
+    if (!bytes) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: null buffer", function);
+        return STATUS_ERROR;
+    }
+    if (!snapshot_handle_valid(instance, state, function)) return STATUS_ERROR;
+    if (size < snapshot_serialized_size(instance)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: buffer too small", function);
+        return STATUS_ERROR;
+    }
+    snapshot_serialize(instance, (const Snapshot *)state, bytes);
+    return STATUS_OK;
+}
+
+Status instance_deserialize_state(Instance *instance, const char *bytes, size_t size, void **state, int reuse_existing,
+                                  const char *function) {
+    Snapshot *snapshot;
+    if (!state) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: null state pointer", function);
+        return STATUS_ERROR;
+    }
+    if (reuse_existing && *state && !snapshot_handle_valid(instance, *state, function)) return STATUS_ERROR;
+    snapshot = snapshot_create(instance);
+    if (!snapshot) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: out of memory", function);
+        return STATUS_ERROR;
+    }
+    if (snapshot_deserialize(instance, bytes, size, snapshot) != STATUS_OK) {
+        snapshot_free(instance, snapshot);
+        return STATUS_ERROR;
+    }
+    if (reuse_existing && *state) { /* an existing state is overwritten */
+        snapshot_copy(instance, (Snapshot *)*state, snapshot);
+        snapshot_free(instance, snapshot);
+    } else {
+        *state = snapshot;
+    }
+    return STATUS_OK;
+}

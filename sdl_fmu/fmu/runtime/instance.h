@@ -113,4 +113,14 @@ int snapshot_handle_valid(Instance *instance, const void *state, const char *fun
 Status snapshot_check(Instance *instance, const Snapshot *snapshot);
 Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, Snapshot *snapshot);
 
+/* The FMU-state calls of FMI 2.0 and 3.0 (fmi2GetFMUstate ... fmi3DeserializeFMUState) over the snapshots;
+ * `function` names the caller in log messages. Deserializing into an existing state overwrites it when
+ * `reuse_existing` (FMI 3.0), else always creates a new one (FMI 2.0: the handle is an output only). */
+Status instance_get_state(Instance *instance, void **state, const char *function);
+Status instance_set_state(Instance *instance, const void *state, const char *function);
+Status instance_free_state(Instance *instance, void **state, const char *function);
+Status instance_serialize_state(Instance *instance, const void *state, char *bytes, size_t size, const char *function);
+Status instance_deserialize_state(Instance *instance, const char *bytes, size_t size, void **state, int reuse_existing,
+                                  const char *function);
+
 #endif

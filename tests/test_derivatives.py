@@ -139,17 +139,20 @@ class Probe:
         self.fmu.freeInstance()
 
 
-def finite_differences(evaluate, set_known, point, steps, exact):
-    """Central differences with steps h and 2h per known, and the tolerance they justify themselves.
+def finite_differences(evaluate, set_known, point, steps, exact, columns=None):
+    """Central differences with steps h and 2h per known (of `columns`, default all), and the tolerance they
+    justify themselves.
 
     D(h) = J + c h^2 + O(h^4) + noise/h, so D(2h) - D(h) = 3 c h^2 (+ noise): 4 |D(2h) - D(h)| bounds the
     truncation error of D(h) with room to spare. Round-off: an unknown f_i is computed from terms whose size
     is about S_i = max(|f_i|, max_j |J_ij| max(|k_j|, 1)) (a term T in f_i shows as T / k_j in the Jacobian),
     so each evaluation is off by at most EVALUATION_ROUNDING S_i and D(h) by EVALUATION_ROUNDING S_i / h.
     The tolerance is the sum of both, entry by entry."""
-    columns, spreads = [], []
+    columns = range(len(steps)) if columns is None else columns
+    estimates, spreads = [], []
     center = evaluate()
-    for j, h in enumerate(steps):
+    for j in columns:
+        h = steps[j]
         samples = {}
         for k in (-2, -1, 1, 2):
             shifted = point.copy()
@@ -158,12 +161,53 @@ def finite_differences(evaluate, set_known, point, steps, exact):
             samples[k] = evaluate()
         d1 = (samples[1] - samples[-1]) / (2 * h)
         d2 = (samples[2] - samples[-2]) / (4 * h)
-        columns.append(d1)
+        estimates.append(d1)
         spreads.append(np.abs(d2 - d1))
     set_known(point)
     term_scale = np.maximum(np.abs(center), (np.abs(exact) * np.maximum(np.abs(point), 1.0)).max(axis=1))
-    roundoff = EVALUATION_ROUNDING * term_scale[:, None] / np.asarray(steps)[None, :]
-    return np.column_stack(columns), 4 * np.column_stack(spreads) + roundoff
+    roundoff = EVALUATION_ROUNDING * term_scale[:, None] / np.asarray(steps)[None, list(columns)]
+    return np.column_stack(estimates), 4 * np.column_stack(spreads) + roundoff
+
+
+# Larger steps for the knowns whose entries the first step cannot confirm sharply (see confirm_jacobian).
+STEP_LADDER = (10, 100)
+
+
+def confirm_jacobian(evaluate, set_known, point, steps, exact, fits, failures, label):
+    """Finite differences at `steps` and, for the knowns with an entry that is not confirmed sharply there,
+    again at 10 and 100 times the step: every step must agree within its own derived tolerance (each is a
+    bound on its own, so a wrong derivative has to hide from all of them), and an entry counts as sharp if any
+    step confirms it. Returns the tightest tolerance per entry.
+
+    Why larger steps: the round-off bound EVALUATION_ROUNDING S_i / h of a row is set by that unknown's largest
+    term S_i, whatever the known. In initialization the wheels spin at v0 / R, so a steered front tire has a
+    small slip (kappa ~ steer^2 / 2, sliding share ~ steer^4): its Fx, and so der(wheel_speed_f*), depends on
+    the tire parameters (PCY1, PEY1, PDY1, PEX3, ...) by only 1e-6 .. 4e-3 rad/s2, beside brake and drive
+    torques over I_w of S_i ~ 1e3 rad/s2 (round-off bound 2.2e-14 * 3e3 / 1e-5 = 7e-6 at the first step,
+    above 1e-3 |J| + 1e-6). Truncation there is tiny (the spreads 4 |D(2h) - D(h)| are <= 1e-8, mostly
+    noise), so the balance of truncation c h^2 and round-off rounding / h, h ~ (rounding / |c|)^(1/3), lies
+    at a larger step, which the ladder brackets; at 10 h the bound is 7e-7. The actual round-off is far below
+    the bound (the perturbed term is small), but the bound is what the test may rely on.
+    fits(j, h): True if the known j may move by +-2h (inside its declared range)."""
+    approximate, tolerance = finite_differences(evaluate, set_known, point, steps, exact["directional"])
+    best = tolerance.copy()
+    for factor in (1, *STEP_LADDER):
+        if factor > 1:
+            loose = (exact["directional"] != 0) & (best > SHARP * np.abs(exact["directional"]) + 1e-6)
+            columns = [j for j in np.flatnonzero(loose.any(axis=0)) if fits(j, factor * steps[j])]
+            if not columns:
+                break
+            approximate, tolerance = finite_differences(evaluate, set_known, point, factor * steps,
+                                                        exact["directional"], columns)
+            best[:, columns] = np.minimum(best[:, columns], tolerance)
+        else:
+            columns = list(range(len(steps)))
+        for name, jacobian in exact.items():
+            bad = ~(np.abs(jacobian[:, columns] - approximate) <= tolerance)  # NaN fails too
+            for i, c in np.argwhere(bad)[:3]:
+                failures.append(f"{label(i, columns[c])} ({name}, step x{factor}): {jacobian[i, columns[c]]!r} vs "
+                                f"{approximate[i, c]!r} +- {tolerance[i, c]:.3g}")
+    return best
 
 
 def declared_mask(probe, unknowns, knowns):
@@ -344,6 +388,12 @@ def initial_problem(probe):
     return unknowns, knowns
 
 
+def within_range(variable, value, step):
+    """True if value +- 2 step stays inside the variable's declared range (the FMU may refuse values outside)."""
+    return ((variable.min is None or value - 2 * step >= float(variable.min))
+            and (variable.max is None or value + 2 * step <= float(variable.max)))
+
+
 @pytest.mark.parametrize("version", [2, 3])
 @pytest.mark.parametrize("model", ["simple", "advanced"])
 def test_initial_unknowns_against_finite_differences(simple_fmus, advanced_fmus, tmp_path, model, version):
@@ -361,8 +411,7 @@ def test_initial_unknowns_against_finite_differences(simple_fmus, advanced_fmus,
         point = probe.get_real([k.valueReference for k in knowns])
         steps = RELATIVE_STEP * np.maximum(np.abs(point), 1.0)
         # keep every perturbation inside the variable's declared range (the FMU may refuse values outside)
-        inside = [(k.min is None or p - 2 * h >= float(k.min)) and (k.max is None or p + 2 * h <= float(k.max))
-                  for k, p, h in zip(knowns, point, steps)]
+        inside = [within_range(k, p, h) for k, p, h in zip(knowns, point, steps)]
         knowns = [k for k, keep in zip(knowns, inside) if keep]
         point, steps = point[inside], steps[inside]
         references = [k.valueReference for k in knowns]
@@ -370,29 +419,24 @@ def test_initial_unknowns_against_finite_differences(simple_fmus, advanced_fmus,
         exact = {"directional": probe.jacobian_forward(unknowns, knowns)}
         if version == 3:
             exact["adjoint"] = probe.jacobian_adjoint(unknowns, knowns)
-        approximate, tolerance = finite_differences(lambda: probe.values(unknowns),
-                                                    lambda values: probe.set_real(references, values), point, steps,
-                                                    exact["directional"])
-        for name, jacobian in exact.items():
-            bad = ~(np.abs(jacobian - approximate) <= tolerance)  # NaN fails too
-            for i, j in np.argwhere(bad)[:3]:
-                failures.append(f"{name}: d {unknowns[i].name} / d {knowns[j].name}: {jacobian[i, j]!r} vs "
-                                f"{approximate[i, j]!r} +- {tolerance[i, j]:.3g}")
+        tolerance = confirm_jacobian(lambda: probe.values(unknowns), lambda values: probe.set_real(references, values),
+                                     point, steps, exact, lambda j, h: within_range(knowns[j], point[j], h), failures,
+                                     lambda i, j: f"d {unknowns[i].name} / d {knowns[j].name}")
         nonzero = exact["directional"] != 0
         tight = tolerance <= SHARP * np.abs(exact["directional"]) + 1e-6
         stats["entries"] += int(nonzero.sum())
         stats["tight"] += int((tight & nonzero).sum())
         stats["points"] += 1
         stats.setdefault("loose", []).extend(
-            (unknowns[i].name, knowns[j].name, exact["directional"][i, j], approximate[i, j], tolerance[i, j])
+            (unknowns[i].name, knowns[j].name, exact["directional"][i, j], tolerance[i, j])
             for i, j in np.argwhere(nonzero & ~tight)[:5])
         probe.fmu.exitInitializationMode()
         probe.free()
     print(f"{model} FMI {version} initialization: {stats}")
     assert not failures, "\n".join(failures[:5])
-    # sharp for 95 % (not 99 %): the parameters span 1e-2 .. 1e5 in size, and the round-off of the smallest
-    # sensitivities (to curvature factors, of 1e-28 .. 1e-3) is above 1e-3 of their value
-    assert stats["entries"] > 0 and stats["tight"] >= 0.95 * stats["entries"], stats
+    # sharp for 99 %, as the running derivatives (see SHARP): the step ladder of confirm_jacobian brings the
+    # round-off of the smallest sensitivities (to tire parameters, 1e-6 .. 1e-3 beside terms of ~1e3) below 1e-6
+    assert stats["entries"] > 0 and stats["tight"] >= 0.99 * stats["entries"], stats
 
 
 @pytest.mark.parametrize("version", [2, 3])

@@ -57,19 +57,25 @@ def _scalar_variable(parent: ET.Element, entry: TableEntry, value_reference: int
     if v.role in (STATE, DISCRETE, OUTPUT):
         attributes["initial"] = "calculated"
     element = ET.SubElement(parent, "ScalarVariable", attributes)
-    typed = {}
+    ET.SubElement(element, v.type, _value_attributes(v))
+
+
+def _value_attributes(v) -> dict[str, str]:
+    """start, unit, nominal, min and max of a variable: the attributes FMI 2.0 puts on its type element and
+    FMI 3.0 on the variable itself."""
+    attributes = {}
     if v.role in (INPUT, PARAMETER):
-        typed["start"] = _number(v.start) if v.type != "Boolean" else ("true" if v.start else "false")
+        attributes["start"] = _number(v.start) if v.type != "Boolean" else ("true" if v.start else "false")
     if v.type == "Real":
-        typed["unit"] = v.unit
+        attributes["unit"] = v.unit
         if v.nominal is not None:
-            typed["nominal"] = _number(v.nominal)
+            attributes["nominal"] = _number(v.nominal)
     if v.type in ("Real", "Integer"):
         if v.min is not None:
-            typed["min"] = _number(v.min)
+            attributes["min"] = _number(v.min)
         if v.max is not None:
-            typed["max"] = _number(v.max)
-    ET.SubElement(element, v.type, typed)
+            attributes["max"] = _number(v.max)
+    return attributes
 
 
 def _source_files(parent: ET.Element, sources: list[str]) -> None:
@@ -161,17 +167,7 @@ def _fmi3_variable(parent: ET.Element, entry: TableEntry, value_reference: int, 
     attributes.update(causality=v.causality, variability=v.variability)
     if v.role in (STATE, DISCRETE, OUTPUT):
         attributes["initial"] = "calculated"
-    if v.type == "Real":
-        attributes["unit"] = v.unit
-        if v.nominal is not None:
-            attributes["nominal"] = _number(v.nominal)
-    if v.type in ("Real", "Integer"):
-        if v.min is not None:
-            attributes["min"] = _number(v.min)
-        if v.max is not None:
-            attributes["max"] = _number(v.max)
-    if v.role in (INPUT, PARAMETER):
-        attributes["start"] = _number(v.start) if v.type != "Boolean" else ("true" if v.start else "false")
+    attributes.update(_value_attributes(v))
     if v.role == STATE and v.index in reinit:
         attributes["reinit"] = "true"  # the discrete update may set it at an event
     ET.SubElement(parent, _FMI3_TYPE[v.type], attributes)

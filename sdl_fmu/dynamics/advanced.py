@@ -63,6 +63,7 @@ import casadi as ca
 from ..interface import DISCRETE, STATE, Interface, load_interface
 from ..units import STANDARD_GRAVITY
 from .equations import Equations, make_symbols
+from .planar import body_derivatives
 from .tires import DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, slot_parameter_name, slot_parameters
 
 MODEL_NAME = "EgoVehicleAdvanced"
@@ -240,13 +241,7 @@ def equations() -> Equations:
     smooth_speed = ca.sqrt(vx**2 + vy**2 + SPEED_SMOOTHING**2) - SPEED_SMOOTHING
     tau = s["load_transfer_time_constant"]
     derivative = {
-        "x": moving * (vx * ca.cos(psi) - vy * ca.sin(psi)),
-        "y": moving * (vx * ca.sin(psi) + vy * ca.cos(psi)),
-        "psi": moving * r,
-        "s": moving * smooth_speed,
-        "vx": ax + moving * r * vy,
-        "vy": ay - moving * r * vx,
-        "yaw_rate": moving * yaw_moment / s["yaw_inertia"],
+        **body_derivatives(s, moving, ax, ay, yaw_moment, smooth_speed),
         **{f"wheel_speed_{w}": spin for w, spin in zip(WHEELS, spin_derivatives)},
         "load_ax": (ax - s["load_ax"]) / tau,
         "load_ay": (ay - s["load_ay"]) / tau,

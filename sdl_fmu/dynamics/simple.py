@@ -35,6 +35,7 @@ import casadi as ca
 from ..interface import DISCRETE, STATE, load_interface
 from ..units import STANDARD_GRAVITY
 from .equations import Equations, make_symbols
+from .planar import body_derivatives
 
 MODEL_NAME = "EgoVehicleSimple"
 WHEELS = ("fl", "fr", "rl", "rr")
@@ -146,15 +147,7 @@ def equations() -> Equations:
     drag = s["air_density"] * s["drag_area"] / 2 * speed
     ax = moving * (force_x - drag * vx) / m
     ay = moving * (force_y - drag * vy) / m
-    derivative = {
-        "x": moving * (vx * ca.cos(psi) - vy * ca.sin(psi)),
-        "y": moving * (vx * ca.sin(psi) + vy * ca.cos(psi)),
-        "psi": moving * r,
-        "s": moving * speed,
-        "vx": ax + moving * r * vy,
-        "vy": ay - moving * r * vx,
-        "yaw_rate": moving * yaw_moment / s["yaw_inertia"],
-    }
+    derivative = body_derivatives(s, moving, ax, ay, yaw_moment, speed)
 
     # Standstill. The net force at rest (per unit mass) that could start the vehicle forward:
     start_drive = s["throttle"] * ca.fmin(s["drive_accel_max"],

@@ -1,8 +1,9 @@
 """Per-step cost of one ego FMU through fmpy: set the inputs, fmi2DoStep / integrate 10 ms, get the outputs.
 CPU time of this process (robust on a shared machine). Side by side in one process:
   - the native Simple and Advanced FMUs (sdl-fmu build), FMI 2.0 co-simulation, RODAS4 at 1 ms inside;
-  - the same Simple dynamics packaged with PythonFMU (benchmarks/simple_pythonfmu.py, RK4 at 1 ms);
-  - the same Simple dynamics exported by CasADi's own DaeBuilder.export_fmu (FMI 3.0 model exchange),
+  - the same Simple dynamics packaged with PythonFMU (benchmarks/simple_pythonfmu.py: the model's CasADi
+    derivatives function evaluated in Python, RK4 at 1 ms);
+  - the same Simple equations exported by CasADi's own DaeBuilder.export_fmu (FMI 3.0 model exchange, no events),
     simulated by fmpy.simulate_fmu (its default CVode solver; its Euler solver cannot run this FMU, see
     BENCHMARKS.md), cost per 10 ms output interval.
 
@@ -39,34 +40,45 @@ def pythonfmu_fmu(out: Path) -> Path:
     return out / "SimplePythonFmu.fmu"
 
 
-def casadi_fmu(out: Path) -> Path:
-    """The Simple dynamics' equations (the same CasADi expressions sdl-fmu compiles) through
-    DaeBuilder.export_fmu / compile_fmu / pack_fmu. No stop event: the benchmark drives, it never stops."""
+def casadi_fmu(out: Path, start: dict[str, float]) -> Path:
+    """The current Simple model's equations (sdl_fmu.dynamics.simple.equations(), the same CasADi
+    expressions sdl-fmu compiles) through DaeBuilder.export_fmu / compile_fmu / pack_fmu.
+
+    Built generically from the interface: inputs and parameters by name with their start values (`start`
+    overrides), the continuous states starting where the model's initial_state function puts them, and
+    dx/dt from calling the model's derivatives Function on the DaeBuilder symbols; the output v likewise.
+    The discrete states are held at their initial values (stopped = 0, every wheel rolling forward):
+    this export has no event indicators, so it cannot stop or reverse a wheel's direction. The benchmark
+    drives forward and never stops, so that does not change the trajectory measured.
+    """
+    import os
+
     import casadi as ca
 
-    from sdl_fmu.dynamics.simple import WHEELS, friction_limited_accelerations
-    from sdl_fmu.units import STANDARD_GRAVITY as g
+    from sdl_fmu.dynamics.simple import equations
+    from sdl_fmu.interface import DISCRETE, INPUT, OUTPUT, PARAMETER, STATE
 
+    model = equations()
+    interface, functions = model.interface, model.functions()
+    u_start = [start.get(v.name, v.start) for v in interface.of_role(INPUT)]
+    p_start = [start.get(v.name, v.start) for v in interface.of_role(PARAMETER)]
+    x_start, d_held = functions["initial_state"](ca.DM.zeros(model.symbols.x.numel()),
+                                                 ca.DM.zeros(model.symbols.d.numel()), u_start, p_start)
     dae = ca.DaeBuilder("SimpleCasadi")
-    s = {}
-    for name in ("throttle", "brake", "steer", *[f"mu_{w}" for w in WHEELS]):
-        s[name] = dae.add(name, "input", {"start": 0.8 if name.startswith("mu") else 0.0})
-    for name, value in {"mass": 1500.0, "brake_decel_max": 9.81, "drive_accel_max": 4.0, "drive_power_max": 1.1e5,
-                        "drag_area": 0.7, "air_density": 1.225, "rolling_resistance": 0.012,
-                        "wheelbase": 2.7}.items():
-        s[name] = dae.add(name, "parameter", "tunable", {"start": value})
-    x, y, psi = dae.add("x", {"start": 0.0}), dae.add("y", {"start": -1.8288}), dae.add("psi", {"start": 0.0})
-    distance, v = dae.add("s", {"start": 0.0}), dae.add("v", {"start": 26.8224})
-    tire, scale = friction_limited_accelerations(s, v)
-    drag = s["air_density"] * s["drag_area"] / (2 * s["mass"])
-    net = tire - s["rolling_resistance"] * g - drag * v**2
-    yaw = v * ca.tan(s["steer"]) / s["wheelbase"] * scale
-    for state, rhs in ((x, v * ca.cos(psi)), (y, v * ca.sin(psi)), (psi, yaw), (distance, v), (v, net)):
-        dae.eq(dae.der(state), rhs)
+    u = ca.vertcat(*[dae.add(v.name, "input", {"start": value})
+                     for v, value in zip(interface.of_role(INPUT), u_start)])
+    p = ca.vertcat(*[dae.add(v.name, "parameter", "tunable", {"start": value})
+                     for v, value in zip(interface.of_role(PARAMETER), p_start)])
+    states = [dae.add(name, {"start": float(x_start[i])}) for i, name in enumerate(interface.names(STATE))]
+    x = ca.vertcat(*states)
+    derivatives = functions["derivatives"](x, d_held, u, p)
+    for i, state in enumerate(states):
+        dae.eq(dae.der(state), derivatives[i])
+    outputs = functions["outputs"](x, d_held, u, p)
+    speed = dae.add("v", "output")
+    dae.eq(speed, outputs[interface.names(OUTPUT).index("v")])
     here = Path.cwd()
     try:
-        import os
-
         os.chdir(out)  # export_fmu / compile_fmu write into the current directory
         files = dae.export_fmu({"no_warning": True})
         files = dae.compile_fmu(files, {"include_dirs": [str(Path(fmpy.__file__).parent / "c-code")]})
@@ -129,10 +141,12 @@ def main() -> int:
             "native simple (fmpy, FMI 2 CS)": cost_cosimulation(fmus["simple"], args.steps, {"v0": 26.8224}),
             "native advanced (fmpy, FMI 2 CS)": cost_cosimulation(fmus["advanced"], args.steps // 4,
                                                                   {"v0": 26.8224, **tires}),
-            "PythonFMU simple (fmpy, FMI 2 CS)": cost_cosimulation(pythonfmu_fmu(out), args.steps // 4),
+            "PythonFMU simple (fmpy, FMI 2 CS)": cost_cosimulation(pythonfmu_fmu(out), args.steps // 4,
+                                                                   {"v0": 26.8224}),
         }
         try:
-            results["CasADi export simple (fmpy CVode, FMI 3 ME)"] = cost_model_exchange(casadi_fmu(out), args.steps)
+            results["CasADi export simple (fmpy CVode, FMI 3 ME)"] = cost_model_exchange(
+                casadi_fmu(out, {"v0": 26.8224}), args.steps)
         except Exception as error:  # reported, not hidden: the note says why
             results["CasADi export simple (fmpy CVode, FMI 3 ME)"] = f"failed: {error}"
     width = max(map(len, results))

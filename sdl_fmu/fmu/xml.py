@@ -78,6 +78,16 @@ def _value_attributes(v) -> dict[str, str]:
     return attributes
 
 
+def _log_categories_and_experiment(root: ET.Element, interface: Interface) -> None:
+    """LogCategories and DefaultExperiment: the same elements, in the same place, in FMI 2.0 and 3.0."""
+    categories = ET.SubElement(root, "LogCategories")
+    for name, description in LOG_CATEGORIES.items():
+        ET.SubElement(categories, "Category", name=name, description=description)
+    experiment = interface.default_experiment
+    if experiment:
+        ET.SubElement(root, "DefaultExperiment", {k: _number(v) for k, v in experiment.items()})
+
+
 def _source_files(parent: ET.Element, sources: list[str]) -> None:
     files = ET.SubElement(parent, "SourceFiles")
     for source in sources:
@@ -125,12 +135,7 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
                                                          "maxOutputDerivativeOrder": "0"})
     _source_files(co_simulation, sources)
     _unit_definitions(root, interface)
-    categories = ET.SubElement(root, "LogCategories")
-    for name, description in LOG_CATEGORIES.items():
-        ET.SubElement(categories, "Category", name=name, description=description)
-    experiment = interface.default_experiment
-    if experiment:
-        ET.SubElement(root, "DefaultExperiment", {k: _number(v) for k, v in experiment.items()})
+    _log_categories_and_experiment(root, interface)
     variables = ET.SubElement(root, "ModelVariables")
     for position, entry in enumerate(table, start=1):
         _scalar_variable(variables, entry, position)
@@ -193,12 +198,7 @@ def model_description_fmi3(interface: Interface, table: list[TableEntry], guid: 
     ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
                                          "hasEventMode": "false", "maxOutputDerivativeOrder": "0"})
     _unit_definitions(root, interface, extra=("s",))  # time
-    categories = ET.SubElement(root, "LogCategories")
-    for name, description in LOG_CATEGORIES.items():
-        ET.SubElement(categories, "Category", name=name, description=description)
-    experiment = interface.default_experiment
-    if experiment:
-        ET.SubElement(root, "DefaultExperiment", {k: _number(v) for k, v in experiment.items()})
+    _log_categories_and_experiment(root, interface)
     variables = ET.SubElement(root, "ModelVariables")
     ET.SubElement(variables, "Float64", name="time", valueReference="0", causality="independent",
                   variability="continuous", unit="s", description="Simulation time")

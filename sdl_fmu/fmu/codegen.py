@@ -138,6 +138,7 @@ def generate_model_source(equations: Equations, functions: dict, guid: str, dire
     parameters = interface.of_role(PARAMETER)
     states = interface.of_role(STATE)
     solver_step = next((p.index for p in parameters if p.name == "solver_step"), -1)
+    solver_tolerance = next((p.index for p in parameters if p.name == "solver_tolerance"), -1)
     rows = ",\n".join(
         f'    {{{i + 1}u, "{e.name}", {e.kind}, {e.store}, {e.index}, {e.settable}, {_c_range(e)}}}'
         for i, e in enumerate(table)
@@ -179,6 +180,7 @@ const ModelInfo model_info = {{
     variables,
     {len(table)},
     {solver_step},
+    {solver_tolerance},
 {function_fields}
 }};
 """

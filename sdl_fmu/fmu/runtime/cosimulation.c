@@ -3,9 +3,17 @@
  * Solver: RODAS4 (Hairer & Wanner, Solving ODEs II, sec. IV.7), a linearly implicit, L-stable,
  * stiffly accurate Rosenbrock method of order 4 that uses the model's exact Jacobian from CasADi.
  * Inputs are held over a communication step, so the system is autonomous inside it.
- * Fixed internal steps (parameter solver_step); a step in which an event indicator changes sign is
- * repeated with shorter lengths (Illinois method) until the crossing is bracketed within
- * EVENT_TIME_TOLERANCE, then the discrete update is applied at that instant.
+ *
+ * Internal step: with solver_tolerance > 0 it is error-controlled. RODAS4's embedded third-order solution
+ * differs from the fourth-order one by the last stage k6 (x1 = x + sum a6j kj + k6), so k6 is the local
+ * error estimate; a step is accepted when its weighted RMS norm (weights tolerance * (nominal + |x|)) is
+ * <= 1, and the next step is h * clamp(0.9 err^(-1/4), 1/5, 6), as in Hairer's RODAS code, never longer than
+ * solver_step and never growing right after a rejection. The proposal carries over from one doStep to the
+ * next and is part of the FMU state, so a restored state steps exactly as it did the first time. With
+ * solver_tolerance = 0 the steps are equal and no longer than solver_step (a fixed-step method).
+ * A step in which an event indicator changes sign is repeated with shorter lengths (Illinois method)
+ * until the crossing is bracketed within EVENT_TIME_TOLERANCE, then the discrete update is applied at that
+ * instant.
  */
 #include "instance.h"
 
@@ -76,12 +84,16 @@ static void lu_solve(const double *a, int n, const int *pivots, double *b) {
     }
 }
 
-/* One RODAS4 step of length h from x0 (discrete states d held) into x1; x1 may not alias x0. */
-static Status rodas_step(Instance *instance, const double *x0, const double *d, double h, double *x1) {
+/* One RODAS4 step of length h from x0 (discrete states d held) into x1; x1 may not alias x0. The local error
+ * estimate is left in instance->stage[5]. With `quiet`, a singular matrix or a non-finite result returns
+ * STATUS_DISCARD without a log message (the adaptive solver then tries a shorter step). */
+static Status rodas_step_checked(Instance *instance, const double *x0, const double *d, double h, double *x1,
+                                 int quiet) {
     const ModelInfo *info = instance->info;
     int n = info->nx, i, j, s;
     Status status;
     if (n == 0) return STATUS_OK;
+    instance->steps++; /* every attempt counts against the doStep's evaluation budget */
     status = instance->info->jacobian.eval ? STATUS_OK : STATUS_ERROR;
     instance->arg[0] = x0;
     instance->arg[1] = d;
@@ -98,6 +110,7 @@ static Status rodas_step(Instance *instance, const double *x0, const double *d, 
         for (j = 0; j < n; j++)
             instance->matrix[i * n + j] = (i == j ? 1.0 / (h * GAMMA) : 0.0) - instance->jac[j * n + i];
     if (lu_factor(instance->matrix, n, instance->pivots) != 0) {
+        if (quiet) return STATUS_DISCARD;
         instance_log(instance, STATUS_ERROR, "logStatusError",
                      "singular iteration matrix at t = %.17g (step %g s)", instance->now.time, h);
         return STATUS_ERROR;
@@ -121,6 +134,7 @@ static Status rodas_step(Instance *instance, const double *x0, const double *d, 
         double xi = x0[i];
         for (s = 0; s < 6; s++) xi += B[s] * instance->stage[s][i];
         if (!isfinite(xi)) {
+            if (quiet) return STATUS_DISCARD;
             instance_log(instance, STATUS_ERROR, "logStatusError",
                          "the solution is no longer finite at t = %.17g; try a smaller solver_step",
                          instance->now.time);
@@ -128,8 +142,11 @@ static Status rodas_step(Instance *instance, const double *x0, const double *d, 
         }
         x1[i] = xi;
     }
-    instance->steps++;
     return STATUS_OK;
+}
+
+static Status rodas_step(Instance *instance, const double *x0, const double *d, double h, double *x1) {
+    return rodas_step_checked(instance, x0, d, h, x1, 0);
 }
 
 static int crossed(double before, double after) {
@@ -167,17 +184,27 @@ static Status locate_crossing(Instance *instance, int k, double h, double *theta
     return STATUS_OK;
 }
 
-/* Internal steps of solver_step that one doStep may take; a longer step is refused up front (split it or
- * raise solver_step), so no call runs without bound. At the default 1 ms that is 50 s of simulated time
- * (about 2 s of computing for the Advanced model). */
+/* Internal steps that one doStep may take. With fixed steps a longer step is refused up front (split it or
+ * raise solver_step), so no call runs without bound; at the default 1 ms that is 50 s of simulated time
+ * (about 2 s of computing for the Advanced model). With error control the count is only known as the step
+ * goes: reaching it ends the step with an error. */
 #define MAX_INTERNAL_STEPS 50000.0
 /* All RODAS4 evaluations of one doStep, event location included: the hard stop for pathological cases
  * (an event at every internal step); reaching it puts the instance in the error state. */
 #define MAX_EVALUATIONS_PER_STEP 120000LL
+/* Step-size controller of Hairer's RODAS: h_new = h * clamp(SAFETY * err^(-1/4), MIN_FACTOR, MAX_FACTOR). */
+#define SAFETY 0.9
+#define MIN_FACTOR 0.2
+#define MAX_FACTOR 6.0
 
 static double solver_step_of(const Instance *instance) {
     const ModelInfo *info = instance->info;
     return info->solver_step_parameter >= 0 ? instance->now.p[info->solver_step_parameter] : 1e-3;
+}
+
+static double solver_tolerance_of(const Instance *instance) {
+    const ModelInfo *info = instance->info;
+    return info->solver_tolerance_parameter >= 0 ? instance->now.p[info->solver_tolerance_parameter] : 0.0;
 }
 
 /* The length of the equal internal steps that split a step h: no longer than solver_step, at least one. */
@@ -185,8 +212,22 @@ static double first_internal_step(double h, double solver_step) {
     return h / fmax(1.0, ceil(h / solver_step - 1e-9));
 }
 
+/* Weighted RMS norm of the local error estimate k6 (instance->stage[5]) of a step from x0 to x1. */
+static double error_norm(const Instance *instance, const double *x0, const double *x1, double tolerance) {
+    const ModelInfo *info = instance->info;
+    double sum = 0.0;
+    int i;
+    if (info->nx == 0) return 0.0;
+    for (i = 0; i < info->nx; i++) {
+        double scale = tolerance * (info->state_nominal[i] + fmax(fabs(x0[i]), fabs(x1[i])));
+        double ratio = instance->stage[5][i] / scale;
+        sum += ratio * ratio;
+    }
+    return sqrt(sum / info->nx);
+}
+
 Status instance_check_step(Instance *instance, double current_time, double h) {
-    double solver_step = solver_step_of(instance);
+    double solver_step = solver_step_of(instance), tolerance = solver_tolerance_of(instance);
     if (!isfinite(current_time)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "communication point %g is not finite", current_time);
         return STATUS_ERROR;
@@ -205,6 +246,10 @@ Status instance_check_step(Instance *instance, double current_time, double h) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "solver_step %g must be > 0", solver_step);
         return STATUS_ERROR;
     }
+    if (!(tolerance >= 0.0) || !isfinite(tolerance)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "solver_tolerance %g must be >= 0", tolerance);
+        return STATUS_ERROR;
+    }
     /* the internal steps must advance the time in double precision (not so at t = 1e16 with 1 ms steps) */
     if (h > 0.0 && !(current_time + first_internal_step(h, solver_step) > current_time)) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
@@ -212,6 +257,7 @@ Status instance_check_step(Instance *instance, double current_time, double h) {
                      first_internal_step(h, solver_step));
         return STATUS_ERROR;
     }
+    /* solver_step is the longest internal step: the step needs at least h / solver_step of them */
     if (h / solver_step > MAX_INTERNAL_STEPS) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
                      "a step of %g s needs %.3g internal steps of solver_step = %g s, more than the budget of %.0f "
@@ -222,12 +268,25 @@ Status instance_check_step(Instance *instance, double current_time, double h) {
     return STATUS_OK;
 }
 
+/* The next internal step with error control: the proposal (solver_step before the first step), cut to
+ * end exactly at the communication point; a remainder shorter than the proposal is split in two equal
+ * steps rather than leaving a sliver. */
+static double adaptive_internal_step(const Instance *instance, double remaining, double solver_step,
+                                     double *proposal) {
+    *proposal = instance->now.solver_step_next > 0.0 ? fmin(instance->now.solver_step_next, solver_step)
+                                                     : solver_step;
+    if (remaining <= *proposal) return remaining;
+    if (remaining < 2.0 * *proposal) return 0.5 * remaining;
+    return *proposal;
+}
+
 Status instance_do_step(Instance *instance, double current_time, double h) {
     const ModelInfo *info = instance->info;
     double end_time = current_time + h, solver_step = solver_step_of(instance);
+    double tolerance = solver_tolerance_of(instance);
     size_t x_bytes = sizeof(double) * (size_t)info->nx;
-    long long first_step = instance->steps;
-    int states_changed, discrete_changed;
+    long long first_step = instance->steps, attempts = 0;
+    int states_changed, discrete_changed, rejected = 0;
     Status status;
 
     /* inputs may have changed since the last step: settle the discrete states first */
@@ -235,29 +294,58 @@ Status instance_do_step(Instance *instance, double current_time, double h) {
     if (status != STATUS_OK) return status;
 
     while (end_time - instance->now.time > EVENT_TIME_TOLERANCE) {
-        double remaining = end_time - instance->now.time;
-        /* equal internal steps no longer than solver_step; at least one (remaining may be far below
-         * solver_step, e.g. just after an event located near the end) */
-        double dt = first_internal_step(remaining, solver_step);
+        double remaining = end_time - instance->now.time, proposal = 0.0, dt;
         int k, first = -1;
         double first_theta = 2.0;
 
-        if (instance->steps - first_step > MAX_EVALUATIONS_PER_STEP || !(instance->now.time + dt > instance->now.time)) {
-            instance_log(instance, STATUS_ERROR, "logStatusError",
-                         instance->steps - first_step > MAX_EVALUATIONS_PER_STEP
-                             ? "doStep exceeded its budget of internal steps at t = %.17g"
-                             : "time cannot advance at t = %.17g",
-                         instance->now.time);
+        /* fixed: equal internal steps no longer than solver_step; at least one (remaining may be far below
+         * solver_step, e.g. just after an event located near the end) */
+        dt = tolerance > 0.0 ? adaptive_internal_step(instance, remaining, solver_step, &proposal)
+                             : first_internal_step(remaining, solver_step);
+        if (instance->steps - first_step > MAX_EVALUATIONS_PER_STEP || attempts++ >= (long long)MAX_INTERNAL_STEPS ||
+            !(instance->now.time + dt > instance->now.time)) {
+            if (instance->now.time + dt > instance->now.time)
+                instance_log(instance, STATUS_ERROR, "logStatusError",
+                             "doStep exceeded its budget of %.0f internal steps at t = %.17g", MAX_INTERNAL_STEPS,
+                             instance->now.time);
+            else if (tolerance > 0.0)
+                instance_log(instance, STATUS_ERROR, "logStatusError",
+                             "time cannot advance at t = %.17g: the error-controlled internal step fell to %g s "
+                             "(solver_tolerance %g)", instance->now.time, dt, tolerance);
+            else
+                instance_log(instance, STATUS_ERROR, "logStatusError", "time cannot advance at t = %.17g",
+                             instance->now.time);
             return STATUS_ERROR;
         }
         memcpy(instance->x_start, instance->now.x, x_bytes);
         status = instance_event_indicators(instance, instance->x_start, instance->now.d, instance->z_start);
         if (status != STATUS_OK) return status;
-        status = rodas_step(instance, instance->x_start, instance->now.d, dt, instance->x_trial);
-        if (status != STATUS_OK) return status;
+        status = rodas_step_checked(instance, instance->x_start, instance->now.d, dt, instance->x_trial,
+                                    tolerance > 0.0);
+        if (tolerance > 0.0) {
+            double error, factor, next;
+            if (status == STATUS_DISCARD)
+                error = INFINITY; /* singular or not finite: the step was far too long */
+            else if (status != STATUS_OK)
+                return status;
+            else
+                error = error_norm(instance, instance->x_start, instance->x_trial, tolerance);
+            factor = error > 0.0 ? fmin(MAX_FACTOR, fmax(MIN_FACTOR, SAFETY * pow(error, -0.25))) : MAX_FACTOR;
+            if (!(error <= 1.0)) {
+                instance->now.solver_step_next = dt * fmin(factor, 1.0);
+                rejected = 1;
+                continue;
+            }
+            if (rejected) factor = fmin(factor, 1.0);
+            next = dt * factor;
+            if (dt < proposal) next = fmax(next, proposal); /* cut to the end: says nothing against the proposal */
+            instance->now.solver_step_next = fmin(next, solver_step);
+            rejected = 0;
+        } else if (status != STATUS_OK) {
+            return status;
+        }
         status = instance_event_indicators(instance, instance->x_trial, instance->now.d, instance->z_trial);
         if (status != STATUS_OK) return status;
-
         for (k = 0; k < info->nz; k++) {
             if (crossed(instance->z_start[k], instance->z_trial[k])) {
                 double theta;

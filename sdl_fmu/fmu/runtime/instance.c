@@ -135,6 +135,7 @@ void instance_reset(Instance *instance) {
     const ModelInfo *info = instance->info;
     instance->now.time = 0.0;
     instance->now.mode = MODE_INSTANTIATED;
+    instance->now.solver_step_next = 0.0;
     memcpy(instance->now.u, info->input_start, sizeof(double) * (size_t)info->nu);
     memcpy(instance->now.p, info->parameter_start, sizeof(double) * (size_t)info->np);
     memset(instance->now.x, 0, sizeof(double) * (size_t)info->nx);
@@ -410,6 +411,7 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
     const ModelInfo *info = instance->info;
     to->time = from->time;
     to->mode = from->mode;
+    to->solver_step_next = from->solver_step_next;
     memcpy(to->x, from->x, sizeof(double) * (size_t)info->nx);
     memcpy(to->d, from->d, sizeof(double) * (size_t)info->nd);
     memcpy(to->u, from->u, sizeof(double) * (size_t)info->nu);
@@ -464,6 +466,11 @@ Status snapshot_check(Instance *instance, const Snapshot *snapshot) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: time is not finite");
         return STATUS_ERROR;
     }
+    if (!(snapshot->solver_step_next >= 0.0) || !isfinite(snapshot->solver_step_next)) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: the solver's next step %g is not >= 0",
+                     snapshot->solver_step_next);
+        return STATUS_ERROR;
+    }
     if (!all_finite(snapshot->x, info->nx) || !all_finite(snapshot->d, info->nd)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "FMU state: a state value is not finite");
         return STATUS_ERROR;
@@ -488,11 +495,12 @@ Status snapshot_check(Instance *instance, const Snapshot *snapshot) {
 }
 
 /* Serialized layout (native byte order, 8-byte fields):
- *   "SDLFMU2\0" | FNV-1a hash of the GUID | nx nd nu np | mode | time | x d u p | FNV-1a checksum of all before.
+ *   "SDLFMU2\0" | FNV-1a hash of the GUID | nx nd nu np | mode | time | solver's next step | x d u p |
+ *   FNV-1a checksum of all before.
  * The hash ties a state to this model build; the checksum catches corruption; the fields are then checked
  * one by one (snapshot_check) before anything reaches the instance. */
 #define SERIAL_MAGIC "SDLFMU2"
-#define SERIAL_HEADER_WORDS 8 /* magic, guid hash, nx, nd, nu, np, mode, time */
+#define SERIAL_HEADER_WORDS 9 /* magic, guid hash, nx, nd, nu, np, mode, time, solver's next step */
 
 static unsigned long long fnv1a(const unsigned char *bytes, size_t n) {
     unsigned long long hash = 14695981039346656037ull;
@@ -537,6 +545,7 @@ void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char
     cursor = put_word(cursor, (unsigned long long)info->np);
     cursor = put_word(cursor, (unsigned long long)snapshot->mode);
     cursor = put_doubles(cursor, &snapshot->time, 1);
+    cursor = put_doubles(cursor, &snapshot->solver_step_next, 1);
     cursor = put_doubles(cursor, snapshot->x, info->nx);
     cursor = put_doubles(cursor, snapshot->d, info->nd);
     cursor = put_doubles(cursor, snapshot->u, info->nu);
@@ -586,6 +595,7 @@ Status snapshot_deserialize(Instance *instance, const char *bytes, size_t size, 
     if (mode > 0xffffu) mode = 0; /* snapshot_check reports it */
     snapshot->mode = (Mode)mode;
     cursor = get_doubles(cursor, &snapshot->time, 1);
+    cursor = get_doubles(cursor, &snapshot->solver_step_next, 1);
     cursor = get_doubles(cursor, snapshot->x, info->nx);
     cursor = get_doubles(cursor, snapshot->d, info->nd);
     cursor = get_doubles(cursor, snapshot->u, info->nu);

@@ -34,6 +34,7 @@ typedef struct {
     unsigned int tag; /* set by snapshot_create: SetFMUstate refuses anything else */
     double time;
     Mode mode;
+    double solver_step_next; /* the error-controlled solver's next internal step [s] (0: none yet) */
     double *x, *d, *u, *p;
 } Snapshot;
 

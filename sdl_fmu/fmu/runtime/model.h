@@ -63,7 +63,8 @@ typedef struct {
     const double *state_nominal;    /* nx */
     const ModelVariable *variables;
     int n_variables;
-    int solver_step_parameter;      /* index in p of the internal step size [s] */
+    int solver_step_parameter;      /* index in p of the internal step size [s] (the longest, with error control) */
+    int solver_tolerance_parameter; /* index in p of the internal solver's error tolerance (0: fixed steps) */
     ModelFunction derivatives;      /* (x,d,u,p) -> xdot[nx] */
     ModelFunction jacobian;         /* (x,d,u,p) -> d xdot / d x, dense nx*nx, column-major */
     ModelFunction outputs;          /* (x,d,u,p) -> y[ny] */

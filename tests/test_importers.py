@@ -60,16 +60,19 @@ def fmu_variables(fmu):
 # 400 steps add up to well under 1e-11 in x, y, s (|dx/dt| <= 20 m/s) and in psi and the rates. Measured: 2e-14.
 SAME_BINARY_TOLERANCE = 1e-10
 # The Windows DLL: mingw-w64 compiles the same C, but exp/sin/cos/atan/sqrt come from msvcrt, whose results may
-# differ from glibc's by an ulp (2.2e-16 relative). Each of the 4000 internal steps evaluates each equation ~10
-# times (RODAS4 stages + Jacobian); a relative perturbation of 1e-15 per step, accumulated over 4000 steps with
-# no growth (the braking car is dissipative: every wheel-speed mode decays), gives 4e-12 relative, i.e. 4e-10 m
-# on 100 m. 1e-8 leaves a factor 25 for the event times (located to 1e-12 s; 20 m/s x 1e-12 s = 2e-11 m).
-# Measured under wine: 2e-15.
+# differ from glibc's by an ulp (2.2e-16 relative). Each internal step (at most 4000: the step is
+# error-controlled, at least 1 ms here) evaluates each equation ~10 times (RODAS4 stages + Jacobian); a relative
+# perturbation of 1e-15 per step, accumulated over 4000 steps with no growth (the braking car is dissipative:
+# every wheel-speed mode decays), gives 4e-12 relative, i.e. 4e-10 m on 100 m. The step sizes follow the error
+# estimate smoothly (h err^(-1/4)), so they move by ~1e-15 relative too; only an estimate within 1e-15 of the
+# acceptance limit could flip a decision. 1e-8 leaves a factor 25 for the event times (located to 1e-12 s;
+# 20 m/s x 1e-12 s = 2e-11 m). Measured under wine: 2e-15.
 WINDOWS_TOLERANCE = 1e-8
-# Model exchange: CVode (rtol 1e-10, atol default) instead of RODAS4 at 1 ms. RODAS4's global error at 1 ms is
-# ~1e-8 m (README: halving the step changes the stop distance by 1.4e-7 m at 2 ms, order 4 -> 1e-8 at 1 ms);
-# CVode's global error is ~10..100 rtol |x| = 1e-8 x 50 m = 5e-7 m. Allowed: 1e-6 (relative above 1, absolute
-# below). Measured: 3.5e-9.
+# Model exchange: CVode (rtol 1e-10, atol default) instead of RODAS4 error-controlled to solver_tolerance 1e-8.
+# RODAS4's global error is ~1e-8 (its fixed 1 ms steps are ~1e-8 m off: README, halving the step changes the
+# stop distance by 1.4e-7 m at 2 ms, order 4 -> 1e-8 at 1 ms; the error-controlled run is within 8.4e-9 of
+# those); CVode's global error is ~10..100 rtol |x| = 1e-8 x 50 m = 5e-7 m. Allowed: 1e-6 (relative above 1,
+# absolute below). Measured: 7.9e-9.
 ME_TOLERANCE = 1e-6
 
 

@@ -136,10 +136,32 @@ def test_internal_step_budget_bounds_every_do_step(simple):
     assert simple.set_real(solver_step=1e-300) == ERROR  # below its declared min 1e-6: refused
     began = time.monotonic()
     assert simple("DoStep", 0.0, 1e300, 1) == ERROR
-    assert simple("DoStep", 0.0, 1e-3 * 50001, 1) == ERROR  # the budget: 50000 internal steps per doStep
+    assert simple("DoStep", 0.0, 0.1 * 50001, 1) == ERROR  # the budget: 50000 internal steps of at most
+    # solver_step (default 0.1 s) per doStep
     assert "budget" in simple.messages[-1][1]
     assert time.monotonic() - began < 1.0
     assert usable(simple, 0.0)
+
+
+def test_error_controlled_steps_cannot_run_without_bound(simple, simple_fmu, tmp_path):
+    # A tolerance no step can meet (1e-300, allowed by the declared minimum 0): every step is rejected and
+    # shrinks 5x until time cannot advance; an error, at once.
+    simple.start(v0=30.0, steer=0.05, solver_tolerance=1e-300)
+    began = time.monotonic()
+    assert simple("DoStep", 0.0, 1.0, 1) == ERROR
+    assert "time cannot advance" in simple.messages[-1][1]
+    # 1e-15 is met only by steps of ~2 ms in a steady turn (round-off in the estimate): 100 s would take more
+    # than the 50 000 internal steps one doStep may take (measured: the budget is reached at t = 92 s).
+    other = Raw(simple_fmu, tmp_path / "other").instantiate()
+    try:
+        other.start(v0=30.0, steer=0.05, solver_tolerance=1e-15)
+        assert other("DoStep", 0.0, 100.0, 1) == ERROR
+        assert "budget of 50000 internal steps" in other.messages[-1][1]
+        assert other("Reset") == OK
+    finally:
+        other.free()
+    assert time.monotonic() - began < 5.0
+    assert simple("Reset") == OK
 
 
 def test_step_far_below_solver_step_and_event_at_the_end_of_a_step(simple):
@@ -213,10 +235,10 @@ def test_serialized_states_are_validated_field_by_field(simple, advanced_fmu, tm
     assert usable(simple, 0.0)
     good = bytearray(simple.serialize())
     nx, nd, nu, np_ = struct.unpack_from("<4Q", good, 16)
-    mode_at, time_at, x_at = 48, 56, 64
+    mode_at, time_at, solver_step_at, x_at = 48, 56, 64, 72
     u_at = x_at + 8 * (nx + nd)
     p_at = u_at + 8 * nu
-    assert len(good) == 8 * (8 + nx + nd + nu + np_ + 1)
+    assert len(good) == 8 * (9 + nx + nd + nu + np_ + 1)
     mass_at = p_at + 8 * [v.name for v in simple.description.modelVariables
                           if v.causality == "parameter"].index("mass")
 
@@ -231,6 +253,8 @@ def test_serialized_states_are_validated_field_by_field(simple, advanced_fmu, tm
         "model-exchange mode": corrupt(mode_at, "<Q", 1 << 3),
         "time NaN": corrupt(time_at, "<d", math.nan),
         "time inf": corrupt(time_at, "<d", math.inf),
+        "solver step NaN": corrupt(solver_step_at, "<d", math.nan),
+        "solver step negative": corrupt(solver_step_at, "<d", -1e-3),
         "state NaN": corrupt(x_at, "<d", math.nan),
         "input out of range": corrupt(u_at + 8, "<d", -1.0),  # brake
         "negative mass": corrupt(mass_at, "<d", -1500.0),
@@ -312,7 +336,7 @@ def test_fmi3_gets_the_same_hardening(simple_fmus, advanced_fmus, tmp_path):
         assert cs("ExitInitializationMode") == OK
         assert cs("EnterContinuousTimeMode") == ERROR and cs("SetTime", 0.0) == ERROR  # model exchange only
         assert cs.do_step(math.nan, 0.01) == ERROR and cs.do_step(0.0, 1e300) == ERROR
-        assert cs.do_step(0.0, 1e-3 * 50001) == ERROR  # the internal-step budget
+        assert cs.do_step(0.0, 0.1 * 50001) == ERROR  # the internal-step budget (solver_step 0.1 s)
         assert cs.do_step(0.0, 0.01) == OK  # argument errors left it usable
         state = ctypes.c_void_p()
         assert cs("GetFMUState", ctypes.byref(state)) == OK

@@ -46,9 +46,10 @@ def test_value_grammar():
 def test_failed_and_timed_out_runs_are_rows(client, scenario, tmp_path):
     # 2 x 2 runs: brake_decel_max -1 is below the FMU's declared minimum (refused before the run: failed).
     # until_distance 300000 ft is about 3400 s simulated: beyond the 1 s wall-clock timeout at any speed
-    # this orchestrator reaches (its FMU alone integrates 1000 internal steps per simulated second, and the
-    # master takes 20 steps per second, at well over 0.3 ms per simulated second in all). 200 ft (2.3 s
-    # simulated) ends within it even at 10x real time.
+    # this orchestrator reaches: the master takes 20 communication steps per simulated second (the driver's
+    # samples), 68 000 in all, each at least one doStep and a few more calls through fmpy (~15 us at the very
+    # least; BENCHMARKS.md measures 50-100 us), so 3400 s take several seconds. 200 ft (2.3 s simulated)
+    # ends within it even at 10x real time.
     out = tmp_path / "sweep"
     rows = sweeping.sweep(scenario, {"until_distance": [200.0, 300000.0], "brake_decel_max": [9.81, -1.0]}, out,
                           client=client, timeout=1.0, progress=False)

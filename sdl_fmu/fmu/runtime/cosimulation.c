@@ -17,6 +17,7 @@
  */
 #include "instance.h"
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -334,6 +335,13 @@ Status instance_do_step(Instance *instance, double current_time, double h) {
             if (!(error <= 1.0)) {
                 instance->now.solver_step_next = dt * fmin(factor, 1.0);
                 rejected = 1;
+                /* a step this short relative to the time and to solver_step cannot be taken meaningfully */
+                if (instance->now.solver_step_next < 16 * DBL_EPSILON * fmax(fabs(instance->now.time), solver_step)) {
+                    instance_log(instance, STATUS_ERROR, "logStatusError",
+                                 "time cannot advance at t = %.17g: the error-controlled internal step fell to %g s "
+                                 "(solver_tolerance %g)", instance->now.time, instance->now.solver_step_next, tolerance);
+                    return STATUS_ERROR;
+                }
                 continue;
             }
             if (rejected) factor = fmin(factor, 1.0);

@@ -1,6 +1,7 @@
 """Per-step cost of one ego FMU through fmpy: set the inputs, fmi2DoStep / integrate 10 ms, get the outputs.
 CPU time of this process (robust on a shared machine). Side by side in one process:
-  - the native Simple and Advanced FMUs (sdl-fmu build), FMI 2.0 co-simulation, RODAS4 at 1 ms inside;
+  - the native Simple and Advanced FMUs (sdl-fmu build), FMI 2.0 co-simulation, RODAS4 inside: its default
+    error-controlled step, and fixed 1 ms steps (solver_tolerance 0, as before the error control);
   - the same Simple dynamics packaged with PythonFMU (benchmarks/simple_pythonfmu.py: the model's CasADi
     derivatives function evaluated in Python, RK4 at 1 ms);
   - the same Simple equations exported by CasADi's own DaeBuilder.export_fmu (FMI 3.0 model exchange, no events),
@@ -26,6 +27,7 @@ from fmpy.fmi2 import FMU2Slave
 
 HERE = Path(__file__).resolve().parent
 STEP = 0.01  # s, the communication step measured
+FIXED_STEPS = {"solver_tolerance": 0.0, "solver_step": 1e-3}  # the FMUs' solver before its error control
 
 
 def native_fmus(out: Path) -> dict[str, Path]:
@@ -141,6 +143,10 @@ def main() -> int:
             "native simple (fmpy, FMI 2 CS)": cost_cosimulation(fmus["simple"], args.steps, {"v0": 26.8224}),
             "native advanced (fmpy, FMI 2 CS)": cost_cosimulation(fmus["advanced"], args.steps // 4,
                                                                   {"v0": 26.8224, **tires}),
+            "native simple, fixed 1 ms steps": cost_cosimulation(fmus["simple"], args.steps // 4,
+                                                                 {"v0": 26.8224, **FIXED_STEPS}),
+            "native advanced, fixed 1 ms steps": cost_cosimulation(fmus["advanced"], args.steps // 4,
+                                                                   {"v0": 26.8224, **tires, **FIXED_STEPS}),
             "PythonFMU simple (fmpy, FMI 2 CS)": cost_cosimulation(pythonfmu_fmu(out), args.steps // 4,
                                                                    {"v0": 26.8224}),
         }

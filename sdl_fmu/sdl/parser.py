@@ -76,7 +76,7 @@ _ROAD_FIELDS = ("lane width", "lanes", "lanes right of the dividing line")
 # The parsers of single fields are pure functions of the text, memoised (a bounded cache; failures are not
 # cached): the same text in many lines of a long file gives one shared immutable value, not one each.
 
-SHARED_VALUES = 4096  # per field parser, the most recent distinct texts whose values are shared
+SHARED_VALUES = 256  # per field parser, the most recent distinct texts whose values are shared
 
 
 def _shared(parse: Callable) -> Callable:

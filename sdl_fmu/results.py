@@ -122,7 +122,7 @@ def _ego_column(result: RunResult, name: str) -> np.ndarray:
 
 
 WIDE_VEHICLE_LIMIT = 100  # more traffic vehicles than this: their columns go to traffic.csv, one row per sample
-CSV_CHUNK_ROWS = 20000  # rows formatted at a time: memory stays bounded however long the run
+CSV_CHUNK_ROWS = 5000  # rows formatted at a time (~6 MB of cells): memory stays bounded however long the run
 
 
 def _vehicle_slice(track: VehicleTrack, name: str, first: int, stop: int) -> np.ndarray:
@@ -228,6 +228,7 @@ def write_timeseries_csv(result: RunResult, path: Path) -> None:
             stop = min(first + CSV_CHUNK_ROWS, samples)
             cells = [_format_column(values(first, stop), fmt) for _, values, fmt in columns]
             file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
+            del cells  # before the next chunk's are made: one chunk's cells at a time
             _release_samples(result)
     if len(result.vehicles) > WIDE_VEHICLE_LIMIT:
         write_traffic_csv(result, Path(path).with_name("traffic.csv"))

@@ -49,7 +49,7 @@ MIN_LOOKAHEAD = 1e-3
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
-RELEASE_ROWS = 100_000  # sample rows read from a disk-backed table between releases of its pages
+RELEASE_ROWS = 20_000  # sample rows read from a disk-backed table between releases of its pages (~3.5 MB)
 
 EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
                "lateral", "throttle", "brake", "steer", "brk")

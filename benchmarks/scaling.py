@@ -10,6 +10,7 @@ the ego never touches, a 5 % brake for 0.1 s, and four comment lines; 200 000 li
 (about 3400 s at 88 ft/s, within the 3600 s a run may last).
 
     python benchmarks/scaling.py [--vehicles 250 500 1000 2000 5000 10000] [--lines ...] [--out DIR]
+    python benchmarks/scaling.py --only lines   # one part; the other's rows are kept from DIR/scaling.json
 """
 
 from __future__ import annotations
@@ -99,8 +100,10 @@ def plot(series: dict, out: Path) -> None:
 def main() -> int:
     arguments = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     arguments.add_argument("--vehicles", type=int, nargs="*", default=[1000, 2500, 10000])
-    arguments.add_argument("--lines", type=int, nargs="*", default=[25000, 50000, 100000, 200000])
+    arguments.add_argument("--lines", type=int, nargs="*", default=[12500, 50000, 200000])
     arguments.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
+    arguments.add_argument("--only", choices=("vehicles", "lines"),
+                           help="run only this part; the other part's rows are kept from OUT/scaling.json")
     arguments.add_argument("--plot-runs", action="store_true", help="also write plot.png of each run")
     args = arguments.parse_args()
     out = Path(args.out)
@@ -108,6 +111,15 @@ def main() -> int:
     from sdl_fmu.fmu.package import build_fmu
 
     series = {"vehicles": [], "lines": []}
+    if args.only is not None:
+        earlier = out / "scaling.json"
+        if earlier.exists():
+            series.update(json.loads(earlier.read_text()))
+        series[args.only] = []
+        if args.only == "lines":
+            args.vehicles = []
+        else:
+            args.lines = []
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
         fmu = build_fmu("simple", folder / "dist")

@@ -23,7 +23,7 @@ import time
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -303,7 +303,9 @@ class Result:
         return pandas.DataFrame(self.arrays)
 
     @property
-    def events(self) -> list[dict]:
+    def events(self) -> Sequence[dict]:
+        """summary.json's events in order: a sequence of dicts read back from the run's event log on disk
+        (each read afresh; list(result.events) for a list)."""
         return self.raw.events
 
     @property

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .cosim.recorder import release_pages
 from .results_folder import write_results_folder
 from .sdl.events import Road
 from .units import from_si, length_label, speed_label
@@ -38,6 +40,38 @@ class VehicleTrack:
         return out
 
 
+class VehicleTracks(Sequence):
+    """A run's traffic vehicles in spawn order, held as a few numbers per vehicle over one (rows, 3) table of
+    station, lateral, speed (disk-backed for a long run); each VehicleTrack is made when it is asked for,
+    so that thousands of vehicles cost no Python objects until used."""
+
+    def __init__(self, table: np.ndarray, vehicles: np.ndarray, models: list, first: np.ndarray,
+                 offsets: np.ndarray):
+        self.table = table  # rows offsets[k]:offsets[k + 1] are vehicle k's samples
+        self.vehicles = vehicles  # ids
+        self.models = models  # VehicleModel of each vehicle
+        self.first = first  # sample index of each vehicle's first row
+        self.offsets = offsets
+
+    def __len__(self) -> int:
+        return len(self.vehicles)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[k] for k in range(*index.indices(len(self)))]
+        if index < 0:
+            index += len(self)
+        if not 0 <= index < len(self):
+            raise IndexError("vehicle index out of range")
+        model = self.models[index]
+        block = self.table[self.offsets[index]:self.offsets[index + 1]]
+        return VehicleTrack(int(self.vehicles[index]), model.number, model.name, model.length, model.width,
+                            block[:, 0], block[:, 1], block[:, 2], first=int(self.first[index]))
+
+    def __repr__(self) -> str:
+        return f"VehicleTracks({len(self)} vehicles)"
+
+
 @dataclass(frozen=True)
 class SurfaceSection:
     """A stretch of one lane with a surface value set by RSA (SI stations; end None = to the road's end)."""
@@ -61,11 +95,12 @@ class RunResult:
     # station, lateral, throttle, brake, steer, brk (1 while a BRK event holds the pedals), and per wheel
     # mu_fl.. (simple) or surface_fl.. (advanced)
     columns: dict[str, np.ndarray]
-    vehicles: list[VehicleTrack]
-    events: list[dict]  # summary.json entries, already in the scenario's units
+    vehicles: Sequence[VehicleTrack]  # a list, or VehicleTracks (made on demand) from the master
+    events: Sequence[dict]  # summary.json entries, already in the scenario's units (a list, or the master's
+    # EventLog: read back from its file on demand)
     collisions: int
     collision_points: list[tuple[float, float]]  # (station, lateral) in m, for the plot
-    surfaces: list[SurfaceSection]
+    surfaces: Sequence[SurfaceSection]  # a list, or the road's SurfaceSections (made on demand)
     warnings: list[str] = field(default_factory=list)
     final: dict = field(default_factory=dict)  # summary "final", scenario units
     timing: dict = field(default_factory=dict)  # summary "timing": wall_s, real_time_factor, steps, samples
@@ -87,7 +122,7 @@ def _ego_column(result: RunResult, name: str) -> np.ndarray:
 
 
 WIDE_VEHICLE_LIMIT = 100  # more traffic vehicles than this: their columns go to traffic.csv, one row per sample
-CSV_CHUNK_ROWS = 20000  # rows formatted at a time: memory stays bounded however long the run
+CSV_CHUNK_ROWS = 5000  # rows formatted at a time (~6 MB of cells): memory stays bounded however long the run
 
 
 def _vehicle_slice(track: VehicleTrack, name: str, first: int, stop: int) -> np.ndarray:
@@ -193,6 +228,8 @@ def write_timeseries_csv(result: RunResult, path: Path) -> None:
             stop = min(first + CSV_CHUNK_ROWS, samples)
             cells = [_format_column(values(first, stop), fmt) for _, values, fmt in columns]
             file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
+            del cells  # before the next chunk's are made: one chunk's cells at a time
+            _release_samples(result)
     if len(result.vehicles) > WIDE_VEHICLE_LIMIT:
         write_traffic_csv(result, Path(path).with_name("traffic.csv"))
 
@@ -205,6 +242,7 @@ def write_traffic_csv(result: RunResult, path: Path) -> None:
     ego_station = _ego_column(result, "station")
     with open(path, "w", encoding="utf-8", newline="") as file:
         file.write(f"time_s,vehicle,model,station_{length},lateral_{length},speed_{speed},gap_{length}\n")
+        unreleased = 0
         for track in result.vehicles:
             rows = slice(track.first, track.first + len(track.station))
             station = np.asarray(track.station, dtype=float)
@@ -217,6 +255,20 @@ def write_traffic_csv(result: RunResult, path: Path) -> None:
                                     LENGTH_FORMAT)]
             if len(station):
                 file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
+            unreleased += len(station)
+            if unreleased > CSV_CHUNK_ROWS:
+                _release_samples(result)
+                unreleased = 0
+    _release_samples(result)
+
+
+def _release_samples(result: RunResult) -> None:
+    """Drops the disk-backed sample pages read so far from resident memory (`recorder.release_pages`), so
+    that writing a long run's files does not hold them all."""
+    release_pages(_ego_column(result, "time"))
+    table = getattr(result.vehicles, "table", None)
+    if table is not None:
+        release_pages(table)
 
 
 def _json_ready(value):
@@ -239,25 +291,42 @@ def _json_ready(value):
     return value
 
 
-def summary(result: RunResult) -> dict:
-    """summary.json content (SPEC section 4): final state, events and warnings in scenario units."""
-    return _json_ready({
+def _summary_fields(result: RunResult, events) -> dict:
+    return {
         "scenario": str(result.scenario_path),
         "units": result.units,
         "dynamics": result.dynamics,
         "seed": result.seed,
         "collisions": int(result.collisions),
         "final": result.final,
-        "events": result.events,
+        "events": events,
         "warnings": list(result.warnings),
         "timing": result.timing,
-    })
+    }
+
+
+def summary(result: RunResult) -> dict:
+    """summary.json content (SPEC section 4): final state, events and warnings in scenario units."""
+    return _json_ready(_summary_fields(result, list(result.events)))
+
+
+_EVENTS_KEY = '\n  "events": []'  # where the events go in summary.json (no JSON string holds a raw newline)
 
 
 def write_summary_json(result: RunResult, path: Path) -> None:
-    """summary.json, indented 2, strict JSON (no NaN)."""
-    text = json.dumps(summary(result), indent=2, allow_nan=False)
-    Path(path).write_text(text + "\n", encoding="utf-8")
+    """summary.json, indented 2, strict JSON (no NaN): the same text as json.dumps(summary(result), indent=2),
+    with the events streamed from the run's log one at a time instead of built as one list in memory."""
+    text = json.dumps(_json_ready(_summary_fields(result, [])), indent=2, allow_nan=False)
+    head, tail = text.split(_EVENTS_KEY, 1)
+    with open(path, "w", encoding="utf-8") as file:
+        file.write(head + _EVENTS_KEY[:-1])
+        written = 0
+        for event in result.events:
+            # an element of the events list sits two levels deep: every line of its own dump 4 spaces in
+            item = json.dumps(_json_ready(event), indent=2, allow_nan=False).replace("\n", "\n    ")
+            file.write(("," if written else "") + "\n    " + item)
+            written += 1
+        file.write(("\n  ]" if written else "]") + tail + "\n")
 
 
 def write_results(result: RunResult, out_dir: Path, plot: bool = True) -> Path:

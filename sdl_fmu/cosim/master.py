@@ -19,20 +19,21 @@ import bisect
 import math
 import random
 import time as wall_clock
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from ..results import RunResult, VehicleTrack
+from ..results import RunResult, VehicleTracks
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
 from .driver import MAX_STEER, make_driver
 from .ego import EgoFMU, EgoState, parameter_defaults, step_until_time
-from .recorder import ChunkedTable
+from .recorder import ChunkedTable, EventLog, release_pages
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
 from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_conditions,
@@ -48,6 +49,7 @@ MIN_LOOKAHEAD = 1e-3
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
+RELEASE_ROWS = 20_000  # sample rows read from a disk-backed table between releases of its pages (~3.5 MB)
 
 EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
                "lateral", "throttle", "brake", "steer", "brk")
@@ -110,20 +112,21 @@ class Cosimulation:
         self.events_in_order = scenario.events
         self.next_event = 0  # index of the first event not yet fired
         self.traffic = Traffic()
-        self.vehicle_ids: list[int] = []
+        self.vehicle_ids = array("q")  # per vehicle (index = id - 1), its id
         self.brake_hold: BrakeHold | None = None
         self.applied_surfaces: tuple[float, ...] | None = None
         self.wheel_values: list[float] = []  # the FMU's wheel inputs for the applied surfaces
         self.controls = (0.0, 0.0, 0.0)
         self.sent_inputs: tuple | None = None
-        self.events: list[dict] = []
+        self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = []
         self.bounds_exceeded = False  # whether the ego ever left the bounds of the trigger prediction
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
         self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(self.wheel_inputs))
-        self.spawn_sample: list[int] = []  # per vehicle, its first sample and the sample it left at
-        self.leave_sample: list[int | None] = []
+        # per vehicle, its first sample and the sample it left at (-1 while on the road); compact arrays
+        self.spawn_sample = array("q")
+        self.leave_sample = array("q")
         self.sample_count = 0
         self.steps = 0
         self.finished = False
@@ -318,7 +321,7 @@ class Cosimulation:
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
             self.vehicle_ids.append(index + 1)
             self.spawn_sample.append(self.sample_count)
-            self.leave_sample.append(None)
+            self.leave_sample.append(-1)
             self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
             if self.options.dynamics != "simple":
@@ -463,31 +466,36 @@ class Cosimulation:
         names = [*EGO_COLUMNS, *self.wheel_inputs]
         table = self.ego_rows.finish()
         columns = {name: table[:, i] for i, name in enumerate(names)}
-        # each vehicle's samples from its closed-form motion, into one disk-backed table (memory stays bounded)
-        track_rows = ChunkedTable(3)
-        spans = []
-        for i in range(len(self.vehicle_ids)):
-            first = self.spawn_sample[i]
-            last = self.leave_sample[i] if self.leave_sample[i] is not None else self.sample_count
-            spans.append((first, track_rows.rows, track_rows.rows + last - first))
-            track_rows.extend(np.column_stack(self.traffic.track(i, np.asarray(columns["time"][first:last]))))
-        track_table = track_rows.finish()
-        tracks = []
-        for i, (vehicle, (first, start, stop)) in enumerate(zip(self.vehicle_ids, spans)):
-            model = self.traffic.models[i]
-            block = track_table[start:stop]
-            tracks.append(VehicleTrack(vehicle, model.number, model.name, model.length, model.width, block[:, 0],
-                                       block[:, 1], block[:, 2], first=first))
         final = {"time_s": state.time, "distance": self._scenario_units(state.s),
                  "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
                   "steps": self.steps, "samples": self.sample_count}
         return RunResult(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=self.options.dynamics,
-            seed=self.options.seed, road=self.road, columns=columns, vehicles=tracks, events=self.events,
-            collisions=self.collisions, collision_points=self.collision_points,
+            seed=self.options.seed, road=self.road, columns=columns, vehicles=self.vehicle_tracks(columns["time"]),
+            events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
         )
+
+    def vehicle_tracks(self, times: np.ndarray) -> VehicleTracks:
+        """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, into
+        one disk-backed table; the sample times are read in order and their pages released as it goes
+        (memory stays bounded)."""
+        first = np.array(self.spawn_sample, dtype=np.int64)
+        last = np.array(self.leave_sample, dtype=np.int64)
+        last[last < 0] = self.sample_count  # still on the road at the end
+        track_rows = ChunkedTable(3)
+        unreleased = 0
+        for i in range(len(first)):
+            track_rows.extend(np.column_stack(self.traffic.track(i, np.asarray(times[first[i]:last[i]]))))
+            unreleased += last[i] - first[i]
+            if unreleased > RELEASE_ROWS:
+                release_pages(times)
+                unreleased = 0
+        release_pages(times)
+        offsets = np.concatenate([[0], np.cumsum(last - first)])
+        return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), self.traffic.models,
+                             first, offsets)
 
 
 def _differing_stretches(surfaces, lane: int, other: int) -> tuple[list[float], list[float]]:

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import accumulate
 
 from ..results import SurfaceSection
 from ..sdl.events import Road, Scenario, SurfaceAttribute
@@ -46,14 +48,44 @@ def surface_map(scenario: Scenario, dynamics: str) -> SurfaceMap:
     return SurfaceMap(starts, values, DEFAULT_SURFACE[dynamics])
 
 
-def surface_sections(surfaces: SurfaceMap) -> list[SurfaceSection]:
-    sections = []
-    for lane, starts in surfaces.starts.items():
-        values = surfaces.values[lane]
-        for i, (start, value) in enumerate(zip(starts, values)):
-            end = starts[i + 1] if i + 1 < len(starts) else None
-            sections.append(SurfaceSection(lane, start, end, value))
-    return sections
+class SurfaceSections(Sequence):
+    """Every RSA-set stretch of the road as SurfaceSection, lane by lane in station order, made when asked
+    for from the surface map (no object per section held: a long scenario has tens of thousands)."""
+
+    def __init__(self, surfaces: SurfaceMap):
+        self.surfaces = surfaces
+        self.lanes = list(surfaces.starts)
+        self.ends = list(accumulate(len(surfaces.starts[lane]) for lane in self.lanes))  # running counts
+
+    def __len__(self) -> int:
+        return self.ends[-1] if self.ends else 0
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[k] for k in range(*index.indices(len(self)))]
+        if index < 0:
+            index += len(self)
+        if not 0 <= index < len(self):
+            raise IndexError("surface section index out of range")
+        k = bisect.bisect_right(self.ends, index)
+        return self._section(self.lanes[k], index - (self.ends[k - 1] if k else 0))
+
+    def __iter__(self):
+        for lane in self.lanes:
+            for i in range(len(self.surfaces.starts[lane])):
+                yield self._section(lane, i)
+
+    def _section(self, lane: int, i: int) -> SurfaceSection:
+        starts = self.surfaces.starts[lane]
+        end = starts[i + 1] if i + 1 < len(starts) else None
+        return SurfaceSection(lane, starts[i], end, self.surfaces.values[lane][i])
+
+    def __repr__(self) -> str:
+        return f"SurfaceSections({len(self)} sections)"
+
+
+def surface_sections(surfaces: SurfaceMap) -> SurfaceSections:
+    return SurfaceSections(surfaces)
 
 
 @dataclass(frozen=True)

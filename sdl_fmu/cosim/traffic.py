@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import random
+from array import array
 from dataclasses import dataclass
 
 import numpy as np
@@ -156,13 +157,17 @@ class Traffic:
         self.present = np.zeros(capacity, dtype=bool)
         self.events: list[ApproachingVehicle] = []
         self.models: list[VehicleModel] = []
-        self.history: list[list[tuple]] = []  # per vehicle, its motions in time order (for the results)
+        # every motion of every vehicle in the order they began (for the results), 7 floats each
+        # (`history`), and the vehicle each belongs to: compact however many vehicles pass
+        self.motion_rows = array("d")
+        self.motion_owner = array("q")
+        self._grouped = None  # the motions grouped by vehicle, built when the tracks are computed
         self.active = np.zeros(0, dtype=np.int64)  # indices of the vehicles on the road, ascending
 
     def _grow(self) -> None:
         for name in (*self._FLOATS, "where", "next_action", "in_contact", "present"):
-            array = getattr(self, name)
-            setattr(self, name, np.concatenate([array, np.zeros_like(array)]))
+            values = getattr(self, name)
+            setattr(self, name, np.concatenate([values, np.zeros_like(values)]))
 
     def add(self, event: ApproachingVehicle, model: VehicleModel, t: float, ego_station: float, ego_lateral: float,
             ego_speed: float) -> int:
@@ -181,7 +186,7 @@ class Traffic:
         self.next_check[i] = t
         self.events.append(event)
         self.models.append(model)
-        self.history.append([self._motion_row(i)])
+        self._record_motion(i)
         self._arm(i)
         self.active = np.append(self.active, i)
         return i
@@ -235,16 +240,28 @@ class Traffic:
         self.next_action[i] += 1
         self._arm(i)
         self.next_check[i] = t
-        self.history[i].append(self._motion_row(i))
+        self._record_motion(i)
         return action
 
-    def _motion_row(self, i: int) -> tuple:
-        return (self.t0[i], self.station0[i], self.lateral0[i], self.speed0[i], self.lateral1[i], self.speed1[i],
-                self.duration[i])
+    def _record_motion(self, i: int) -> None:
+        self.motion_rows.extend((self.t0[i], self.station0[i], self.lateral0[i], self.speed0[i], self.lateral1[i],
+                                 self.speed1[i], self.duration[i]))
+        self.motion_owner.append(i)
+
+    def history(self, i: int) -> np.ndarray:
+        """Vehicle i's motions in time order, one row (t0, station0, lateral0, speed0, lateral1, speed1,
+        duration) each."""
+        if self._grouped is None or self._grouped[0] != len(self.motion_owner):
+            owner = np.array(self.motion_owner, dtype=np.int64)
+            order = np.argsort(owner, kind="stable")
+            rows = np.array(self.motion_rows, dtype=float).reshape(-1, 7)[order]
+            self._grouped = (len(owner), rows, np.searchsorted(owner[order], np.arange(self.size + 1)))
+        _, rows, bounds = self._grouped
+        return rows[bounds[i]:bounds[i + 1]]
 
     def track(self, i: int, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(station, lateral, speed) of vehicle i at the given times, from its motion history."""
-        motions = np.array(self.history[i])
+        motions = self.history(i)
         k = np.maximum(np.searchsorted(motions[:, 0], times, side="right") - 1, 0)
         t0, station0, lateral0, speed0, lateral1, speed1, duration = motions[k].T
         elapsed = times - t0

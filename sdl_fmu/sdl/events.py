@@ -1,4 +1,5 @@
-"""Typed SDL events: what a scenario file says, in SI units (m, m/s, s)."""
+"""Typed SDL events: what a scenario file says, in SI units (m, m/s, s). Slotted: a long scenario holds
+one small object per event line."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ BRAKE_THRESHOLDS = ("time", "distance", "velocity", "relative_velocity")
 SUPPORTED_CODES = ("A", "BRK", "RSA", "ROAD", "ES")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Relative:
     """A value that may be relative to the ego's current value (written with a '*' prefix)."""
 
@@ -29,7 +30,7 @@ class Relative:
         return ego_value + self.value if self.relative else self.value
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ModelChoice:
     """A vehicle model number: fixed (low == high) or drawn uniformly from low..high inclusive."""
 
@@ -41,7 +42,7 @@ class ModelChoice:
         return self.low != self.high
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ClosureTrigger:
     """When an action fires: closing within `seconds` (> 0) or separating for at least -`seconds` (< 0)."""
 
@@ -49,7 +50,7 @@ class ClosureTrigger:
     where: str | None  # 'F' only while the vehicle is in front of the ego, 'B' only behind, None either
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Action:
     """One action set of an A event: at the trigger, move to a new lateral position and speed linearly."""
 
@@ -59,7 +60,7 @@ class Action:
     duration: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class ApproachingVehicle:
     """SDL 'A': a traffic vehicle appearing `gap` ahead (behind if negative) with up to 5 actions."""
 
@@ -73,7 +74,7 @@ class ApproachingVehicle:
     code: ClassVar[str] = "A"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Brake:
     """SDL 'BRK': hold the brake pedal at `pedal` until the threshold is reached or the ego stops."""
 
@@ -85,7 +86,7 @@ class Brake:
     code: ClassVar[str] = "BRK"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SurfaceAttribute:
     """SDL 'RSA': set the surface value of lanes from this distance on (10*mu or attribute number)."""
 
@@ -95,7 +96,7 @@ class SurfaceAttribute:
     code: ClassVar[str] = "RSA"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Road:
     """Roadway layout: lateral positions are metres from the dividing line, positive to the driver's right."""
 
@@ -146,7 +147,7 @@ class Road:
         return -k if k <= self.lanes_left else LEFT_SHOULDER
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class EndOfScenario:
     """SDL 'ES': the scenario ends when the ego reaches this distance."""
 
@@ -161,7 +162,7 @@ DEFAULT_ROAD = Road(line=0, distance=0.0, lane_width=to_si(12.0, ENGLISH), lanes
 """Without a ROAD event: one 12 ft lane each way, dividing line between them."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Scenario:
     """A parsed scenario file: its units, road layout and events in file order (ROAD excluded)."""
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 import re
@@ -72,8 +73,17 @@ _ROAD_FIELDS = ("lane width", "lanes", "lanes right of the dividing line")
 
 
 # --- field parsers: text -> value, or _Invalid(reason) -------------------------------------------
+# The parsers of single fields are pure functions of the text, memoised (a bounded cache; failures are not
+# cached): the same text in many lines of a long file gives one shared immutable value, not one each.
+
+SHARED_VALUES = 256  # per field parser, the most recent distinct texts whose values are shared
 
 
+def _shared(parse: Callable) -> Callable:
+    return functools.lru_cache(maxsize=SHARED_VALUES)(parse)
+
+
+@_shared
 def _number(text: str) -> float:
     """A plain decimal number (no '*')."""
     if text == "":
@@ -96,6 +106,7 @@ def _whole(text: str) -> int:
     return int(text)
 
 
+@_shared
 def _relative(text: str, units: str) -> Relative:
     """A distance or speed, '*' meaning the ego's current value plus this one."""
     if text == "":
@@ -107,6 +118,7 @@ def _relative(text: str, units: str) -> Relative:
     return Relative(to_si(_number(body), units), relative)
 
 
+@_shared
 def _model_choice(text: str) -> ModelChoice:
     """A model number, or '*lo~hi' for one drawn uniformly from lo..hi."""
     if text.startswith("*"):
@@ -128,6 +140,7 @@ def _model_choice(text: str) -> ModelChoice:
     return ModelChoice(model, model)
 
 
+@_shared
 def _closure_trigger(text: str) -> ClosureTrigger:
     """Closure time in s, optionally suffixed F (vehicle in front only) or B (behind only)."""
     match = _CLOSURE.fullmatch(text)
@@ -140,6 +153,18 @@ def _closure_trigger(text: str) -> ClosureTrigger:
     if seconds == 0:
         raise _Invalid(f"'{text}': closure time 0 can never fire; use > 0 (closing) or < 0 (separating)")
     return ClosureTrigger(seconds, match[2].upper() or None)
+
+
+@_shared
+def _length_si(text: str, units: str) -> float:
+    """A plain number that is a length, in m."""
+    return to_si(_number(text), units)
+
+
+@_shared
+def _settings(texts: tuple[str, ...], settings: tuple) -> tuple:
+    """RSA settings, one tuple shared by every line whose parameter texts are the same."""
+    return settings
 
 
 def _checked(report: Report, field: str, parse: Callable, *args):
@@ -178,7 +203,7 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: s
                f"parameters); got {len(params)}")
         return None
     speed = _checked(report, _a_field(1), _relative, params[0], units)
-    gap = _checked(report, _a_field(2), _number, params[1])
+    gap = _checked(report, _a_field(2), _length_si, params[1], units)
     # A zero gap would put the vehicle on top of the ego; negative means behind it.
     if gap == 0:
         report(_a_field(2), f"'{params[1]}': the vehicle cannot appear at gap 0; use > 0 ahead or < 0 behind")
@@ -200,7 +225,7 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: s
     if any(part is None for part in fields):
         return None
     return ApproachingVehicle(
-        line=line, distance=distance, speed=speed, gap=to_si(gap, units), lateral=lateral, model=model,
+        line=line, distance=distance, speed=speed, gap=gap, lateral=lateral, model=model,
         actions=tuple(Action(trigger, lat, spd, dur) for trigger, lat, spd, dur in actions),
     )
 
@@ -245,7 +270,8 @@ def _surface_attribute(line: int, distance: float, params: list[str], units: str
         value = _at_least(value, 0, report, value_field, params[first])
         ok = ok and lane is not None and value is not None
         settings.append((lane, value))
-    return SurfaceAttribute(line=line, distance=distance, settings=tuple(settings)) if ok else None
+    return SurfaceAttribute(line=line, distance=distance, settings=_settings(tuple(params), tuple(settings))) if ok \
+        else None
 
 
 def _road(line: int, distance: float, params: list[str], units: str, report: Report):
@@ -380,7 +406,7 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
             if distance is not None and distance != 0:
                 report("distance", f"ROAD must be at distance 0 (the layout is fixed for the whole road); got {distance_text}")
 
-        event = parser(number, to_si(distance, units) if distance is not None else 0.0, params, units, report)
+        event = parser(number, _length_si(distance_text, units) if distance is not None else 0.0, params, units, report)
         if code == "ROAD":
             if road_line is None:
                 road_line, road, road_failed = number, event, event is None

@@ -36,7 +36,7 @@ from .recorder import ChunkedTable
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
 from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_conditions,
-                       vehicle_horizons, vehicle_triggered)
+                       vehicle_horizon, vehicle_horizons, vehicle_triggered)
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
@@ -48,6 +48,9 @@ MIN_LOOKAHEAD = 1e-3
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
+# up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
+# vehicles NumPy's per-operation overhead (about 1 µs on small arrays) costs more than the arithmetic
+SCALAR_VEHICLES = 4
 
 EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
                "lateral", "throttle", "brake", "steer", "brk")
@@ -97,6 +100,7 @@ class Cosimulation:
         self.wheel_inputs = [f"mu_{w}" if options.dynamics == "simple" else f"surface_{w}" for w in WHEELS]
         self.input_names = ("throttle", "brake", "steer") + (tuple(self.wheel_inputs)
                                                              if options.dynamics == "simple" else ())
+        self.send_inputs = self.ego.real_setter(self.input_names)
         if options.dynamics == "simple":
             mu_max = max([self.surfaces.default, *(v for values in self.surfaces.values.values() for v in values)]) / 10
         else:  # the tire slots' peak friction at zero load (Magic Formula: mu = (PDX1 + PDX2 dfz) LMUX, dfz >= -1)
@@ -238,7 +242,11 @@ class Cosimulation:
         traffic = self.traffic
         active = traffic.active
         stale = active[traffic.next_check[active] < limit]
-        if len(stale):
+        if 0 < len(stale) <= SCALAR_VEHICLES:
+            kinematics = EgoKinematics.of(state)
+            for i in stale.tolist():
+                traffic.next_check[i] = state.time + vehicle_horizon(traffic, i, kinematics, self.bounds)
+        elif len(stale):
             traffic.next_check[stale] = state.time + vehicle_horizons(traffic, stale, EgoKinematics.of(state),
                                                                       self.bounds)
         self.traffic_earliest = float(traffic.next_check[active].min())
@@ -257,7 +265,7 @@ class Cosimulation:
         if "traffic" in kinds:
             traffic = self.traffic
             due = traffic.active[traffic.next_check[traffic.active] <= state.time]
-            if 0 < len(due) <= 4:
+            if 0 < len(due) <= SCALAR_VEHICLES:
                 kinematics = EgoKinematics.of(state)
                 return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)
             if len(due):
@@ -383,7 +391,7 @@ class Cosimulation:
                     self.ego.set(**dict(zip(self.wheel_inputs, self.wheel_values)))
         inputs = (*self.controls, *self.wheel_values) if self.options.dynamics == "simple" else self.controls
         if inputs != self.sent_inputs:
-            self.ego.set_reals(self.input_names, inputs)
+            self.send_inputs(inputs)
             self.sent_inputs = inputs
 
     def record(self, state: EgoState) -> None:

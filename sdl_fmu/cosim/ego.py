@@ -7,7 +7,7 @@ import shutil
 from typing import Callable, NamedTuple
 from pathlib import Path
 
-from ctypes import c_double, c_int, c_size_t, c_void_p
+from ctypes import byref, c_double, c_int, c_size_t, c_void_p
 
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2Boolean, fmi2Real, fmi2ValueReference
@@ -33,7 +33,8 @@ class EgoState(NamedTuple):
     stopped: bool
 
 
-_make_state = EgoState._make
+# EgoState._make without its Python-level length check (read() always passes all fields)
+_make_state = functools.partial(tuple.__new__, EgoState)
 
 
 def parameter_defaults(model_description) -> dict[str, float]:
@@ -81,11 +82,12 @@ class EgoFMU:
             raise
 
     def _bind_step_path(self) -> None:
-        """The per-step calls (doStep, the outputs, the inputs) bound once, with their ctypes buffers.
-        fmpy's function objects declare pointer argtypes, whose conversion costs about 1 µs per call; the
-        get and set calls here go through function objects of their own without argtypes, so every
-        argument must be (and is) a ctypes object of its C type: the c_void_p component, arrays of
-        fmi2ValueReference and of the values, a c_size_t count. doStep passes floats: it keeps argtypes."""
+        """The per-step calls (doStep, the outputs, the inputs, the snapshots) bound once, with their ctypes
+        buffers. fmpy's function objects declare pointer argtypes, whose conversion costs about 1 µs per
+        call, behind a Python wrapper; the calls here go through function objects of their own without
+        argtypes, so every argument must be (and is) a ctypes object of its C type: the c_void_p component,
+        arrays of fmi2ValueReference and of the values, a c_size_t count, byref(c_void_p) for a state.
+        doStep passes floats: it keeps argtypes."""
         dll = self.slave.dll
         component = c_void_p(self.slave.component)
         self._component = component
@@ -107,6 +109,9 @@ class EgoFMU:
             function("fmi2GetBoolean"), component, (fmi2ValueReference * 1)(self.reference("stopped")),
             c_size_t(1), self._stopped_value)
         self._set_real = function("fmi2SetReal")
+        # the bisection's snapshots (an FMU state is a c_void_p, passed by reference to get and free)
+        self._get_state, self._set_state, self._free_state = (
+            function(name) for name in ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"))
         self._setters: dict[tuple[str, ...], Callable] = {}
 
     def reference(self, name: str) -> int:
@@ -179,14 +184,20 @@ class EgoFMU:
 
     def save(self):
         """A snapshot of the instance (FMI GetFMUstate) to step again from."""
-        return self.slave.getFMUstate(), self.time
+        state = c_void_p()
+        if self._get_state(self._component, byref(state)) > 1:
+            raise FmuError(f"fmi2GetFMUstate at t = {self.time:.6f} s failed")
+        return state, self.time
 
     def restore(self, snapshot) -> None:
-        state, self.time = snapshot
-        self.slave.setFMUstate(state)
+        state, time = snapshot
+        if self._set_state(self._component, state) > 1:
+            raise FmuError(f"fmi2SetFMUstate to t = {time:.6f} s failed")
+        self.time = time
 
     def discard(self, snapshot) -> None:
-        self.slave.freeFMUstate(snapshot[0])
+        if self._free_state(self._component, byref(snapshot[0])) > 1:
+            raise FmuError("fmi2FreeFMUstate failed")
 
     def close(self) -> None:
         try:

@@ -54,6 +54,8 @@ SCALAR_VEHICLES = 4
 
 EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
                "lateral", "throttle", "brake", "steer", "brk")
+STOPPED = EgoState._fields.index("stopped")
+assert EGO_COLUMNS[:STOPPED + 1] == EgoState._fields  # record() copies the state's fields in their order
 
 
 @dataclass
@@ -84,6 +86,7 @@ class Cosimulation:
         self.rng = random.Random(options.seed)
         self.surfaces = surface_map(scenario, options.dynamics)
         self.surface_changes = _surface_changes(self.surfaces)
+        self.road_edges = (self.road.left_edge, self.road.right_edge)
         self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
         self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
         self.cached_bounds: dict[str, float] = {}  # event, end, brake: bounds kept until something fires
@@ -97,7 +100,8 @@ class Cosimulation:
         self.geometry = wheel_geometry(parameters)
         self.ego_size = (parameters["length"], parameters["width"])
         self.driver = make_driver(self.speed, start_lateral, parameters)
-        self.wheel_inputs = [f"mu_{w}" if options.dynamics == "simple" else f"surface_{w}" for w in WHEELS]
+        self.simple = options.dynamics == "simple"
+        self.wheel_inputs = [f"mu_{w}" if self.simple else f"surface_{w}" for w in WHEELS]
         self.input_names = ("throttle", "brake", "steer") + (tuple(self.wheel_inputs)
                                                              if options.dynamics == "simple" else ())
         self.send_inputs = self.ego.real_setter(self.input_names)
@@ -117,7 +121,7 @@ class Cosimulation:
         self.vehicle_ids: list[int] = []
         self.brake_hold: BrakeHold | None = None
         self.applied_surfaces: tuple[float, ...] | None = None
-        self.wheel_values: list[float] = []  # the FMU's wheel inputs for the applied surfaces
+        self.wheel_values: tuple[float, ...] = ()  # the FMU's wheel inputs for the applied surfaces
         self.controls = (0.0, 0.0, 0.0)
         self.sent_inputs: tuple | None = None
         self.events: list[dict] = []
@@ -175,15 +179,22 @@ class Cosimulation:
         t = state.time
         cached = self.cached_bounds
         near = {}
-        for kind, distance in (("event", self.pending_distance()), ("end", self.end_distance)):
-            if distance < math.inf:
-                if cached.get(kind, -math.inf) < limit:
-                    cached[kind] = t + reach_time_scalar(distance - state.s, state.v, a)
-                near[kind] = cached[kind]
+        if self.next_event < len(self.events_in_order):
+            bound = cached.get("event", -math.inf)
+            if bound < limit:
+                distance = self.events_in_order[self.next_event].distance
+                bound = cached["event"] = t + reach_time_scalar(distance - state.s, state.v, a)
+            near["event"] = bound
+        if self.end_distance < math.inf:
+            bound = cached.get("end", -math.inf)
+            if bound < limit:
+                bound = cached["end"] = t + reach_time_scalar(self.end_distance - state.s, state.v, a)
+            near["end"] = bound
         if self.brake_hold is not None:
-            if cached.get("brake", -math.inf) < limit:
-                cached["brake"] = self.brake_hold.earliest_release(state, a)
-            near["brake"] = cached["brake"]
+            bound = cached.get("brake", -math.inf)
+            if bound < limit:
+                bound = cached["brake"] = self.brake_hold.earliest_release(state, a)
+            near["brake"] = bound
         if self.surface_changes:
             if self.surface_next < limit:
                 self.surface_next = t + self.surface_horizon(state)
@@ -197,11 +208,13 @@ class Cosimulation:
         changes, and its lane's edges where the lane beyond differs within the reach of SURFACE_WINDOW (a
         bound then valid for that window only), each reached at the ego's bounded rates."""
         kin = EgoKinematics.of(state)
-        bounds, road, surfaces = self.bounds, self.road, self.surfaces
+        station_rate, lateral_rate = kin.station_rate, kin.lateral_rate
+        bounds, road = self.bounds, self.road
+        left_edge, right_edge = self.road_edges
         a = bounds.acceleration
         turn = bounds.wheel_arm * bounds.yaw_rate
         width = road.lane_width
-        reach = (abs(kin.station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
+        reach = (abs(station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
         horizon = SURFACE_WINDOW
         for station, lateral in self.geometry.contact_points(state.x, state.y, state.psi):
             lane = road.lane_at(lateral)
@@ -209,14 +222,14 @@ class Cosimulation:
             if changes:
                 k = bisect.bisect_right(changes, station)
                 if k < len(changes):
-                    horizon = min(horizon, reach_time_scalar(changes[k] - station, kin.station_rate + turn, a))
+                    horizon = min(horizon, reach_time_scalar(changes[k] - station, station_rate + turn, a))
                 if k > 0:
-                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -kin.station_rate + turn, a))
+                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -station_rate + turn, a))
             k = math.floor(lateral / width)
             for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
-                if not road.left_edge <= edge <= road.right_edge:
+                if not left_edge <= edge <= right_edge:
                     continue  # beyond the shoulders' outer edges nothing changes
-                toward = side * kin.lateral_rate
+                toward = side * lateral_rate
                 beyond = road.lane_at(edge + side * width / 2)
                 if beyond != lane and self._surfaces_differ(lane, beyond, station - reach, station + reach):
                     horizon = min(horizon, reach_time_scalar(abs(edge - lateral), toward + turn, a))
@@ -371,11 +384,14 @@ class Cosimulation:
     def sample_driver(self, state: EgoState, period: float | None) -> None:
         """A driver sample: integrate the speed error over the period (not while BRK holds the pedals),
         then new steer and, unless BRK holds them, new pedals."""
-        if period is not None and self.brake_hold is None:
-            self.driver.update(state, period, self.controls[0])
-        steer = self.driver.steer(state)
-        throttle, brake = self.driver.pedals(state) if self.brake_hold is None else self.controls[:2]
-        self.controls = (throttle, brake, steer)
+        driver, controls = self.driver, self.controls
+        if self.brake_hold is None:
+            if period is not None:
+                driver.update(state, period, controls[0])
+            throttle, brake = driver.pedals(state)
+        else:
+            throttle, brake = controls[0], controls[1]
+        self.controls = (throttle, brake, driver.steer(state))
 
     def apply_inputs(self, state: EgoState, surfaces_may_change: bool) -> None:
         """Pedals (BRK's while it holds them), steer and the surfaces under the wheels, sent if changed."""
@@ -385,19 +401,18 @@ class Cosimulation:
             surfaces = self.surfaces_under_wheels(state)
             if surfaces != self.applied_surfaces:
                 self.applied_surfaces = surfaces
-                self.wheel_values = [value / 10 if self.options.dynamics == "simple" else int(value)
-                                     for value in surfaces]
-                if self.options.dynamics != "simple":
+                self.wheel_values = tuple(value / 10 if self.simple else int(value) for value in surfaces)
+                if not self.simple:
                     self.ego.set(**dict(zip(self.wheel_inputs, self.wheel_values)))
-        inputs = (*self.controls, *self.wheel_values) if self.options.dynamics == "simple" else self.controls
+        inputs = self.controls + self.wheel_values if self.simple else self.controls
         if inputs != self.sent_inputs:
             self.send_inputs(inputs)
             self.sent_inputs = inputs
 
     def record(self, state: EgoState) -> None:
-        throttle, brake, steer = self.controls
-        if not self.bounds_exceeded and (abs(state.yaw_rate) > self.bounds.yaw_rate
-                                         or math.hypot(state.ax, state.ay) > self.bounds.acceleration):
+        bounds = self.bounds
+        if not self.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
+                                         or math.hypot(state.ax, state.ay) > bounds.acceleration):
             # the trigger predictions rest on these bounds: say so rather than silently risk a late trigger
             self.bounds_exceeded = True
             self.warnings.append(
@@ -405,9 +420,10 @@ class Cosimulation:
                 f"({math.hypot(state.ax, state.ay):.3g} m/s2) exceeded the bounds the trigger prediction assumes "
                 f"({self.bounds.yaw_rate:.3g} rad/s, {self.bounds.acceleration:.3g} m/s2): later triggers may be "
                 "located late; rerun with a shorter --step")
-        self.ego_rows.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
-                              state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
-                              throttle, brake, steer, float(self.brake_hold is not None), *self.wheel_values))
+        # EGO_COLUMNS: the state's fields in their order (time ... yaw_rate, stopped), station, lateral, the
+        # controls, brk, then the wheel inputs
+        self.ego_rows.append((*state[:STOPPED], float(state.stopped), state.x, -state.y, *self.controls,
+                              float(self.brake_hold is not None), *self.wheel_values))
         self.sample_count += 1  # traffic is closed-form in time: its samples are computed at the end
 
     # ---- the loop -------------------------------------------------------------------------------
@@ -420,34 +436,35 @@ class Cosimulation:
             self.sample_driver(state, None)
             self.apply_inputs(state, True)
             self.record(state)
+            ego, step, progress = self.ego, self.options.step, self.options.progress
             period = self.options.driver_period
-            sample = 1  # index of the next driver sample, at sample * period
+            sample = 1  # index of the next driver sample, at next_sample = sample * period
+            next_sample = sample * period
             until_time = self.options.until_time
+            stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
             while not self.finished:
                 t = state.time
                 if t >= MAX_TIME:
                     self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
                     self.finish(state, "time_limit")
                     break
-                limit = min(t + self.options.step, sample * period, MAX_TIME,
-                            math.inf if until_time is None else until_time)
+                limit = min(t + step, next_sample, stop_time)
                 horizons = self.horizons(state, limit)
-                earliest = min(horizons.values(), default=math.inf)
+                earliest = min(horizons.values()) if horizons else math.inf
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it
                     end = min(limit, earliest)
-                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    self.ego.step_to(end)
-                    state = self.ego.read()
-                    fired = bool(kinds) and self.triggered(state, kinds)
+                    ego.step_to(end)
+                    state = ego.read()
+                    fired = earliest <= end and self.triggered(
+                        state, [kind for kind, instant in horizons.items() if instant <= end])
                 else:
                     end = min(t + MIN_LOOKAHEAD, limit)
                     kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    fired = step_until_time(self.ego, end, lambda probe: self.triggered(probe, kinds),
-                                            TIME_TOLERANCE)
-                    state = self.ego.read()
+                    fired = step_until_time(ego, end, lambda probe: self.triggered(probe, kinds), TIME_TOLERANCE)
+                    state = ego.read()
                 self.steps += 1
-                driver_sample = state.time >= sample * period
+                driver_sample = state.time >= next_sample
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
@@ -456,12 +473,13 @@ class Cosimulation:
                     self.finish(state, "until_time")
                 if driver_sample:
                     self.sample_driver(state, period)
-                    while sample * period <= state.time:
+                    while next_sample <= state.time:
                         sample += 1
+                        next_sample = sample * period
                 self.apply_inputs(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
-                if self.options.progress is not None:
-                    self.options.progress(self, state)
+                if progress is not None:
+                    progress(self, state)
             wall = wall_clock.perf_counter() - started
             return self.result(state, wall)
         finally:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -80,9 +81,9 @@ def reach_time_scalar(distance: float, rate: float, acceleration: float) -> floa
     return 2 * distance / (rate + root) if rate > 0 else (root - rate) / acceleration
 
 
-@dataclass(frozen=True)
-class EgoKinematics:
-    """The ego in the road frame at one instant: station X, lateral Y (+ right) and their rates."""
+class EgoKinematics(NamedTuple):
+    """The ego in the road frame at one instant: station X, lateral Y (+ right) and their rates (a named
+    tuple: made at trigger checks and bisection probes, it must be cheap)."""
 
     time: float
     station: float

@@ -35,8 +35,8 @@ from .ego import EgoFMU, EgoState, parameter_defaults, step_until_time
 from .recorder import ChunkedTable
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
-from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_conditions,
-                       vehicle_horizon, vehicle_horizons, vehicle_triggered)
+from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_condition,
+                       vehicle_conditions, vehicle_horizon, vehicle_horizons, vehicle_triggered)
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
@@ -86,11 +86,11 @@ class Cosimulation:
         self.rng = random.Random(options.seed)
         self.surfaces = surface_map(scenario, options.dynamics)
         self.surface_changes = _surface_changes(self.surfaces)
-        self.road_edges = (self.road.left_edge, self.road.right_edge)
         self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
         self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
         self.cached_bounds: dict[str, float] = {}  # event, end, brake: bounds kept until something fires
         self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
+        self._edges: dict[tuple[int, int], list] = {}  # see _lane_edges
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
         start = {"v0": self.speed, "x0": 0.0, "y0": -start_lateral, "psi0": 0.0,
@@ -210,7 +210,6 @@ class Cosimulation:
         kin = EgoKinematics.of(state)
         station_rate, lateral_rate = kin.station_rate, kin.lateral_rate
         bounds, road = self.bounds, self.road
-        left_edge, right_edge = self.road_edges
         a = bounds.acceleration
         turn = bounds.wheel_arm * bounds.yaw_rate
         width = road.lane_width
@@ -225,26 +224,34 @@ class Cosimulation:
                     horizon = min(horizon, reach_time_scalar(changes[k] - station, station_rate + turn, a))
                 if k > 0:
                     horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -station_rate + turn, a))
-            k = math.floor(lateral / width)
-            for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
-                if not left_edge <= edge <= right_edge:
-                    continue  # beyond the shoulders' outer edges nothing changes
-                toward = side * lateral_rate
-                beyond = road.lane_at(edge + side * width / 2)
-                if beyond != lane and self._surfaces_differ(lane, beyond, station - reach, station + reach):
-                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), toward + turn, a))
+            for edge, side, (starts, ends) in self._lane_edges(math.floor(lateral / width), lane):
+                # the lanes differ somewhere between station -+ reach: a stretch starts at or before the
+                # upper end and ends after the lower
+                k = bisect.bisect_right(starts, station + reach)
+                if k > 0 and ends[k - 1] > station - reach:
+                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), side * lateral_rate + turn, a))
         return horizon
 
-    def _surfaces_differ(self, lane: int, other: int, low: float, high: float) -> bool:
-        """Whether two lanes' surfaces differ anywhere between stations low and high (the stretches where
-        they differ are worked out once per pair of lanes)."""
-        key = (min(lane, other), max(lane, other))
-        stretches = self._differing.get(key)
-        if stretches is None:
-            stretches = self._differing[key] = _differing_stretches(self.surfaces, *key)
-        starts, ends = stretches
-        k = bisect.bisect_right(starts, high)  # stretches starting at or before `high`
-        return k > 0 and ends[k - 1] > low
+    def _lane_edges(self, k: int, lane: int) -> list:
+        """For a wheel in `lane` between the lines k w and (k + 1) w: those of the two lines whose lane beyond
+        differs from `lane` somewhere, as (line, side toward it, (starts, ends) of the stretches where the
+        two lanes differ). Worked out once per (k, lane) and per pair of lanes."""
+        edges = self._edges.get((k, lane))
+        if edges is None:
+            road, width = self.road, self.road.lane_width
+            edges = []
+            for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
+                if not road.left_edge <= edge <= road.right_edge:
+                    continue  # beyond the shoulders' outer edges nothing changes
+                beyond = road.lane_at(edge + side * width / 2)
+                if beyond != lane:
+                    key = (min(lane, beyond), max(lane, beyond))
+                    if key not in self._differing:
+                        self._differing[key] = _differing_stretches(self.surfaces, *key)
+                    if self._differing[key][0]:
+                        edges.append((edge, side, self._differing[key]))
+            self._edges[(k, lane)] = edges
+        return edges
 
     def traffic_horizon(self, state: EgoState, limit: float) -> float:
         """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
@@ -304,21 +311,27 @@ class Cosimulation:
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
+    def vehicle_conditions(self, idx: np.ndarray, kinematics: EgoKinematics):
+        """(action due, overlap, may leave) of vehicles idx as boolean arrays; a few in plain floats."""
+        if len(idx) > SCALAR_VEHICLES:
+            return vehicle_conditions(self.traffic, idx, kinematics, self.bounds)
+        rows = [vehicle_condition(self.traffic, i, kinematics, self.bounds) for i in idx.tolist()]
+        return tuple(np.array([row[k] for row in rows], dtype=bool) for k in range(3))
+
     def fire_traffic(self, state: EgoState) -> None:
         traffic = self.traffic
         kinematics = EgoKinematics.of(state)
         active = traffic.active
-        action, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+        action, overlap, away = self.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
                     self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
-                    again, _, _ = vehicle_conditions(traffic, np.array([i]), kinematics, self.bounds)
-                    if not again[0]:
+                    if not vehicle_condition(traffic, int(i), kinematics, self.bounds)[0]:
                         break
-            _, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+            _, overlap, away = self.vehicle_conditions(active, kinematics)
         for i in active[overlap & ~traffic.in_contact[active]]:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)

@@ -221,17 +221,12 @@ def _reach_time_exact(distance: float, rate: float, acceleration: float) -> floa
     return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
 
 
-def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> float:
-    """`vehicle_horizons` for one vehicle in plain floats, the same arithmetic operation for operation (equal
-    bit for bit, tested). With a few vehicles on the road the array form's cost is NumPy's per-operation
-    overhead (about 1 µs for each of some 150 operations on one-element arrays), not the arithmetic."""
+def _motion(traffic: Traffic, i: int, t: float) -> tuple[float, float, float, float, float]:
+    """`Traffic.motion` of one vehicle in plain floats, operation for operation."""
     t0, station0, lateral0, speed0, lateral1, speed1, duration = (
         float(traffic.t0[i]), float(traffic.station0[i]), float(traffic.lateral0[i]), float(traffic.speed0[i]),
         float(traffic.lateral1[i]), float(traffic.speed1[i]), float(traffic.duration[i]))
-    length, width, seconds = float(traffic.length[i]), float(traffic.width[i]), float(traffic.trigger_seconds[i])
-    where, in_contact = int(traffic.where[i]), bool(traffic.in_contact[i])
-    # Traffic.motion
-    elapsed = ego.time - t0
+    elapsed = t - t0
     if elapsed < duration:
         fraction = elapsed / duration
         travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
@@ -241,8 +236,49 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
         fraction = 1.0
         travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
         lateral_rate = speed_rate = 0.0
-    station, lateral, speed = station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, \
-        speed0 + (speed1 - speed0) * fraction
+    return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed0 + (speed1 - speed0) * fraction,
+            lateral_rate, speed_rate)
+
+
+def vehicle_condition(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> tuple[bool, bool, bool]:
+    """`vehicle_conditions` for one vehicle in plain floats, operation for operation (the same decisions,
+    tested)."""
+    station, lateral, speed, _, _ = _motion(traffic, i, ego.time)
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    seconds, where = float(traffic.trigger_seconds[i]), int(traffic.where[i])
+    closing = -gap_rate * (1.0 if gap > 0 else -1.0 if gap < 0 else 0.0)
+    allowed = gap != 0 and not (where == 1 and gap < 0) and not (where == 2 and gap > 0)
+    due = allowed and ((seconds > 0 and closing > 0 and abs(gap) <= seconds * closing)
+                       or (seconds < 0 and closing < 0 and abs(gap) >= seconds * closing))
+    length, width = float(traffic.length[i]), float(traffic.width[i])
+    overlap = _penetration(ego, bounds, gap, lateral - ego.lateral, length, width) > 0
+    leave_allowed = seconds != seconds or seconds > 0 or where == 1
+    away = leave_allowed and gap < -(bounds.length + length) / 2 and gap_rate < 0
+    return due, overlap, away
+
+
+def _penetration(ego: EgoKinematics, bounds: EgoBounds, d_station: float, d_lateral: float, length: float,
+                 width: float) -> float:
+    """`_penetrations`' overlap depth for one vehicle in plain floats, operation for operation."""
+    cos_psi, sin_psi = math.cos(ego.psi), math.sin(ego.psi)
+    c, s = abs(cos_psi), abs(sin_psi)
+    half_l, half_w = bounds.length / 2, bounds.width / 2
+    dx, dy = d_station, -d_lateral
+    along_x = half_l * c + half_w * s + length / 2 - abs(dx)
+    along_y = half_l * s + half_w * c + width / 2 - abs(dy)
+    along_u = half_l + length / 2 * c + width / 2 * s - abs(dx * cos_psi + dy * sin_psi)
+    along_v = half_w + length / 2 * s + width / 2 * c - abs(-dx * sin_psi + dy * cos_psi)
+    return min(min(along_x, along_y), min(along_u, along_v))
+
+
+def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> float:
+    """`vehicle_horizons` for one vehicle in plain floats, the same arithmetic operation for operation (equal
+    bit for bit, tested). With a few vehicles on the road the array form's cost is NumPy's per-operation
+    overhead (about 1 µs for each of some 150 operations on one-element arrays), not the arithmetic."""
+    station, lateral, speed, lateral_rate, speed_rate = _motion(traffic, i, ego.time)
+    length, width, seconds = float(traffic.length[i]), float(traffic.width[i]), float(traffic.trigger_seconds[i])
+    where, in_contact = int(traffic.where[i]), bool(traffic.in_contact[i])
     a = bounds.acceleration
     relative_acceleration = a + speed_rate
     gap = station - ego.station
@@ -268,22 +304,18 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
 
     # footprint contact (_penetrations)
     d_lateral = lateral - ego.lateral
-    cos_psi, sin_psi = math.cos(ego.psi), math.sin(ego.psi)
-    c, s = abs(cos_psi), abs(sin_psi)
-    half_l, half_w = bounds.length / 2, bounds.width / 2
-    dx, dy = gap, -d_lateral
-    along_x = half_l * c + half_w * s + length / 2 - abs(dx)
-    along_y = half_l * s + half_w * c + width / 2 - abs(dy)
     turn = bounds.radius * bounds.yaw_rate
     if in_contact:
-        along_u = half_l + length / 2 * c + width / 2 * s - abs(dx * cos_psi + dy * sin_psi)
-        along_v = half_w + length / 2 * s + width / 2 * c - abs(-dx * sin_psi + dy * cos_psi)
-        depth = min(min(along_x, along_y), min(along_u, along_v))
+        depth = _penetration(ego, bounds, gap, d_lateral, length, width)
         vehicle_radius = float(np.hypot(length / 2, width / 2))
         relative_speed = abs(gap_rate) + abs(ego.lateral_rate) + abs(lateral_rate)
         contact = _reach_time_exact(depth, relative_speed + 2 * (bounds.radius + vehicle_radius) * bounds.yaw_rate,
                                     relative_acceleration)
     else:
+        c, s = abs(math.cos(ego.psi)), abs(math.sin(ego.psi))
+        half_l, half_w = bounds.length / 2, bounds.width / 2
+        along_x = half_l * c + half_w * s + length / 2 - abs(gap)
+        along_y = half_l * s + half_w * c + width / 2 - abs(-d_lateral)
         lateral_closing = (1.0 if d_lateral > 0 else -1.0 if d_lateral < 0 else 0.0) * ego.lateral_rate
         contact = max(_reach_time_exact(-along_x, closing + turn, relative_acceleration),
                       _reach_time_exact(-along_y, lateral_closing + abs(lateral_rate) + turn, a))

@@ -256,11 +256,22 @@ class Cosimulation:
     def traffic_horizon(self, state: EgoState, limit: float) -> float:
         """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
         kept until it could bind (it holds while the vehicle's own motion is unchanged); only those are
-        recomputed, vectorised."""
+        recomputed, vectorised (a few vehicles in plain floats, see SCALAR_VEHICLES)."""
         if self.traffic_earliest >= limit:  # no vehicle's bound can bind before the limit: nothing to redo
             return self.traffic_earliest
         traffic = self.traffic
         active = traffic.active
+        if len(active) <= SCALAR_VEHICLES:
+            checks = traffic.next_check[active].tolist()
+            kinematics = None
+            for k, i in enumerate(active.tolist()):
+                if checks[k] < limit:
+                    if kinematics is None:
+                        kinematics = EgoKinematics.of(state)
+                    checks[k] = state.time + vehicle_horizon(traffic, i, kinematics, self.bounds)
+                    traffic.next_check[i] = checks[k]
+            self.traffic_earliest = min(checks)
+            return self.traffic_earliest
         stale = active[traffic.next_check[active] < limit]
         if 0 < len(stale) <= SCALAR_VEHICLES:
             kinematics = EgoKinematics.of(state)
@@ -284,7 +295,11 @@ class Cosimulation:
             return True
         if "traffic" in kinds:
             traffic = self.traffic
-            due = traffic.active[traffic.next_check[traffic.active] <= state.time]
+            active = traffic.active
+            if len(active) <= SCALAR_VEHICLES:  # (the bisection's probes: a NumPy selection costs more here)
+                due = [i for i, check in zip(active.tolist(), traffic.next_check[active].tolist()) if check <= state.time]
+            else:
+                due = active[traffic.next_check[active] <= state.time]
             if 0 < len(due) <= SCALAR_VEHICLES:
                 kinematics = EgoKinematics.of(state)
                 return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)

@@ -470,6 +470,9 @@ class Cosimulation:
             next_sample = sample * period
             until_time = self.options.until_time
             stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
+            # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
+            # horizons() would return them unchanged, so it is called only when one could bind (or after a fire)
+            horizons, earliest = {}, -math.inf
             while not self.finished:
                 t = state.time
                 if t >= MAX_TIME:
@@ -477,8 +480,9 @@ class Cosimulation:
                     self.finish(state, "time_limit")
                     break
                 limit = min(t + step, next_sample, stop_time)
-                horizons = self.horizons(state, limit)
-                earliest = min(horizons.values()) if horizons else math.inf
+                if earliest < limit:
+                    horizons = self.horizons(state, limit)
+                    earliest = min(horizons.values()) if horizons else math.inf
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it
                     end = min(limit, earliest)
@@ -497,6 +501,7 @@ class Cosimulation:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
                     self.cached_bounds.clear()  # the next event, a BRK on or off
+                    earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:

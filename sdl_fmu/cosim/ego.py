@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import functools
 import shutil
-from typing import Callable, NamedTuple
-from pathlib import Path
-
 from ctypes import byref, c_double, c_int, c_size_t, c_void_p
+from pathlib import Path
+from typing import Callable, NamedTuple
 
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2Boolean, fmi2Real, fmi2ValueReference

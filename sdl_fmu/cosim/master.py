@@ -46,11 +46,11 @@ TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly)
 MIN_LOOKAHEAD = 1e-3
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
-DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
-DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 # up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
 # vehicles NumPy's per-operation overhead (about 1 µs on small arrays) costs more than the arithmetic
 SCALAR_VEHICLES = 4
+DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
+DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
 EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
                "lateral", "throttle", "brake", "steer", "brk")

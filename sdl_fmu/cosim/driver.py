@@ -5,8 +5,8 @@ car yaws faster than the path asks for, as in a skid, the driver counter-steers,
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from math import atan, atan2, sin, tan
 
 from ..units import STANDARD_GRAVITY
 from .ego import EgoState
@@ -35,31 +35,45 @@ class Driver:
     drag_factor: float  # rho CdA / (2 m)
     integral: float = 0.0  # m/s, accumulated speed error
 
+    # steer, pedals and update run at every driver sample: plain comparisons instead of min / max calls
+    # (the same values, NaN included), math functions imported by name
+
     def steer(self, state: EgoState) -> float:
-        preview = max(PREVIEW_TIME * state.v, MIN_PREVIEW)
-        alpha = math.atan2(-self.target_lateral - state.y, preview) - state.psi
-        steer = math.atan(2 * self.wheelbase * math.sin(alpha) / preview)
-        path_yaw_rate = state.vx * math.tan(steer) / self.wheelbase
+        v = state.v
+        preview = PREVIEW_TIME * v
+        if preview < MIN_PREVIEW:
+            preview = MIN_PREVIEW
+        wheelbase = self.wheelbase
+        alpha = atan2(-self.target_lateral - state.y, preview) - state.psi
+        steer = atan(2 * wheelbase * sin(alpha) / preview)
+        path_yaw_rate = state.vx * tan(steer) / wheelbase
         steer += YAW_RATE_GAIN * (path_yaw_rate - state.yaw_rate)
-        return min(max(steer, -MAX_STEER), MAX_STEER)
+        return -MAX_STEER if steer < -MAX_STEER else MAX_STEER if steer > MAX_STEER else steer
 
     def pedals(self, state: EgoState) -> tuple[float, float]:
         """(throttle, brake) that hold the target speed."""
-        error = self.target_speed - state.v
-        resistance = self.rolling_resistance * STANDARD_GRAVITY * (state.v > 0) + self.drag_factor * state.v**2
+        v = state.v
+        error = self.target_speed - v
+        resistance = self.rolling_resistance * STANDARD_GRAVITY * (v > 0) + self.drag_factor * v**2
         demand = SPEED_GAIN * error + SPEED_INTEGRAL_GAIN * self.integral + resistance
         if demand >= 0:
-            available = min(self.drive_accel_max, self.drive_power_max / (self.mass * max(state.v, 1e-3)))
-            return (min(demand / available, 1.0) if available > 0 else 0.0), 0.0
+            power_limited = self.drive_power_max / (self.mass * (1e-3 if v < 1e-3 else v))
+            available = power_limited if power_limited < self.drive_accel_max else self.drive_accel_max
+            if not available > 0:
+                return 0.0, 0.0
+            throttle = demand / available
+            return (1.0 if throttle > 1.0 else throttle), 0.0
         if demand > -BRAKE_DEADBAND:
             return 0.0, 0.0
-        return 0.0, min(-demand / self.brake_decel_max, 1.0)
+        brake = -demand / self.brake_decel_max
+        return 0.0, (1.0 if brake > 1.0 else brake)
 
     def update(self, state: EgoState, h: float, throttle: float) -> None:
         """Integrates the speed error over an accepted step (not while the throttle is saturated)."""
         error = self.target_speed - state.v
         if not (throttle >= 1.0 and error > 0):
-            self.integral = min(max(self.integral + error * h, -5.0), 5.0)
+            integral = self.integral + error * h
+            self.integral = -5.0 if integral < -5.0 else 5.0 if integral > 5.0 else integral
 
     def reset_integral(self) -> None:
         self.integral = 0.0

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import functools
 import shutil
-from typing import NamedTuple
+from ctypes import byref, c_double, c_int, c_size_t, c_void_p
 from pathlib import Path
+from typing import Callable, NamedTuple
 
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2Boolean, fmi2Real, fmi2ValueReference
 
 REAL_OUTPUTS = ("x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate")
+SPEED = REAL_OUTPUTS.index("v")
+STANDSTILL_SPEED = 0.5  # m/s, far above the models' hold speeds (0.01 and 0.05 m/s): `stopped` is read below it
 
 
 class EgoState(NamedTuple):
@@ -28,6 +32,10 @@ class EgoState(NamedTuple):
     ay: float
     yaw_rate: float
     stopped: bool
+
+
+# EgoState._make without its Python-level length check (read() always passes all fields)
+_make_state = functools.partial(tuple.__new__, EgoState)
 
 
 def parameter_defaults(model_description) -> dict[str, float]:
@@ -62,21 +70,10 @@ class EgoFMU:
         except Exception as error:  # fmpy reports a binary that cannot be loaded as a plain Exception
             shutil.rmtree(self._unzipped, ignore_errors=True)
             raise FmuError(f"{fmu_path}: the FMU's binary cannot be loaded: {error}") from None
-        self._real_outputs = [self.reference(name) for name in REAL_OUTPUTS]
-        self._stopped = [self.reference("stopped")]
-        # read() is called at every communication point and bisection probe: its ctypes buffers are made once
-        self._output_refs = (fmi2ValueReference * len(REAL_OUTPUTS))(*self._real_outputs)
-        self._output_values = (fmi2Real * len(REAL_OUTPUTS))()
-        self._stopped_ref = (fmi2ValueReference * 1)(*self._stopped)
-        self._stopped_value = (fmi2Boolean * 1)()
-        self._input_buffers: dict[tuple[str, ...], tuple] = {}
-        # the raw ctypes functions for the per-step path: fmpy's wrappers add a Python call layer per call
-        functions = getattr(self.slave, "_functions", {})
-        self._raw = {name: functions.get(name) or getattr(self.slave, name)
-                     for name in ("fmi2DoStep", "fmi2GetReal", "fmi2GetBoolean", "fmi2SetReal")}
         self.time = 0.0
         try:
             self.slave.instantiate()
+            self._bind_step_path()
             self.slave.setupExperiment(startTime=0.0)
             self.set(**(start_values or {}))
             self.slave.enterInitializationMode()
@@ -84,6 +81,39 @@ class EgoFMU:
         except Exception:
             self.close()
             raise
+
+    def _bind_step_path(self) -> None:
+        """The per-step calls (doStep, the outputs, the inputs, the snapshots) bound once, with their ctypes
+        buffers. fmpy's function objects declare pointer argtypes, whose conversion costs about 1 µs per
+        call, behind a Python wrapper; the calls here go through function objects of their own without
+        argtypes, so every argument must be (and is) a ctypes object of its C type: the c_void_p component,
+        arrays of fmi2ValueReference and of the values, a c_size_t count, byref(c_void_p) for a state.
+        doStep passes floats: it keeps argtypes."""
+        dll = self.slave.dll
+        component = c_void_p(self.slave.component)
+        self._component = component
+
+        def function(name: str, argtypes=None):
+            function = dll[name]  # a new function object (fmpy's, dll.<name>, keeps its own argtypes)
+            function.restype = c_int
+            function.argtypes = argtypes
+            return function
+
+        self._do_step = function("fmi2DoStep", (c_void_p, c_double, c_double, c_int))
+        self._output_values = (fmi2Real * len(REAL_OUTPUTS))()
+        self._stopped_value = (fmi2Boolean * 1)()
+        self._get_real = functools.partial(
+            function("fmi2GetReal"), component,
+            (fmi2ValueReference * len(REAL_OUTPUTS))(*(self.reference(name) for name in REAL_OUTPUTS)),
+            c_size_t(len(REAL_OUTPUTS)), self._output_values)
+        self._get_boolean = functools.partial(
+            function("fmi2GetBoolean"), component, (fmi2ValueReference * 1)(self.reference("stopped")),
+            c_size_t(1), self._stopped_value)
+        self._set_real = function("fmi2SetReal")
+        # the bisection's snapshots (an FMU state is a c_void_p, passed by reference to get and free)
+        self._get_state, self._set_state, self._free_state = (
+            function(name) for name in ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"))
+        self._setters: dict[tuple[str, ...], Callable] = {}
 
     def reference(self, name: str) -> int:
         try:
@@ -113,26 +143,41 @@ class EgoFMU:
             raise FmuError(f"the FMU refused the values {values}: {error}") from None
 
     def read(self) -> EgoState:
-        component = self.slave.component
-        if (self._raw["fmi2GetReal"](component, self._output_refs, len(REAL_OUTPUTS), self._output_values) > 1
-                or self._raw["fmi2GetBoolean"](component, self._stopped_ref, 1, self._stopped_value) > 1):
+        if self._get_real() > 1:
             raise FmuError(f"the FMU refused to return its outputs at t = {self.time:.6f} s")
-        return EgoState(self.time, *self._output_values, bool(self._stopped_value[0]))
+        values = self._output_values
+        # `stopped` means held at standstill: both models zero the velocities while it holds (v == 0 exactly),
+        # so it is asked for only below STANDSTILL_SPEED, not at every step (one FMI call less)
+        stopped = False
+        if not values[SPEED] >= STANDSTILL_SPEED:
+            if self._get_boolean() > 1:
+                raise FmuError(f"the FMU refused to return its outputs at t = {self.time:.6f} s")
+            stopped = self._stopped_value[0] != 0
+        return _make_state((self.time, *values[:], stopped))
+
+    def real_setter(self, names: tuple[str, ...]) -> Callable[[tuple[float, ...]], None]:
+        """A function that sets these Real inputs (values in this order) in one FMI call, its ctypes
+        buffers made once: the master's per-step path (`set` is the general one)."""
+        setter = self._setters.get(names)
+        if setter is not None:
+            return setter
+        refs = (fmi2ValueReference * len(names))(*(self.reference(name) for name in names))
+        if any(self.variables[name].type != "Real" for name in names):
+            raise FmuError(f"real_setter: not all of {names} are Real variables")
+        buffer = (fmi2Real * len(names))()
+        call = functools.partial(self._set_real, self._component, refs, c_size_t(len(names)), buffer)
+
+        def setter(values) -> None:
+            buffer[:] = values
+            if call() > 1:
+                raise FmuError(f"the FMU refused the values {dict(zip(names, values))}")
+
+        self._setters[names] = setter
+        return setter
 
     def set_reals(self, names: tuple[str, ...], values) -> None:
-        """Sets Real inputs by name in one call, through ctypes buffers made once per name tuple (the
-        master's per-step path; `set` is the general one)."""
-        buffers = self._input_buffers.get(names)
-        if buffers is None:
-            refs = [self.reference(name) for name in names]
-            if any(self.variables[name].type != "Real" for name in names):
-                raise FmuError(f"set_reals: not all of {names} are Real variables")
-            buffers = self._input_buffers[names] = ((fmi2ValueReference * len(names))(*refs),
-                                                    (fmi2Real * len(names))())
-        refs, buffer = buffers
-        buffer[:] = values
-        if self._raw["fmi2SetReal"](self.slave.component, refs, len(names), buffer) > 1:
-            raise FmuError(f"the FMU refused the values {dict(zip(names, values))}")
+        """Sets Real inputs by name in one call (see `real_setter`)."""
+        self.real_setter(names)(values)
 
     def get(self, name: str) -> float:
         return self.slave.getReal([self.reference(name)])[0]
@@ -142,20 +187,26 @@ class EgoFMU:
 
     def step_to(self, end: float) -> None:
         """Steps to exactly `end` (the communication point's time is `end` itself, not a sum of steps)."""
-        if self._raw["fmi2DoStep"](self.slave.component, self.time, end - self.time, 1) > 1:
+        if self._do_step(self._component, self.time, end - self.time, 1) > 1:
             raise FmuError(f"fmi2DoStep at t = {self.time:.6f} s (step {end - self.time:g} s) failed")
         self.time = end
 
     def save(self):
         """A snapshot of the instance (FMI GetFMUstate) to step again from."""
-        return self.slave.getFMUstate(), self.time
+        state = c_void_p()
+        if self._get_state(self._component, byref(state)) > 1:
+            raise FmuError(f"fmi2GetFMUstate at t = {self.time:.6f} s failed")
+        return state, self.time
 
     def restore(self, snapshot) -> None:
-        state, self.time = snapshot
-        self.slave.setFMUstate(state)
+        state, time = snapshot
+        if self._set_state(self._component, state) > 1:
+            raise FmuError(f"fmi2SetFMUstate to t = {time:.6f} s failed")
+        self.time = time
 
     def discard(self, snapshot) -> None:
-        self.slave.freeFMUstate(snapshot[0])
+        if self._free_state(self._component, byref(snapshot[0])) > 1:
+            raise FmuError("fmi2FreeFMUstate failed")
 
     def close(self) -> None:
         try:

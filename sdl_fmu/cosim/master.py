@@ -36,8 +36,8 @@ from .ego import EgoFMU, EgoState, parameter_defaults, step_until_time
 from .recorder import ChunkedTable, EventLog, release_pages
 from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
-from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_conditions,
-                       vehicle_horizons, vehicle_triggered)
+from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_condition,
+                       vehicle_conditions, vehicle_horizon, vehicle_horizons, vehicle_triggered)
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
@@ -47,12 +47,17 @@ TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly)
 MIN_LOOKAHEAD = 1e-3
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
+# up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
+# vehicles NumPy's per-operation overhead (about 1 µs on small arrays) costs more than the arithmetic
+SCALAR_VEHICLES = 4
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 RELEASE_ROWS = 20_000  # sample rows read from a disk-backed table between releases of its pages (~3.5 MB)
 
 EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
                "lateral", "throttle", "brake", "steer", "brk")
+STOPPED = EgoState._fields.index("stopped")
+assert EGO_COLUMNS[:STOPPED + 1] == EgoState._fields  # record() copies the state's fields in their order
 
 
 @dataclass
@@ -87,6 +92,7 @@ class Cosimulation:
         self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
         self.cached_bounds: dict[str, float] = {}  # event, end, brake: bounds kept until something fires
         self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
+        self._edges: dict[tuple[int, int], list] = {}  # see _lane_edges
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
         start = {"v0": self.speed, "x0": 0.0, "y0": -start_lateral, "psi0": 0.0,
@@ -96,9 +102,11 @@ class Cosimulation:
         self.geometry = wheel_geometry(parameters)
         self.ego_size = (parameters["length"], parameters["width"])
         self.driver = make_driver(self.speed, start_lateral, parameters)
-        self.wheel_inputs = [f"mu_{w}" if options.dynamics == "simple" else f"surface_{w}" for w in WHEELS]
+        self.simple = options.dynamics == "simple"
+        self.wheel_inputs = [f"mu_{w}" if self.simple else f"surface_{w}" for w in WHEELS]
         self.input_names = ("throttle", "brake", "steer") + (tuple(self.wheel_inputs)
                                                              if options.dynamics == "simple" else ())
+        self.send_inputs = self.ego.real_setter(self.input_names)
         if options.dynamics == "simple":
             mu_max = max([self.surfaces.default, *(v for values in self.surfaces.values.values() for v in values)]) / 10
         else:  # the tire slots' peak friction at zero load (Magic Formula: mu = (PDX1 + PDX2 dfz) LMUX, dfz >= -1)
@@ -115,7 +123,7 @@ class Cosimulation:
         self.vehicle_ids = array("q")  # per vehicle (index = id - 1), its id
         self.brake_hold: BrakeHold | None = None
         self.applied_surfaces: tuple[float, ...] | None = None
-        self.wheel_values: list[float] = []  # the FMU's wheel inputs for the applied surfaces
+        self.wheel_values: tuple[float, ...] = ()  # the FMU's wheel inputs for the applied surfaces
         self.controls = (0.0, 0.0, 0.0)
         self.sent_inputs: tuple | None = None
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
@@ -174,15 +182,22 @@ class Cosimulation:
         t = state.time
         cached = self.cached_bounds
         near = {}
-        for kind, distance in (("event", self.pending_distance()), ("end", self.end_distance)):
-            if distance < math.inf:
-                if cached.get(kind, -math.inf) < limit:
-                    cached[kind] = t + reach_time_scalar(distance - state.s, state.v, a)
-                near[kind] = cached[kind]
+        if self.next_event < len(self.events_in_order):
+            bound = cached.get("event", -math.inf)
+            if bound < limit:
+                distance = self.events_in_order[self.next_event].distance
+                bound = cached["event"] = t + reach_time_scalar(distance - state.s, state.v, a)
+            near["event"] = bound
+        if self.end_distance < math.inf:
+            bound = cached.get("end", -math.inf)
+            if bound < limit:
+                bound = cached["end"] = t + reach_time_scalar(self.end_distance - state.s, state.v, a)
+            near["end"] = bound
         if self.brake_hold is not None:
-            if cached.get("brake", -math.inf) < limit:
-                cached["brake"] = self.brake_hold.earliest_release(state, a)
-            near["brake"] = cached["brake"]
+            bound = cached.get("brake", -math.inf)
+            if bound < limit:
+                bound = cached["brake"] = self.brake_hold.earliest_release(state, a)
+            near["brake"] = bound
         if self.surface_changes:
             if self.surface_next < limit:
                 self.surface_next = t + self.surface_horizon(state)
@@ -196,11 +211,12 @@ class Cosimulation:
         changes, and its lane's edges where the lane beyond differs within the reach of SURFACE_WINDOW (a
         bound then valid for that window only), each reached at the ego's bounded rates."""
         kin = EgoKinematics.of(state)
-        bounds, road, surfaces = self.bounds, self.road, self.surfaces
+        station_rate, lateral_rate = kin.station_rate, kin.lateral_rate
+        bounds, road = self.bounds, self.road
         a = bounds.acceleration
         turn = bounds.wheel_arm * bounds.yaw_rate
         width = road.lane_width
-        reach = (abs(kin.station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
+        reach = (abs(station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
         horizon = SURFACE_WINDOW
         for station, lateral in self.geometry.contact_points(state.x, state.y, state.psi):
             lane = road.lane_at(lateral)
@@ -208,40 +224,63 @@ class Cosimulation:
             if changes:
                 k = bisect.bisect_right(changes, station)
                 if k < len(changes):
-                    horizon = min(horizon, reach_time_scalar(changes[k] - station, kin.station_rate + turn, a))
+                    horizon = min(horizon, reach_time_scalar(changes[k] - station, station_rate + turn, a))
                 if k > 0:
-                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -kin.station_rate + turn, a))
-            k = math.floor(lateral / width)
+                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -station_rate + turn, a))
+            for edge, side, (starts, ends) in self._lane_edges(math.floor(lateral / width), lane):
+                # the lanes differ somewhere between station -+ reach: a stretch starts at or before the
+                # upper end and ends after the lower
+                k = bisect.bisect_right(starts, station + reach)
+                if k > 0 and ends[k - 1] > station - reach:
+                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), side * lateral_rate + turn, a))
+        return horizon
+
+    def _lane_edges(self, k: int, lane: int) -> list:
+        """For a wheel in `lane` between the lines k w and (k + 1) w: those of the two lines whose lane beyond
+        differs from `lane` somewhere, as (line, side toward it, (starts, ends) of the stretches where the
+        two lanes differ). Worked out once per (k, lane) and per pair of lanes."""
+        edges = self._edges.get((k, lane))
+        if edges is None:
+            road, width = self.road, self.road.lane_width
+            edges = []
             for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
                 if not road.left_edge <= edge <= road.right_edge:
                     continue  # beyond the shoulders' outer edges nothing changes
-                toward = side * kin.lateral_rate
                 beyond = road.lane_at(edge + side * width / 2)
-                if beyond != lane and self._surfaces_differ(lane, beyond, station - reach, station + reach):
-                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), toward + turn, a))
-        return horizon
-
-    def _surfaces_differ(self, lane: int, other: int, low: float, high: float) -> bool:
-        """Whether two lanes' surfaces differ anywhere between stations low and high (the stretches where
-        they differ are worked out once per pair of lanes)."""
-        key = (min(lane, other), max(lane, other))
-        stretches = self._differing.get(key)
-        if stretches is None:
-            stretches = self._differing[key] = _differing_stretches(self.surfaces, *key)
-        starts, ends = stretches
-        k = bisect.bisect_right(starts, high)  # stretches starting at or before `high`
-        return k > 0 and ends[k - 1] > low
+                if beyond != lane:
+                    key = (min(lane, beyond), max(lane, beyond))
+                    if key not in self._differing:
+                        self._differing[key] = _differing_stretches(self.surfaces, *key)
+                    if self._differing[key][0]:
+                        edges.append((edge, side, self._differing[key]))
+            self._edges[(k, lane)] = edges
+        return edges
 
     def traffic_horizon(self, state: EgoState, limit: float) -> float:
         """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
         kept until it could bind (it holds while the vehicle's own motion is unchanged); only those are
-        recomputed, vectorised."""
+        recomputed, vectorised (a few vehicles in plain floats, see SCALAR_VEHICLES)."""
         if self.traffic_earliest >= limit:  # no vehicle's bound can bind before the limit: nothing to redo
             return self.traffic_earliest
         traffic = self.traffic
         active = traffic.active
+        if len(active) <= SCALAR_VEHICLES:
+            checks = traffic.next_check[active].tolist()
+            kinematics = None
+            for k, i in enumerate(active.tolist()):
+                if checks[k] < limit:
+                    if kinematics is None:
+                        kinematics = EgoKinematics.of(state)
+                    checks[k] = state.time + vehicle_horizon(traffic, i, kinematics, self.bounds)
+                    traffic.next_check[i] = checks[k]
+            self.traffic_earliest = min(checks)
+            return self.traffic_earliest
         stale = active[traffic.next_check[active] < limit]
-        if len(stale):
+        if 0 < len(stale) <= SCALAR_VEHICLES:
+            kinematics = EgoKinematics.of(state)
+            for i in stale.tolist():
+                traffic.next_check[i] = state.time + vehicle_horizon(traffic, i, kinematics, self.bounds)
+        elif len(stale):
             traffic.next_check[stale] = state.time + vehicle_horizons(traffic, stale, EgoKinematics.of(state),
                                                                       self.bounds)
         self.traffic_earliest = float(traffic.next_check[active].min())
@@ -259,8 +298,12 @@ class Cosimulation:
             return True
         if "traffic" in kinds:
             traffic = self.traffic
-            due = traffic.active[traffic.next_check[traffic.active] <= state.time]
-            if 0 < len(due) <= 4:
+            active = traffic.active
+            if len(active) <= SCALAR_VEHICLES:  # (the bisection's probes: a NumPy selection costs more here)
+                due = [i for i, check in zip(active.tolist(), traffic.next_check[active].tolist()) if check <= state.time]
+            else:
+                due = active[traffic.next_check[active] <= state.time]
+            if 0 < len(due) <= SCALAR_VEHICLES:
                 kinematics = EgoKinematics.of(state)
                 return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)
             if len(due):
@@ -286,21 +329,27 @@ class Cosimulation:
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
+    def vehicle_conditions(self, idx: np.ndarray, kinematics: EgoKinematics):
+        """(action due, overlap, may leave) of vehicles idx as boolean arrays; a few in plain floats."""
+        if len(idx) > SCALAR_VEHICLES:
+            return vehicle_conditions(self.traffic, idx, kinematics, self.bounds)
+        rows = [vehicle_condition(self.traffic, i, kinematics, self.bounds) for i in idx.tolist()]
+        return tuple(np.array([row[k] for row in rows], dtype=bool) for k in range(3))
+
     def fire_traffic(self, state: EgoState) -> None:
         traffic = self.traffic
         kinematics = EgoKinematics.of(state)
         active = traffic.active
-        action, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+        action, overlap, away = self.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
                     self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
-                    again, _, _ = vehicle_conditions(traffic, np.array([i]), kinematics, self.bounds)
-                    if not again[0]:
+                    if not vehicle_condition(traffic, int(i), kinematics, self.bounds)[0]:
                         break
-            _, overlap, away = vehicle_conditions(traffic, active, kinematics, self.bounds)
+            _, overlap, away = self.vehicle_conditions(active, kinematics)
         for i in active[overlap & ~traffic.in_contact[active]]:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)
@@ -366,11 +415,14 @@ class Cosimulation:
     def sample_driver(self, state: EgoState, period: float | None) -> None:
         """A driver sample: integrate the speed error over the period (not while BRK holds the pedals),
         then new steer and, unless BRK holds them, new pedals."""
-        if period is not None and self.brake_hold is None:
-            self.driver.update(state, period, self.controls[0])
-        steer = self.driver.steer(state)
-        throttle, brake = self.driver.pedals(state) if self.brake_hold is None else self.controls[:2]
-        self.controls = (throttle, brake, steer)
+        driver, controls = self.driver, self.controls
+        if self.brake_hold is None:
+            if period is not None:
+                driver.update(state, period, controls[0])
+            throttle, brake = driver.pedals(state)
+        else:
+            throttle, brake = controls[0], controls[1]
+        self.controls = (throttle, brake, driver.steer(state))
 
     def apply_inputs(self, state: EgoState, surfaces_may_change: bool) -> None:
         """Pedals (BRK's while it holds them), steer and the surfaces under the wheels, sent if changed."""
@@ -380,19 +432,18 @@ class Cosimulation:
             surfaces = self.surfaces_under_wheels(state)
             if surfaces != self.applied_surfaces:
                 self.applied_surfaces = surfaces
-                self.wheel_values = [value / 10 if self.options.dynamics == "simple" else int(value)
-                                     for value in surfaces]
-                if self.options.dynamics != "simple":
+                self.wheel_values = tuple(value / 10 if self.simple else int(value) for value in surfaces)
+                if not self.simple:
                     self.ego.set(**dict(zip(self.wheel_inputs, self.wheel_values)))
-        inputs = (*self.controls, *self.wheel_values) if self.options.dynamics == "simple" else self.controls
+        inputs = self.controls + self.wheel_values if self.simple else self.controls
         if inputs != self.sent_inputs:
-            self.ego.set_reals(self.input_names, inputs)
+            self.send_inputs(inputs)
             self.sent_inputs = inputs
 
     def record(self, state: EgoState) -> None:
-        throttle, brake, steer = self.controls
-        if not self.bounds_exceeded and (abs(state.yaw_rate) > self.bounds.yaw_rate
-                                         or math.hypot(state.ax, state.ay) > self.bounds.acceleration):
+        bounds = self.bounds
+        if not self.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
+                                         or math.hypot(state.ax, state.ay) > bounds.acceleration):
             # the trigger predictions rest on these bounds: say so rather than silently risk a late trigger
             self.bounds_exceeded = True
             self.warnings.append(
@@ -400,9 +451,10 @@ class Cosimulation:
                 f"({math.hypot(state.ax, state.ay):.3g} m/s2) exceeded the bounds the trigger prediction assumes "
                 f"({self.bounds.yaw_rate:.3g} rad/s, {self.bounds.acceleration:.3g} m/s2): later triggers may be "
                 "located late; rerun with a shorter --step")
-        self.ego_rows.append((state.time, state.x, state.y, state.psi, state.s, state.v, state.vx, state.vy,
-                              state.ax, state.ay, state.yaw_rate, float(state.stopped), state.x, -state.y,
-                              throttle, brake, steer, float(self.brake_hold is not None), *self.wheel_values))
+        # EGO_COLUMNS: the state's fields in their order (time ... yaw_rate, stopped), station, lateral, the
+        # controls, brk, then the wheel inputs
+        self.ego_rows.append((*state[:STOPPED], float(state.stopped), state.x, -state.y, *self.controls,
+                              float(self.brake_hold is not None), *self.wheel_values))
         self.sample_count += 1  # traffic is closed-form in time: its samples are computed at the end
 
     # ---- the loop -------------------------------------------------------------------------------
@@ -415,48 +467,55 @@ class Cosimulation:
             self.sample_driver(state, None)
             self.apply_inputs(state, True)
             self.record(state)
+            ego, step, progress = self.ego, self.options.step, self.options.progress
             period = self.options.driver_period
-            sample = 1  # index of the next driver sample, at sample * period
+            sample = 1  # index of the next driver sample, at next_sample = sample * period
+            next_sample = sample * period
             until_time = self.options.until_time
+            stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
+            # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
+            # horizons() would return them unchanged, so it is called only when one could bind (or after a fire)
+            horizons, earliest = {}, -math.inf
             while not self.finished:
                 t = state.time
                 if t >= MAX_TIME:
                     self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
                     self.finish(state, "time_limit")
                     break
-                limit = min(t + self.options.step, sample * period, MAX_TIME,
-                            math.inf if until_time is None else until_time)
-                horizons = self.horizons(state, limit)
-                earliest = min(horizons.values(), default=math.inf)
+                limit = min(t + step, next_sample, stop_time)
+                if earliest < limit:
+                    horizons = self.horizons(state, limit)
+                    earliest = min(horizons.values()) if horizons else math.inf
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it
                     end = min(limit, earliest)
-                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    self.ego.step_to(end)
-                    state = self.ego.read()
-                    fired = bool(kinds) and self.triggered(state, kinds)
+                    ego.step_to(end)
+                    state = ego.read()
+                    fired = earliest <= end and self.triggered(
+                        state, [kind for kind, instant in horizons.items() if instant <= end])
                 else:
                     end = min(t + MIN_LOOKAHEAD, limit)
                     kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    fired = step_until_time(self.ego, end, lambda probe: self.triggered(probe, kinds),
-                                            TIME_TOLERANCE)
-                    state = self.ego.read()
+                    fired = step_until_time(ego, end, lambda probe: self.triggered(probe, kinds), TIME_TOLERANCE)
+                    state = ego.read()
                 self.steps += 1
-                driver_sample = state.time >= sample * period
+                driver_sample = state.time >= next_sample
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
                     self.cached_bounds.clear()  # the next event, a BRK on or off
+                    earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:
                     self.sample_driver(state, period)
-                    while sample * period <= state.time:
+                    while next_sample <= state.time:
                         sample += 1
+                        next_sample = sample * period
                 self.apply_inputs(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
-                if self.options.progress is not None:
-                    self.options.progress(self, state)
+                if progress is not None:
+                    progress(self, state)
             wall = wall_clock.perf_counter() - started
             return self.result(state, wall)
         finally:

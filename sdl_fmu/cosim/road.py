@@ -118,4 +118,5 @@ def wheel_geometry(parameters: dict[str, float]) -> WheelGeometry:
 
 def wheel_surfaces(road: Road, surfaces: SurfaceMap, points: list[tuple[float, float]]) -> tuple[float, ...]:
     """The surface value under each contact point, from the lane it is in."""
-    return tuple(surfaces.value(road.lane_at(lateral), station) for station, lateral in points)
+    value, lane_at = surfaces.value, road.lane_at
+    return tuple([value(lane_at(lateral), station) for station, lateral in points])

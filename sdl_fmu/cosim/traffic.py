@@ -34,14 +34,21 @@ class Motion:
 
     def at(self, t: float) -> tuple[float, float, float]:
         """(station, lateral, speed) at time t >= t0."""
-        elapsed = t - self.t0
-        if elapsed < self.duration:
-            fraction = elapsed / self.duration
-            speed = self.speed0 + (self.speed1 - self.speed0) * fraction
-            travelled = self.speed0 * elapsed + (self.speed1 - self.speed0) * elapsed**2 / (2 * self.duration)
-            return self.station0 - travelled, self.lateral0 + (self.lateral1 - self.lateral0) * fraction, speed
-        travelled = (self.speed0 + self.speed1) / 2 * self.duration + self.speed1 * (elapsed - self.duration)
-        return self.station0 - travelled, self.lateral1, self.speed1
+        return motion_at(self.t0, self.station0, self.lateral0, self.speed0, self.lateral1, self.speed1,
+                         self.duration, t)
+
+
+def motion_at(t0: float, station0: float, lateral0: float, speed0: float, lateral1: float, speed1: float,
+              duration: float, t: float) -> tuple[float, float, float]:
+    """`Motion.at` on plain floats (the bisection's probes call it without making a Motion)."""
+    elapsed = t - t0
+    if elapsed < duration:
+        fraction = elapsed / duration
+        speed = speed0 + (speed1 - speed0) * fraction
+        travelled = speed0 * elapsed + (speed1 - speed0) * elapsed**2 / (2 * duration)
+        return station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed
+    travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
+    return station0 - travelled, lateral1, speed1
 
 
 def closure_reached(trigger: ClosureTrigger, gap: float, gap_rate: float) -> bool:
@@ -226,8 +233,8 @@ class Traffic:
 
     def at_scalar(self, i: int, t: float) -> tuple[float, float, float]:
         """(station, lateral, speed) of vehicle i at time t, in plain floats (`Motion.at`)."""
-        return Motion(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
-                      float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i])).at(t)
+        return motion_at(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
+                         float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]), t)
 
     def start_action(self, i: int, t: float, ego_lateral: float, ego_speed: float) -> Action:
         """Fires the armed action: a new transition from where the vehicle is now (interrupting any)."""

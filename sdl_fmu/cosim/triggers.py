@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -80,9 +81,9 @@ def reach_time_scalar(distance: float, rate: float, acceleration: float) -> floa
     return 2 * distance / (rate + root) if rate > 0 else (root - rate) / acceleration
 
 
-@dataclass(frozen=True)
-class EgoKinematics:
-    """The ego in the road frame at one instant: station X, lateral Y (+ right) and their rates."""
+class EgoKinematics(NamedTuple):
+    """The ego in the road frame at one instant: station X, lateral Y (+ right) and their rates (a named
+    tuple: made at trigger checks and bisection probes, it must be cheap)."""
 
     time: float
     station: float
@@ -208,3 +209,121 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     away = np.where(gap_rate >= 0, gap_rate / relative_acceleration, 0.0)
     leave = np.where(leave_allowed, np.maximum(behind, away), inf)
     return np.minimum(np.minimum(action, contact), leave)
+
+
+def _reach_time_exact(distance: float, rate: float, acceleration: float) -> float:
+    """`reach_time`'s arithmetic on plain floats, operation for operation (`vehicle_horizon` must equal
+    `vehicle_horizons` bit for bit: step ends, and so the samples, depend on it). Not the same function as
+    `reach_time_scalar` at a margin already used up (distance <= 0) with rate < 0."""
+    if distance < 0.0:
+        distance = 0.0
+    root = math.sqrt(rate * rate + 2 * acceleration * distance)
+    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
+
+
+def _motion(traffic: Traffic, i: int, t: float) -> tuple[float, float, float, float, float]:
+    """`Traffic.motion` of one vehicle in plain floats, operation for operation."""
+    t0, station0, lateral0, speed0, lateral1, speed1, duration = (
+        float(traffic.t0[i]), float(traffic.station0[i]), float(traffic.lateral0[i]), float(traffic.speed0[i]),
+        float(traffic.lateral1[i]), float(traffic.speed1[i]), float(traffic.duration[i]))
+    elapsed = t - t0
+    if elapsed < duration:
+        fraction = elapsed / duration
+        travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
+        lateral_rate = (lateral1 - lateral0) / duration
+        speed_rate = abs(speed1 - speed0) / duration
+    else:
+        fraction = 1.0
+        travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
+        lateral_rate = speed_rate = 0.0
+    return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed0 + (speed1 - speed0) * fraction,
+            lateral_rate, speed_rate)
+
+
+def vehicle_condition(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> tuple[bool, bool, bool]:
+    """`vehicle_conditions` for one vehicle in plain floats, operation for operation (the same decisions,
+    tested)."""
+    station, lateral, speed, _, _ = _motion(traffic, i, ego.time)
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    seconds, where = float(traffic.trigger_seconds[i]), int(traffic.where[i])
+    closing = -gap_rate * (1.0 if gap > 0 else -1.0 if gap < 0 else 0.0)
+    allowed = gap != 0 and not (where == 1 and gap < 0) and not (where == 2 and gap > 0)
+    due = allowed and ((seconds > 0 and closing > 0 and abs(gap) <= seconds * closing)
+                       or (seconds < 0 and closing < 0 and abs(gap) >= seconds * closing))
+    length, width = float(traffic.length[i]), float(traffic.width[i])
+    overlap = _penetration(ego, bounds, gap, lateral - ego.lateral, length, width) > 0
+    leave_allowed = seconds != seconds or seconds > 0 or where == 1
+    away = leave_allowed and gap < -(bounds.length + length) / 2 and gap_rate < 0
+    return due, overlap, away
+
+
+def _penetration(ego: EgoKinematics, bounds: EgoBounds, d_station: float, d_lateral: float, length: float,
+                 width: float) -> float:
+    """`_penetrations`' overlap depth for one vehicle in plain floats, operation for operation."""
+    cos_psi, sin_psi = math.cos(ego.psi), math.sin(ego.psi)
+    c, s = abs(cos_psi), abs(sin_psi)
+    half_l, half_w = bounds.length / 2, bounds.width / 2
+    dx, dy = d_station, -d_lateral
+    along_x = half_l * c + half_w * s + length / 2 - abs(dx)
+    along_y = half_l * s + half_w * c + width / 2 - abs(dy)
+    along_u = half_l + length / 2 * c + width / 2 * s - abs(dx * cos_psi + dy * sin_psi)
+    along_v = half_w + length / 2 * s + width / 2 * c - abs(-dx * sin_psi + dy * cos_psi)
+    return min(min(along_x, along_y), min(along_u, along_v))
+
+
+def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> float:
+    """`vehicle_horizons` for one vehicle in plain floats, the same arithmetic operation for operation (equal
+    bit for bit, tested). With a few vehicles on the road the array form's cost is NumPy's per-operation
+    overhead (about 1 µs for each of some 150 operations on one-element arrays), not the arithmetic."""
+    station, lateral, speed, lateral_rate, speed_rate = _motion(traffic, i, ego.time)
+    length, width, seconds = float(traffic.length[i]), float(traffic.width[i]), float(traffic.trigger_seconds[i])
+    where, in_contact = int(traffic.where[i]), bool(traffic.in_contact[i])
+    a = bounds.acceleration
+    relative_acceleration = a + speed_rate
+    gap = station - ego.station
+    gap_rate = -speed - ego.station_rate
+    closing = -gap_rate * (1.0 if gap >= 0 else -1.0)
+
+    # closure-time actions
+    if seconds != seconds:
+        action = math.inf
+    elif (where == 1 and gap <= 0) or (where == 2 and gap >= 0):
+        action = _reach_time_exact(abs(gap), closing, relative_acceleration)
+    elif seconds > 0:
+        action = _reach_time_exact(abs(gap) - seconds * closing, closing + seconds * relative_acceleration,
+                                   relative_acceleration)
+    else:
+        separating = -closing
+        if separating <= 0:
+            action = min(-separating / relative_acceleration,
+                         _reach_time_exact(abs(gap), closing, relative_acceleration))
+        else:
+            action = _reach_time_exact(-seconds * separating - abs(gap), separating - seconds * relative_acceleration,
+                                       relative_acceleration)
+
+    # footprint contact (_penetrations)
+    d_lateral = lateral - ego.lateral
+    turn = bounds.radius * bounds.yaw_rate
+    if in_contact:
+        depth = _penetration(ego, bounds, gap, d_lateral, length, width)
+        vehicle_radius = float(np.hypot(length / 2, width / 2))
+        relative_speed = abs(gap_rate) + abs(ego.lateral_rate) + abs(lateral_rate)
+        contact = _reach_time_exact(depth, relative_speed + 2 * (bounds.radius + vehicle_radius) * bounds.yaw_rate,
+                                    relative_acceleration)
+    else:
+        c, s = abs(math.cos(ego.psi)), abs(math.sin(ego.psi))
+        half_l, half_w = bounds.length / 2, bounds.width / 2
+        along_x = half_l * c + half_w * s + length / 2 - abs(gap)
+        along_y = half_l * s + half_w * c + width / 2 - abs(-d_lateral)
+        lateral_closing = (1.0 if d_lateral > 0 else -1.0 if d_lateral < 0 else 0.0) * ego.lateral_rate
+        contact = max(_reach_time_exact(-along_x, closing + turn, relative_acceleration),
+                      _reach_time_exact(-along_y, lateral_closing + abs(lateral_rate) + turn, a))
+
+    # departure
+    if (seconds != seconds or seconds > 0 or where == 1) and not in_contact:
+        behind = _reach_time_exact(gap + (bounds.length + length) / 2, -gap_rate, relative_acceleration)
+        leave = max(behind, gap_rate / relative_acceleration if gap_rate >= 0 else 0.0)
+    else:
+        leave = math.inf
+    return min(min(action, contact), leave)

@@ -8,8 +8,8 @@ import math
 import numpy as np
 
 from sdl_fmu.cosim.traffic import Traffic
-from sdl_fmu.cosim.triggers import (EgoBounds, EgoKinematics, vehicle_condition, vehicle_conditions,
-                                   vehicle_horizon, vehicle_horizons)
+from sdl_fmu.cosim.triggers import (EgoBounds, EgoKinematics, reach_time, reach_time_scalar, vehicle_condition,
+                                   vehicle_conditions, vehicle_horizon, vehicle_horizons)
 
 
 TIES = (-1.0, 0.0, 2.0)  # stations shared by vehicles and the ego
@@ -72,3 +72,24 @@ def test_scalar_vehicle_condition_equals_the_array_form():
         assert np.array_equal(got, expected), np.flatnonzero((got != expected).any(axis=1))[:10]
         counts += expected.sum(axis=0)
     assert (counts > 100).all()  # each condition both true and (overwhelmingly) false among the cases
+
+
+def test_reach_time_of_a_margin_already_used_up_is_zero_whatever_the_rate():
+    # A margin at or below 0 (e.g. footprints already overlapping lengthwise while the lateral gap closes)
+    # may make its condition true now: its bound must be 0. The root form alone, (root - rate) / A with
+    # root = |rate| at distance 0, gives the later root 2 |rate| / A for a rate < 0 (1.33 s for rate -10,
+    # A 15), and a collision inside that time went unnoticed.
+    assert reach_time_scalar(0.0, -10.0, 15.0) == 0.0
+    assert float(reach_time(0.0, -10.0, 15.0)) == 0.0
+    rng = np.random.default_rng(7)
+    distance = np.concatenate([rng.uniform(-5, 5, 2000), np.zeros(50)])
+    rate = np.concatenate([rng.uniform(-20, 20, 2000), rng.uniform(-20, 20, 50)])
+    acceleration = rng.uniform(0.5, 30, distance.size)
+    array_form = reach_time(distance, rate, acceleration)
+    assert np.all(array_form[distance <= 0] == 0.0)
+    # elsewhere the smallest root of rate tau + A tau^2 / 2 = distance, checked by substitution
+    tau = array_form[distance > 0]
+    d, r, a = distance[distance > 0], rate[distance > 0], acceleration[distance > 0]
+    assert np.all(tau > 0) and np.allclose(r * tau + a * tau**2 / 2, d, rtol=1e-12, atol=1e-12)
+    scalar_form = [reach_time_scalar(float(x), float(y), float(z)) for x, y, z in zip(distance, rate, acceleration)]
+    assert np.allclose(array_form, scalar_form, rtol=1e-15, atol=0)

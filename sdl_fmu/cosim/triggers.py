@@ -67,10 +67,13 @@ def reach_time(distance, rate, acceleration):
     """Smallest tau >= 0 with rate tau + acceleration tau^2 / 2 >= distance: the earliest instant a margin
     `distance` can be used up when it shrinks now at `rate` (signed, + shrinking) and that rate grows at
     most by `acceleration`. Zero for a margin already used up. Scalars or arrays."""
+    used_up = distance <= 0.0
     distance = np.maximum(distance, 0.0)
     root = np.sqrt(rate * rate + 2 * acceleration * distance)
-    # two forms of the same root, each free of cancellation on its side of rate = 0
-    return np.where(rate > 0, 2 * distance / np.maximum(rate + root, 1e-300), (root - rate) / acceleration)
+    # two forms of the same root, each free of cancellation on its side of rate = 0; a margin already used up
+    # is 0 whatever the rate (the root form alone would give the later root -2 rate / acceleration)
+    return np.where(used_up, 0.0,
+                    np.where(rate > 0, 2 * distance / np.maximum(rate + root, 1e-300), (root - rate) / acceleration))
 
 
 def reach_time_scalar(distance: float, rate: float, acceleration: float) -> float:
@@ -213,10 +216,9 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
 
 def _reach_time_exact(distance: float, rate: float, acceleration: float) -> float:
     """`reach_time`'s arithmetic on plain floats, operation for operation (`vehicle_horizon` must equal
-    `vehicle_horizons` bit for bit: step ends, and so the samples, depend on it). Not the same function as
-    `reach_time_scalar` at a margin already used up (distance <= 0) with rate < 0."""
-    if distance < 0.0:
-        distance = 0.0
+    `vehicle_horizons` bit for bit: step ends, and so the samples, depend on it)."""
+    if distance <= 0.0:
+        return 0.0
     root = math.sqrt(rate * rate + 2 * acceleration * distance)
     return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
 

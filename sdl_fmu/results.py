@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .cosim.recorder import release_pages
+from .lazy_sequence import LazySequence
 from .results_folder import write_results_folder
 from .sdl.events import Road
 from .units import from_si, length_label, speed_label
@@ -40,7 +41,7 @@ class VehicleTrack:
         return out
 
 
-class VehicleTracks(Sequence):
+class VehicleTracks(LazySequence):
     """A run's traffic vehicles in spawn order, held as a few numbers per vehicle over one (rows, 3) table of
     station, lateral, speed (disk-backed for a long run); each VehicleTrack is made when it is asked for,
     so that thousands of vehicles cost no Python objects until used."""
@@ -56,13 +57,7 @@ class VehicleTracks(Sequence):
     def __len__(self) -> int:
         return len(self.vehicles)
 
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            return [self[k] for k in range(*index.indices(len(self)))]
-        if index < 0:
-            index += len(self)
-        if not 0 <= index < len(self):
-            raise IndexError("vehicle index out of range")
+    def _item(self, index: int) -> VehicleTrack:
         model = self.models[index]
         block = self.table[self.offsets[index]:self.offsets[index + 1]]
         return VehicleTrack(int(self.vehicles[index]), model.number, model.name, model.length, model.width,

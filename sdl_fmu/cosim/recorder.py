@@ -10,9 +10,10 @@ from __future__ import annotations
 import mmap
 import pickle
 import tempfile
-from collections.abc import Sequence
 
 import numpy as np
+
+from ..lazy_sequence import LazySequence
 
 CHUNK_ROWS = 8192
 
@@ -85,7 +86,7 @@ def release_pages(array) -> None:
 EVENT_BATCH = 1024  # events pickled to the file at a time
 
 
-class EventLog(Sequence):
+class EventLog(LazySequence):
     """The run's event log (one dict per event, in order), appended to a temporary file in batches: its
     memory stays bounded however many events a run logs. Reads back as a sequence of dicts (each read
     unpickles afresh: a dict taken from it is the caller's own)."""
@@ -120,13 +121,7 @@ class EventLog(Sequence):
         for k in range(len(self.offsets) + 1):
             yield from self._batch(k)
 
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            return [self[i] for i in range(*index.indices(self.count))]
-        if index < 0:
-            index += self.count
-        if not 0 <= index < self.count:
-            raise IndexError("event index out of range")
+    def _item(self, index: int) -> dict:
         return self._batch(index // EVENT_BATCH)[index % EVENT_BATCH]
 
     def __eq__(self, other) -> bool:

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import accumulate
 
+from ..lazy_sequence import LazySequence
 from ..results import SurfaceSection
 from ..sdl.events import Road, Scenario, SurfaceAttribute
 
@@ -48,7 +48,7 @@ def surface_map(scenario: Scenario, dynamics: str) -> SurfaceMap:
     return SurfaceMap(starts, values, DEFAULT_SURFACE[dynamics])
 
 
-class SurfaceSections(Sequence):
+class SurfaceSections(LazySequence):
     """Every RSA-set stretch of the road as SurfaceSection, lane by lane in station order, made when asked
     for from the surface map (no object per section held: a long scenario has tens of thousands)."""
 
@@ -60,13 +60,7 @@ class SurfaceSections(Sequence):
     def __len__(self) -> int:
         return self.ends[-1] if self.ends else 0
 
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            return [self[k] for k in range(*index.indices(len(self)))]
-        if index < 0:
-            index += len(self)
-        if not 0 <= index < len(self):
-            raise IndexError("surface section index out of range")
+    def _item(self, index: int) -> SurfaceSection:
         k = bisect.bisect_right(self.ends, index)
         return self._section(self.lanes[k], index - (self.ends[k - 1] if k else 0))
 

@@ -296,23 +296,27 @@ Status instance_do_step(Instance *instance, double current_time, double h) {
 
     while (end_time - instance->now.time > EVENT_TIME_TOLERANCE) {
         double remaining = end_time - instance->now.time, proposal = 0.0, dt;
-        int k, first = -1;
+        int k, first = -1, stuck;
         double first_theta = 2.0;
 
         /* fixed: equal internal steps no longer than solver_step; at least one (remaining may be far below
          * solver_step, e.g. just after an event located near the end) */
         dt = tolerance > 0.0 ? adaptive_internal_step(instance, remaining, solver_step, &proposal)
                              : first_internal_step(remaining, solver_step);
-        if (instance->steps - first_step > MAX_EVALUATIONS_PER_STEP || attempts++ >= (long long)MAX_INTERNAL_STEPS ||
-            !(instance->now.time + dt > instance->now.time)) {
-            if (instance->now.time + dt > instance->now.time)
+        /* the step must advance the time in double precision; with error control, a proposal shorter than
+         * 16 eps max(|t|, solver_step) (after rejections) cannot be taken meaningfully either */
+        stuck = !(instance->now.time + dt > instance->now.time) ||
+                (tolerance > 0.0 && proposal < 16 * DBL_EPSILON * fmax(fabs(instance->now.time), solver_step));
+        if (stuck || instance->steps - first_step > MAX_EVALUATIONS_PER_STEP ||
+            attempts++ >= (long long)MAX_INTERNAL_STEPS) {
+            if (!stuck)
                 instance_log(instance, STATUS_ERROR, "logStatusError",
                              "doStep exceeded its budget of %.0f internal steps at t = %.17g", MAX_INTERNAL_STEPS,
                              instance->now.time);
             else if (tolerance > 0.0)
                 instance_log(instance, STATUS_ERROR, "logStatusError",
                              "time cannot advance at t = %.17g: the error-controlled internal step fell to %g s "
-                             "(solver_tolerance %g)", instance->now.time, dt, tolerance);
+                             "(solver_tolerance %g)", instance->now.time, proposal, tolerance);
             else
                 instance_log(instance, STATUS_ERROR, "logStatusError", "time cannot advance at t = %.17g",
                              instance->now.time);
@@ -335,13 +339,6 @@ Status instance_do_step(Instance *instance, double current_time, double h) {
             if (!(error <= 1.0)) {
                 instance->now.solver_step_next = dt * fmin(factor, 1.0);
                 rejected = 1;
-                /* a step this short relative to the time and to solver_step cannot be taken meaningfully */
-                if (instance->now.solver_step_next < 16 * DBL_EPSILON * fmax(fabs(instance->now.time), solver_step)) {
-                    instance_log(instance, STATUS_ERROR, "logStatusError",
-                                 "time cannot advance at t = %.17g: the error-controlled internal step fell to %g s "
-                                 "(solver_tolerance %g)", instance->now.time, instance->now.solver_step_next, tolerance);
-                    return STATUS_ERROR;
-                }
                 continue;
             }
             if (rejected) factor = fmin(factor, 1.0);

@@ -25,15 +25,10 @@ class Raw:
             archive.extractall(directory)
         self.description = read_model_description(str(directory))
         identifier = self.description.coSimulation.modelIdentifier
-        self.library = ctypes.CDLL(str(directory / "binaries" / "linux64" / f"{identifier}.so"))
-        for name, (restype, argtypes) in fuzz.SIGNATURES.items():
-            function = getattr(self.library, name)
-            function.restype, function.argtypes = restype, argtypes
+        self.library = fuzz.load_library(directory / "binaries" / "linux64" / f"{identifier}.so", 2)
         self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
         self.messages = []
-        libc = ctypes.CDLL(None)
-        self.callbacks = fuzz.Callbacks(fuzz.Logger(self._log), ctypes.cast(libc.calloc, fuzz.Allocate),
-                                        ctypes.cast(libc.free, fuzz.Free), fuzz.StepFinished(), None)
+        self.callbacks = fuzz.fmi2_callbacks(fuzz.Logger(self._log))
         self.component = None
 
     def _log(self, environment, name, status, category, message, argument):
@@ -289,10 +284,7 @@ class Raw3:
             archive.extractall(directory)
         self.description = read_model_description(str(directory))
         identifier = self.description.coSimulation.modelIdentifier
-        self.library = ctypes.CDLL(str(directory / "binaries" / "x86_64-linux" / f"{identifier}.so"))
-        for name, (restype, argtypes) in fuzz.SIGNATURES3.items():
-            function = getattr(self.library, name)
-            function.restype, function.argtypes = restype, argtypes
+        self.library = fuzz.load_library(directory / "binaries" / "x86_64-linux" / f"{identifier}.so", 3)
         self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
         self.messages = []
         self.logger = fuzz.LogMessage3(lambda environment, status, category, message: self.messages.append(status))

@@ -220,16 +220,28 @@ def _as_int(value) -> int:
     return int(value) if math.isfinite(value) and abs(value) < 2**31 else 0
 
 
+def load_library(path, fmi_version: int) -> ctypes.CDLL:
+    """An FMU binary loaded with ctypes, every function the fuzzer calls declared with its C signature."""
+    library = ctypes.CDLL(str(path))
+    for name, (restype, argtypes) in (SIGNATURES if fmi_version == 2 else SIGNATURES3).items():
+        function = getattr(library, name)
+        function.restype, function.argtypes = restype, argtypes
+    return library
+
+
+def fmi2_callbacks(logger: Logger) -> Callbacks:
+    """fmi2CallbackFunctions with this logger and the C library's calloc and free."""
+    libc = ctypes.CDLL(None)
+    return Callbacks(logger, ctypes.cast(libc.calloc, Allocate), ctypes.cast(libc.free, Free), StepFinished(), None)
+
+
 # ---- the worker: runs sequences and judges every call ---------------------------------------------------------
 
 
 class Worker:
     def __init__(self, config: dict):
-        self.library = ctypes.CDLL(config["library"])
         self.version = config["fmi_version"]
-        for name, (restype, argtypes) in (SIGNATURES if self.version == 2 else SIGNATURES3).items():
-            function = getattr(self.library, name)
-            function.restype, function.argtypes = restype, argtypes
+        self.library = load_library(config["library"], self.version)
         self.log_message3 = LogMessage3(self._log3)
         self.guid = config["guid"].encode()
         self.variables = [Variable(**v) for v in config["variables"]]
@@ -241,9 +253,7 @@ class Worker:
         self.seed = config["seed"]
         self.log_errors = 0
         self.last_message = ""
-        libc = ctypes.CDLL(None)
-        self.callbacks = Callbacks(Logger(self._log), ctypes.cast(libc.calloc, Allocate),
-                                   ctypes.cast(libc.free, Free), StepFinished(), None)
+        self.callbacks = fmi2_callbacks(Logger(self._log))
         self.stats = Counter()
 
     def _log3(self, environment, status, category, message):

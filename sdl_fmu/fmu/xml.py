@@ -111,6 +111,14 @@ def _structure_lists(table: list[TableEntry]) -> tuple[list[int], list[int], lis
     return outputs, derivatives, initial, indicators
 
 
+def _generation_attributes(interface: Interface) -> dict[str, str]:
+    """The root attributes both FMI versions share, after the version, model name and GUID/token."""
+    return {"description": interface.description,
+            "generationTool": f"sdl-fmu {__version__} (CasADi code generation)",
+            "generationDateAndTime": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "variableNamingConvention": "structured"}
+
+
 def model_description(interface: Interface, table: list[TableEntry], guid: str, event_indicators: int,
                       sources: list[str], dependencies: DeclaredDependencies) -> bytes:
     """FMI 2.0 modelDescription.xml."""
@@ -119,10 +127,7 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
         "fmiVersion": "2.0",
         "modelName": model,
         "guid": guid,
-        "description": interface.description,
-        "generationTool": f"sdl-fmu {__version__} (CasADi code generation)",
-        "generationDateAndTime": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "variableNamingConvention": "structured",
+        **_generation_attributes(interface),
         "numberOfEventIndicators": str(event_indicators),
     })
     common = {"modelIdentifier": model, "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
@@ -187,10 +192,7 @@ def model_description_fmi3(interface: Interface, table: list[TableEntry], guid: 
         "fmiVersion": "3.0",
         "modelName": model,
         "instantiationToken": guid,
-        "description": interface.description,
-        "generationTool": f"sdl-fmu {__version__} (CasADi code generation)",
-        "generationDateAndTime": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "variableNamingConvention": "structured",
+        **_generation_attributes(interface),
     })
     common = {"modelIdentifier": model, "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
               "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "true"}

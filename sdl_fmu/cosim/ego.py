@@ -113,7 +113,6 @@ class EgoFMU:
         # the bisection's snapshots (an FMU state is a c_void_p, passed by reference to get and free)
         self._get_state, self._set_state, self._free_state = (
             function(name) for name in ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate"))
-        self._setters: dict[tuple[str, ...], Callable] = {}
 
     def reference(self, name: str) -> int:
         try:
@@ -158,9 +157,6 @@ class EgoFMU:
     def real_setter(self, names: tuple[str, ...]) -> Callable[[tuple[float, ...]], None]:
         """A function that sets these Real inputs (values in this order) in one FMI call, its ctypes
         buffers made once: the master's per-step path (`set` is the general one)."""
-        setter = self._setters.get(names)
-        if setter is not None:
-            return setter
         refs = (fmi2ValueReference * len(names))(*(self.reference(name) for name in names))
         if any(self.variables[name].type != "Real" for name in names):
             raise FmuError(f"real_setter: not all of {names} are Real variables")
@@ -172,12 +168,7 @@ class EgoFMU:
             if call() > 1:
                 raise FmuError(f"the FMU refused the values {dict(zip(names, values))}")
 
-        self._setters[names] = setter
         return setter
-
-    def set_reals(self, names: tuple[str, ...], values) -> None:
-        """Sets Real inputs by name in one call (see `real_setter`)."""
-        self.real_setter(names)(values)
 
     def get(self, name: str) -> float:
         return self.slave.getReal([self.reference(name)])[0]

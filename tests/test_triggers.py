@@ -92,4 +92,4 @@ def test_reach_time_of_a_margin_already_used_up_is_zero_whatever_the_rate():
     d, r, a = distance[distance > 0], rate[distance > 0], acceleration[distance > 0]
     assert np.all(tau > 0) and np.allclose(r * tau + a * tau**2 / 2, d, rtol=1e-12, atol=1e-12)
     scalar_form = [reach_time_scalar(float(x), float(y), float(z)) for x, y, z in zip(distance, rate, acceleration)]
-    assert np.allclose(array_form, scalar_form, rtol=1e-15, atol=0)
+    assert np.array_equal(array_form, scalar_form)  # the same operations: the same bits

@@ -77,11 +77,13 @@ def reach_time(distance, rate, acceleration):
 
 
 def reach_time_scalar(distance: float, rate: float, acceleration: float) -> float:
-    """`reach_time` for plain floats (the per-step path: no array overhead)."""
+    """`reach_time` for plain floats (the per-step path: no array overhead), operation for operation, so that
+    the two give the same bits (`vehicle_horizon` must equal `vehicle_horizons`: step ends, and so the
+    samples, depend on it)."""
     if distance <= 0.0:
         return 0.0
     root = math.sqrt(rate * rate + 2 * acceleration * distance)
-    return 2 * distance / (rate + root) if rate > 0 else (root - rate) / acceleration
+    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
 
 
 class EgoKinematics(NamedTuple):
@@ -214,15 +216,6 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     return np.minimum(np.minimum(action, contact), leave)
 
 
-def _reach_time_exact(distance: float, rate: float, acceleration: float) -> float:
-    """`reach_time`'s arithmetic on plain floats, operation for operation (`vehicle_horizon` must equal
-    `vehicle_horizons` bit for bit: step ends, and so the samples, depend on it)."""
-    if distance <= 0.0:
-        return 0.0
-    root = math.sqrt(rate * rate + 2 * acceleration * distance)
-    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
-
-
 def _motion(traffic: Traffic, i: int, t: float) -> tuple[float, float, float, float, float]:
     """`Traffic.motion` of one vehicle in plain floats, operation for operation."""
     t0, station0, lateral0, speed0, lateral1, speed1, duration = (
@@ -291,17 +284,17 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
     if seconds != seconds:
         action = math.inf
     elif (where == 1 and gap <= 0) or (where == 2 and gap >= 0):
-        action = _reach_time_exact(abs(gap), closing, relative_acceleration)
+        action = reach_time_scalar(abs(gap), closing, relative_acceleration)
     elif seconds > 0:
-        action = _reach_time_exact(abs(gap) - seconds * closing, closing + seconds * relative_acceleration,
+        action = reach_time_scalar(abs(gap) - seconds * closing, closing + seconds * relative_acceleration,
                                    relative_acceleration)
     else:
         separating = -closing
         if separating <= 0:
             action = min(-separating / relative_acceleration,
-                         _reach_time_exact(abs(gap), closing, relative_acceleration))
+                         reach_time_scalar(abs(gap), closing, relative_acceleration))
         else:
-            action = _reach_time_exact(-seconds * separating - abs(gap), separating - seconds * relative_acceleration,
+            action = reach_time_scalar(-seconds * separating - abs(gap), separating - seconds * relative_acceleration,
                                        relative_acceleration)
 
     # footprint contact (_penetrations)
@@ -311,7 +304,7 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
         depth = _penetration(ego, bounds, gap, d_lateral, length, width)
         vehicle_radius = float(np.hypot(length / 2, width / 2))
         relative_speed = abs(gap_rate) + abs(ego.lateral_rate) + abs(lateral_rate)
-        contact = _reach_time_exact(depth, relative_speed + 2 * (bounds.radius + vehicle_radius) * bounds.yaw_rate,
+        contact = reach_time_scalar(depth, relative_speed + 2 * (bounds.radius + vehicle_radius) * bounds.yaw_rate,
                                     relative_acceleration)
     else:
         c, s = abs(math.cos(ego.psi)), abs(math.sin(ego.psi))
@@ -319,12 +312,12 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
         along_x = half_l * c + half_w * s + length / 2 - abs(gap)
         along_y = half_l * s + half_w * c + width / 2 - abs(-d_lateral)
         lateral_closing = (1.0 if d_lateral > 0 else -1.0 if d_lateral < 0 else 0.0) * ego.lateral_rate
-        contact = max(_reach_time_exact(-along_x, closing + turn, relative_acceleration),
-                      _reach_time_exact(-along_y, lateral_closing + abs(lateral_rate) + turn, a))
+        contact = max(reach_time_scalar(-along_x, closing + turn, relative_acceleration),
+                      reach_time_scalar(-along_y, lateral_closing + abs(lateral_rate) + turn, a))
 
     # departure
     if (seconds != seconds or seconds > 0 or where == 1) and not in_contact:
-        behind = _reach_time_exact(gap + (bounds.length + length) / 2, -gap_rate, relative_acceleration)
+        behind = reach_time_scalar(gap + (bounds.length + length) / 2, -gap_rate, relative_acceleration)
         leave = max(behind, gap_rate / relative_acceleration if gap_rate >= 0 else 0.0)
     else:
         leave = math.inf

@@ -93,13 +93,11 @@ class EventLog(LazySequence):
 
     def __init__(self):
         self.pending: list[dict] = []  # events since the last batch went to the file
-        self.offsets: list[int] = []  # file offset of each batch written
-        self.count = 0
+        self.offsets: list[int] = []  # file offset of each (full) batch written
         self.file = None
 
     def append(self, event: dict) -> None:
         self.pending.append(event)
-        self.count += 1
         if len(self.pending) == EVENT_BATCH:
             if self.file is None:
                 self.file = tempfile.TemporaryFile(prefix="sdl-fmu-events-")
@@ -115,7 +113,7 @@ class EventLog(LazySequence):
         return pickle.load(self.file)
 
     def __len__(self) -> int:
-        return self.count
+        return len(self.offsets) * EVENT_BATCH + len(self.pending)
 
     def __iter__(self):
         for k in range(len(self.offsets) + 1):
@@ -130,7 +128,7 @@ class EventLog(LazySequence):
         return NotImplemented
 
     def __repr__(self) -> str:
-        return f"EventLog({self.count} events)"
+        return f"EventLog({len(self)} events)"
 
     def __reduce__(self):
         return list, (list(self),)  # pickled (e.g. sent to another process) as a plain list

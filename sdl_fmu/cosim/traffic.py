@@ -229,9 +229,6 @@ class Traffic:
         return self.station0[idx] - travelled, lateral, speed, lateral_rate, speed_rate
 
     def at(self, i: int, t: float) -> tuple[float, float, float]:
-        return self.at_scalar(i, t)
-
-    def at_scalar(self, i: int, t: float) -> tuple[float, float, float]:
         """(station, lateral, speed) of vehicle i at time t, in plain floats (`Motion.at`)."""
         return motion_at(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
                          float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]), t)

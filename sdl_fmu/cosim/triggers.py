@@ -140,7 +140,7 @@ def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bo
 def vehicle_triggered(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> bool:
     """`vehicle_conditions` for one vehicle in plain floats (the bisection probes' path): whether its
     action is due, its contact state changes or it may leave."""
-    station, lateral, speed = traffic.at_scalar(i, ego.time)
+    station, lateral, speed = traffic.at(i, ego.time)
     gap = station - ego.station
     gap_rate = -speed - ego.station_rate
     seconds, where = traffic.trigger_seconds[i], traffic.where[i]

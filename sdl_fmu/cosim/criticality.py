@@ -1,0 +1,448 @@
+"""Criticality measures between the ego and one traffic vehicle: footprint distance, time to collision (TTC),
+deceleration rate to avoid a crash (DRAC), post-encroachment time (PET) and time headway, with their time
+derivatives and lower bounds on when an extreme can occur, so that the master locates each extreme as an
+instant by its event machinery instead of taking the best sample. Numbers only, SI, no I/O.
+
+Definitions (SUMO's SSM device, https://sumo.dlr.de/docs/Simulation/Output/SSM_Device.html and
+src/microsim/devices/MSDevice_SSM.cpp; CommonRoad-CriMe, commonroad_crime/measure/time/{ttc,thw,pet}.py and
+distance/hw.py; https://criticality-metrics.readthedocs.io):
+- distance: the minimum Euclidean distance between the ego's footprint (a length x width rectangle about its
+  reference point, turned by its yaw psi) and the vehicle's (aligned with the road, as traffic.py moves it);
+  0 in contact. `signed_distance` is minus the penetration depth while they overlap.
+- TTC: the earliest time at which the footprints would touch if both kept their current velocities (the ego's
+  yaw frozen), "defined only on a collision course" (SUMO; CriMe's TTC is the same quantity along a lanelet,
+  gap / closing speed for a constant velocity). Closed form: along each of the four separating axes the
+  projections overlap during one interval of time, linear in time; the footprints touch when all four do
+  (the separating-axis theorem). Collision course: the intersection of the intervals is not empty and ends in
+  the future. Infinite when not on a collision course, 0 in contact.
+- DRAC = closing speed^2 / (2 x distance along the collision course) (SUMO: (v_follower - v_leader)^2 / (2 gap)
+  for a follower). Under constant velocities the footprints close along the relative velocity v_rel and meet
+  after |v_rel| TTC, so DRAC = |v_rel|^2 / (2 |v_rel| TTC) = |v_rel| / (2 TTC), which for a head-on approach
+  at closing speed c and gap g is c^2 / (2 g). Defined while on a collision course and not in contact.
+- PET: the time between one leaving the area both use and the other reaching it (SUMO: "the time between the
+  departure of the first vehicle from the conflict area and the arrival of the second"; CriMe pet.py:
+  t_entry(second) - t_exit(first)). Here, for a vehicle crossing the ego's path (a lateral action into the
+  ego's lane and back): the conflict area is where the vehicle's footprint stood when it left the ego's path
+  band (`band_times`), and the ego reaches it when its front reaches that area's near end
+  (`conflict_station`). PET = t_ego_reaches - t_vehicle_left.
+- time headway (SUMO's TGAP = space gap / follower speed; CriMe thw.py for a constant ego speed): the
+  bumper-to-bumper gap to a vehicle ahead in the ego's path (the footprints overlap laterally) moving the same
+  way, divided by the ego's speed along the road.
+
+Frames: ISO 8855 inertial, x = station, y = -lateral (road.py). Relative quantities are vehicle - ego: centre
+(dx, dy), velocity (vx, vy), acceleration. A vehicle moving at `speed` toward decreasing station with a
+lateral rate has the velocity (-speed, -lateral_rate).
+
+Forms: each function on plain floats (the master's path for up to SCALAR_VEHICLES vehicles), and its
+vectorised twin (suffix `s`, NumPy arrays over vehicles) doing the same operations in the same order, so
+the two give the same bits (tested), as in triggers.py. Square roots as sqrt(x*x + y*y) (math.sqrt and
+np.sqrt are both correctly rounded; math.hypot and np.hypot are not the same algorithm).
+
+Design: how the master uses these (one accumulator per vehicle; see `VehicleExtremes`).
+1. At every communication point (and at every located instant) the master evaluates, for the vehicles
+   near the ego, the distance, its rate, TTC and DRAC (and headway), and offers them to the vehicle's
+   accumulator: an extreme is never worse than the best value seen at an instant the master stood on.
+2. Between two communication points an extreme can lie inside the step. It is the root of a derivative
+   (`distance_rate` from - to +: the closest approach; `ttc_rate` from - to +: the smallest TTC), or the
+   start or end of a contact (already located by the master's contact triggers) or of a collision course
+   (TTC jumps from / to infinity: the condition `ttc < inf` changes). The master adds a trigger kind
+   "criticality" whose condition at a probe is: some watched vehicle's derivative changed sign from - at the
+   step start to >= 0 (or its collision course began or ended). It bisects it as any trigger (rollback,
+   TIME_TOLERANCE) and offers the values at the located instant to the accumulator.
+3. Horizons bound when such an instant can come, as triggers.py's do for the triggers, from the ego's
+   bounds (acceleration A of its CG, yaw rate r_max, corner radius R): `distance_horizon` (the distance
+   cannot fall to the vehicle's recorded minimum before it: no new minimum distance can occur) and
+   `approach_horizon` (an approach at rate -d' cannot end before it). A vehicle receding from its recorded
+   minimum is watched only after its distance horizon; an approaching one only within its approach horizon.
+   PET needs the instant the vehicle leaves the ego's path band (closed form in its motion: `band_times`)
+   and the instant the ego's front reaches the conflict station, a distance trigger with the horizon
+   reach_time(station - front, station_rate + R r_max, A) as the master's event distances.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+INF = math.inf
+
+
+class Footprint(NamedTuple):
+    """The ego's footprint at one instant: half length and width, cos and sin of its yaw (made once per
+    instant and shared by every vehicle)."""
+
+    half_length: float
+    half_width: float
+    cos: float
+    sin: float
+
+    @staticmethod
+    def of(length: float, width: float, psi: float) -> Footprint:
+        return Footprint(length / 2, width / 2, math.cos(psi), math.sin(psi))
+
+
+# ---- footprint distance ---------------------------------------------------------------------------------
+
+def _point_box(x: float, y: float, half_x: float, half_y: float) -> float:
+    """Distance from (x, y) to the axis-aligned box |x| <= half_x, |y| <= half_y (0 inside)."""
+    ex = max(abs(x) - half_x, 0.0)
+    ey = max(abs(y) - half_y, 0.0)
+    return math.sqrt(ex * ex + ey * ey)
+
+
+def _point_boxes(x, y, half_x, half_y):
+    ex = np.maximum(np.abs(x) - half_x, 0.0)
+    ey = np.maximum(np.abs(y) - half_y, 0.0)
+    return np.sqrt(ex * ex + ey * ey)
+
+
+def _corners(ego: Footprint, dx, dy, length, width):
+    """The eight (x, y, half_x, half_y) corner-to-box problems whose minimum is the distance of two disjoint
+    convex polygons (the closest pair always has a vertex of one of them): the ego's four corners relative
+    to the vehicle's centre against the vehicle's box, and the vehicle's four corners in the ego's body
+    frame against the ego's box. Works on floats and arrays alike."""
+    a, b, c, s = ego
+    hl, hw = length / 2, width / 2
+    ac, as_, bc, bs = a * c, a * s, b * c, b * s
+    du = dx * c + dy * s  # the vehicle's centre in the ego's body frame
+    dv = -dx * s + dy * c
+    lc, ls, wc, ws = hl * c, hl * s, hw * c, hw * s
+    return (
+        # ego corner (sign_l a, sign_w b) turned by psi, minus the vehicle's centre
+        (ac - bs - dx, as_ + bc - dy, hl, hw),
+        (ac + bs - dx, as_ - bc - dy, hl, hw),
+        (-ac - bs - dx, -as_ + bc - dy, hl, hw),
+        (-ac + bs - dx, -as_ - bc - dy, hl, hw),
+        # vehicle corner (sign_l hl, sign_w hw) turned by -psi, plus the centre in the body frame
+        (du + lc + ws, dv - ls + wc, a, b),
+        (du + lc - ws, dv - ls - wc, a, b),
+        (du - lc + ws, dv + ls + wc, a, b),
+        (du - lc - ws, dv + ls - wc, a, b),
+    )
+
+
+def penetration(ego: Footprint, dx: float, dy: float, length: float, width: float) -> float:
+    """The overlap depth of the two footprints (> 0: they overlap): the smallest overlap of their
+    projections on the four separating axes (x, y, the ego's u and v), which for convex polygons is the
+    penetration depth (the shortest translation that separates them)."""
+    a, b, c, s = ego
+    ac, as_ = abs(c), abs(s)
+    hl, hw = length / 2, width / 2
+    along_x = a * ac + b * as_ + hl - abs(dx)
+    along_y = a * as_ + b * ac + hw - abs(dy)
+    along_u = a + hl * ac + hw * as_ - abs(dx * c + dy * s)
+    along_v = b + hl * as_ + hw * ac - abs(-dx * s + dy * c)
+    return min(min(along_x, along_y), min(along_u, along_v))
+
+
+def penetrations(ego: Footprint, dx, dy, length, width):
+    """`penetration` over arrays of vehicles."""
+    a, b, c, s = ego
+    ac, as_ = abs(c), abs(s)
+    hl, hw = length / 2, width / 2
+    along_x = a * ac + b * as_ + hl - np.abs(dx)
+    along_y = a * as_ + b * ac + hw - np.abs(dy)
+    along_u = a + hl * ac + hw * as_ - np.abs(dx * c + dy * s)
+    along_v = b + hl * as_ + hw * ac - np.abs(-dx * s + dy * c)
+    return np.minimum(np.minimum(along_x, along_y), np.minimum(along_u, along_v))
+
+
+def signed_distance(ego: Footprint, dx: float, dy: float, length: float, width: float) -> float:
+    """Minimum distance between the footprints (m), minus the penetration depth while they overlap."""
+    depth = penetration(ego, dx, dy, length, width)
+    if depth > 0.0:
+        return -depth
+    best = INF
+    for x, y, half_x, half_y in _corners(ego, dx, dy, length, width):
+        best = min(best, _point_box(x, y, half_x, half_y))
+    return best
+
+
+def signed_distances(ego: Footprint, dx, dy, length, width):
+    """`signed_distance` over arrays of vehicles."""
+    depth = penetrations(ego, dx, dy, length, width)
+    best = np.full(np.shape(depth), INF)
+    for x, y, half_x, half_y in _corners(ego, dx, dy, length, width):
+        best = np.minimum(best, _point_boxes(x, y, half_x, half_y))
+    return np.where(depth > 0.0, -depth, best)
+
+
+def distance(ego: Footprint, dx: float, dy: float, length: float, width: float) -> float:
+    """Minimum distance between the footprints (m), 0 in contact."""
+    return max(signed_distance(ego, dx, dy, length, width), 0.0)
+
+
+def distances(ego: Footprint, dx, dy, length, width):
+    return np.maximum(signed_distances(ego, dx, dy, length, width), 0.0)
+
+
+# ---- its rate of change -----------------------------------------------------------------------------------
+
+def distance_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, yaw_rate: float, length: float,
+                  width: float) -> float:
+    """d/dt of `distance` along the present motion: relative velocity (vx, vy) = vehicle - ego, the ego
+    turning at yaw_rate (yaw_rate 0: the rate with the ego's yaw frozen, used by the horizons). 0 in
+    contact or touching (the distance is 0 there). Where several corners are equally close, the smallest of
+    their rates: the rate of their minimum from now on.
+
+    Distance from a point p to a box: |g| with g = (sign(px) max(|px| - hx, 0), ...); its rate g.p'/|g|.
+    An ego corner e (turned with the ego) relative to the vehicle's centre: p = e - d,
+    p' = yaw_rate (-e_y, e_x) - v. A vehicle corner in the ego's body frame: q = R(-psi)(d + f),
+    q' = R(-psi) v + yaw_rate (q_v, -q_u)."""
+    if penetration(ego, dx, dy, length, width) >= 0.0:
+        return 0.0
+    a, b, c, s = ego
+    vu, vv = vx * c + vy * s, -vx * s + vy * c
+    best, rate = INF, INF
+    for k, (x, y, half_x, half_y) in enumerate(_corners(ego, dx, dy, length, width)):
+        ex = max(abs(x) - half_x, 0.0)
+        ey = max(abs(y) - half_y, 0.0)
+        d = math.sqrt(ex * ex + ey * ey)
+        if d > best:
+            continue
+        gx = ex if x >= 0.0 else -ex
+        gy = ey if y >= 0.0 else -ey
+        if k < 4:  # ego corner: e = p + d
+            px_rate = -yaw_rate * (y + dy) - vx
+            py_rate = yaw_rate * (x + dx) - vy
+        else:
+            px_rate = vu + yaw_rate * y
+            py_rate = vv - yaw_rate * x
+        r = (gx * px_rate + gy * py_rate) / d
+        rate = r if d < best else min(rate, r)
+        best = d
+    return rate
+
+
+def distance_rates(ego: Footprint, dx, dy, vx, vy, yaw_rate: float, length, width):
+    """`distance_rate` over arrays of vehicles."""
+    a, b, c, s = ego
+    vu, vv = vx * c + vy * s, -vx * s + vy * c
+    best = np.full(np.shape(dx), INF)
+    rate = np.full(np.shape(dx), INF)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for k, (x, y, half_x, half_y) in enumerate(_corners(ego, dx, dy, length, width)):
+            ex = np.maximum(np.abs(x) - half_x, 0.0)
+            ey = np.maximum(np.abs(y) - half_y, 0.0)
+            d = np.sqrt(ex * ex + ey * ey)
+            gx = np.where(x >= 0.0, ex, -ex)
+            gy = np.where(y >= 0.0, ey, -ey)
+            if k < 4:
+                px_rate = -yaw_rate * (y + dy) - vx
+                py_rate = yaw_rate * (x + dx) - vy
+            else:
+                px_rate = vu + yaw_rate * y
+                py_rate = vv - yaw_rate * x
+            r = (gx * px_rate + gy * py_rate) / d
+            rate = np.where(d < best, r, np.where(d == best, np.minimum(rate, r), rate))
+            best = np.minimum(best, d)
+    return np.where(penetrations(ego, dx, dy, length, width) >= 0.0, 0.0, rate)
+
+
+# ---- time to collision and DRAC -----------------------------------------------------------------------------
+
+def _axes(ego: Footprint, dx, dy, vx, vy, length, width):
+    """Per separating axis (x, y, u, v): centre offset p, relative velocity q and the sum h of the two
+    footprints' half extents along it (`penetration`'s terms)."""
+    a, b, c, s = ego
+    ac, as_ = abs(c), abs(s)
+    hl, hw = length / 2, width / 2
+    return ((dx, vx, a * ac + b * as_ + hl),
+            (dy, vy, a * as_ + b * ac + hw),
+            (dx * c + dy * s, vx * c + vy * s, a + hl * ac + hw * as_),
+            (-dx * s + dy * c, -vx * s + vy * c, b + hl * as_ + hw * ac))
+
+
+def ttc(ego: Footprint, dx: float, dy: float, vx: float, vy: float, length: float, width: float) -> float:
+    """Constant-velocity time to collision (s): the projections on an axis overlap while |p + q t| < h, an
+    interval (entry, exit) of t; the footprints overlap on the intersection of the four intervals. 0 when
+    they overlap now, inf when not on a collision course (the intersection is empty, or past)."""
+    entry, leave = -INF, INF
+    for p, q, h in _axes(ego, dx, dy, vx, vy, length, width):
+        if q == 0.0:
+            if abs(p) >= h:
+                return INF  # never overlapping along this axis
+            continue
+        t1, t2 = (-h - p) / q, (h - p) / q
+        entry = max(entry, min(t1, t2))
+        leave = min(leave, max(t1, t2))
+    if entry >= leave or leave <= 0.0:
+        return INF
+    return max(entry, 0.0)
+
+
+def ttcs(ego: Footprint, dx, dy, vx, vy, length, width):
+    """`ttc` over arrays of vehicles."""
+    shape = np.shape(dx)
+    entry, leave = np.full(shape, -INF), np.full(shape, INF)
+    never = np.zeros(shape, dtype=bool)
+    for p, q, h in _axes(ego, dx, dy, vx, vy, length, width):
+        still = q == 0.0
+        never |= still & (np.abs(p) >= h)
+        span = np.where(still, 1.0, q)
+        t1, t2 = (-h - p) / span, (h - p) / span
+        entry = np.where(still, entry, np.maximum(entry, np.minimum(t1, t2)))
+        leave = np.where(still, leave, np.minimum(leave, np.maximum(t1, t2)))
+    return np.where(never | (entry >= leave) | (leave <= 0.0), INF, np.maximum(entry, 0.0))
+
+
+def drac(ttc_s: float, vx: float, vy: float) -> float:
+    """Deceleration rate to avoid a crash (m/s2), |v_rel| / (2 TTC) = |v_rel|^2 / (2 |v_rel| TTC); nan when
+    TTC is not defined (inf) or the footprints overlap (TTC 0)."""
+    if not 0.0 < ttc_s < INF:
+        return math.nan
+    return math.sqrt(vx * vx + vy * vy) / (2 * ttc_s)
+
+
+def dracs(ttc_s, vx, vy):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        value = np.sqrt(vx * vx + vy * vy) / (2 * ttc_s)
+    return np.where((ttc_s > 0.0) & (ttc_s < INF), value, np.nan)
+
+
+def ttc_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ax: float, ay: float, yaw_rate: float,
+             length: float, width: float) -> float:
+    """d/dt of `ttc` along the present motion (relative acceleration (ax, ay) = vehicle - ego, the ego turning
+    at yaw_rate): -1 under constant velocities and yaw. nan where TTC is not defined or 0.
+
+    TTC is the entry time of the axis entered last, t = -(p + sigma h) / q (sigma = sign q), so
+    t' = -(p' + sigma h' + t q') / q with p' = q on the road's axes and q + yaw_rate p_v, q - yaw_rate p_u on
+    the ego's (u, v) axes; q' the relative acceleration along the axis (plus the turning of u and v); h'
+    from the turning of the projected half extents (d|cos psi|/dt = -sign(cos) sin yaw_rate, ...)."""
+    t = ttc(ego, dx, dy, vx, vy, length, width)
+    if not 0.0 < t < INF:
+        return math.nan
+    a, b, c, s = ego
+    hl, hw = length / 2, width / 2
+    sc, ss = math.copysign(1.0, c), math.copysign(1.0, s)
+    cos_rate, sin_rate = -sc * s * yaw_rate, ss * c * yaw_rate  # of |cos psi|, |sin psi|
+    (px, qx, hx), (py, qy, hy), (pu, qu, hu), (pv, qv, hv) = _axes(ego, dx, dy, vx, vy, length, width)
+    au, av = ax * c + ay * s, -ax * s + ay * c
+    axes = ((px, qx, hx, qx, ax, a * cos_rate + b * sin_rate),
+            (py, qy, hy, qy, ay, a * sin_rate + b * cos_rate),
+            (pu, qu, hu, qu + yaw_rate * pv, au + yaw_rate * qv, hl * cos_rate + hw * sin_rate),
+            (pv, qv, hv, qv - yaw_rate * pu, av - yaw_rate * qu, hl * sin_rate + hw * cos_rate))
+    # the axis that sets the entry time: the latest entry among the axes with q != 0
+    last, rate = -INF, math.nan
+    for p, q, h, p_rate, q_rate, h_rate in axes:
+        if q == 0.0:
+            continue
+        sigma = 1.0 if q > 0.0 else -1.0
+        entry = -(p + sigma * h) / q
+        if entry > last:
+            last = entry
+            rate = -(p_rate + sigma * h_rate + entry * q_rate) / q
+    return rate
+
+
+# ---- time headway -----------------------------------------------------------------------------------------
+
+def headway(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
+            length: float, width: float) -> float:
+    """Time headway (s) to a vehicle ahead in the ego's path moving the same way: the bumper-to-bumper gap
+    along the road (the vehicle's rear to the front of the ego's footprint) over the ego's speed along the
+    road (SUMO's TGAP). inf when the vehicle is not ahead in the ego's path (the footprints do not overlap
+    laterally, or it is not wholly ahead), not moving the ego's way, or the ego does not move forward."""
+    a, b, c, s = ego
+    ac, as_ = abs(c), abs(s)
+    gap = dx - (a * ac + b * as_) - length / 2
+    if (gap <= 0.0 or abs(dy) >= a * as_ + b * ac + width / 2 or station_rate <= 0.0
+            or vehicle_station_rate <= 0.0):
+        return INF
+    return gap / station_rate
+
+
+def headways(ego: Footprint, dx, dy, station_rate: float, vehicle_station_rate, length, width):
+    a, b, c, s = ego
+    ac, as_ = abs(c), abs(s)
+    gap = dx - (a * ac + b * as_) - length / 2
+    ahead = (gap > 0.0) & (np.abs(dy) < a * as_ + b * ac + width / 2) & (vehicle_station_rate > 0.0)
+    if station_rate <= 0.0:
+        return np.full(np.shape(gap), INF)
+    return np.where(ahead, gap / station_rate, INF)
+
+
+# ---- post-encroachment time -------------------------------------------------------------------------------
+
+def band_times(t0: float, lateral0: float, lateral1: float, duration: float, width: float, band_low: float,
+               band_high: float) -> tuple[float, float]:
+    """(enter, leave): the instants the vehicle's footprint (lateral extent lateral -+ width / 2) begins and
+    ceases to overlap the band band_low < lateral < band_high (the ego's path), while its lateral position
+    moves linearly from lateral0 at t0 to lateral1 at t0 + duration and then holds (traffic.Motion).
+    enter = -inf if it overlaps at t0, leave = inf if it still overlaps at the end; (nan, nan) if it never
+    overlaps within the motion."""
+    low, high = band_low - width / 2, band_high + width / 2  # the centre's lateral range of overlap
+    inside0 = low < lateral0 < high
+    if duration <= 0.0 or lateral1 == lateral0:
+        return (-INF, INF) if inside0 else (math.nan, math.nan)
+    rate = (lateral1 - lateral0) / duration
+    if rate > 0.0:  # moving toward higher lateral: in across `low`, out across `high`
+        if not inside0 and not (lateral0 <= low < lateral1):
+            return math.nan, math.nan
+        enter = -INF if inside0 else t0 + (low - lateral0) / rate
+        leave = t0 + (high - lateral0) / rate if lateral1 >= high else INF
+    else:
+        if not inside0 and not (lateral0 >= high > lateral1):
+            return math.nan, math.nan
+        enter = -INF if inside0 else t0 + (high - lateral0) / rate
+        leave = t0 + (low - lateral0) / rate if lateral1 <= low else INF
+    return enter, leave
+
+
+def conflict_station(station: float, length: float) -> float:
+    """The near (lower-station) end of the conflict area: the vehicle's rear as it leaves the ego's path,
+    the station the front of the ego's footprint reaches at the ego's encroachment."""
+    return station - length / 2
+
+
+def post_encroachment_time(vehicle_leaves: float, ego_reaches: float) -> float:
+    """PET (s) = t_ego_reaches - t_vehicle_leaves; nan when the ego reached the area first (then the two
+    occupied it together: a contact or a near miss, measured by distance and TTC, not PET)."""
+    return ego_reaches - vehicle_leaves if ego_reaches >= vehicle_leaves else math.nan
+
+
+# ---- horizons -------------------------------------------------------------------------------------------
+
+def _reach_time(distance: float, rate: float, acceleration: float) -> float:
+    """triggers.reach_time_scalar (repeated to keep imports flowing one way: triggers imports traffic only)."""
+    if distance <= 0.0:
+        return 0.0
+    root = math.sqrt(rate * rate + 2 * acceleration * distance)
+    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
+
+
+def distance_horizon(distance: float, frozen_rate: float, floor: float, turn: float, acceleration: float) -> float:
+    """A lower bound (s) on when the footprint distance can fall to `floor` (the vehicle's recorded minimum):
+    no new minimum distance can occur before it.
+
+    With the ego's yaw frozen the distance is that of the relative position to the Minkowski difference of
+    the footprints, a convex set, so it is a convex function of the relative position: after a relative
+    displacement v tau + delta (|delta| <= A tau^2 / 2, A the relative acceleration bound) it is at least
+    d + frozen_rate tau - A tau^2 / 2. The ego turning about its reference point moves each of its points by
+    at most R |dpsi| <= R r_max tau = turn tau, which changes the distance by at most as much. So the
+    distance stays above d - (turn - frozen_rate) tau - A tau^2 / 2."""
+    return _reach_time(distance - floor, turn - frozen_rate, acceleration)
+
+
+def approach_horizon(distance: float, frozen_rate: float, relative_speed: float, turn: float,
+                     acceleration: float, yaw_rate_bound: float) -> float:
+    """A lower bound (s) on when an approach (frozen_rate < -turn) can end, i.e. the distance's rate reach 0
+    (a closest approach, the root `distance_rate` = 0 the master bisects).
+
+    The rate is n . v_rel plus the turning part (at most `turn` = R r_max in size), n the unit normal of the
+    Minkowski difference at the relative position. While the distance stays above d / 2 (at least for
+    tau_half = reach_time(d / 2, relative_speed + turn, A)), |v_rel| <= S1 = relative_speed + A tau_half and
+    the relative position moves at most at S1. n turns: with the translation at most at S1 / (d / 2) (the
+    distance to a convex set has a Hessian of norm <= 1 / distance), with the ego's turning at most at r_max
+    (an edge's normal turns with the ego) or turn / (d / 2) (a closest vertex moves at most at turn); all
+    within 4 P / d + r_max, P = S1 + turn. So n . v_rel grows at most at K = A + S1 (4 P / d + r_max), and
+    the approach cannot end before min(tau_half, (-frozen_rate - turn) / K)."""
+    closing = -frozen_rate - turn
+    if closing <= 0.0 or distance <= 0.0:
+        return 0.0
+    half = _reach_time(distance / 2, relative_speed + turn, acceleration)
+    speed = relative_speed + acceleration * half
+    growth = acceleration + speed * (4 * (speed + turn) / distance + yaw_rate_bound)
+    return min(half, closing / growth)

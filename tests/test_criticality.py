@@ -1,0 +1,303 @@
+"""Criticality measures (criticality.py) against hand computations, their plain-float forms against the array
+forms bit for bit (the master picks one or the other by the number of vehicles: the located instants must
+not depend on that), and the horizons against motions that respect the bounds they assume."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, band_times, conflict_station, distance,
+                                       distance_horizon, distance_rate, distance_rates, distances, drac, dracs,
+                                       headway, headways, post_encroachment_time, signed_distance,
+                                       signed_distances, ttc, ttc_rate, ttcs)
+
+EGO_LENGTH, EGO_WIDTH = 4.6, 1.8  # m
+CAR_LENGTH, CAR_WIDTH = 4.5, 1.8
+LANE = 3.6  # m, lane width
+
+
+def bisect_root(f, lo: float, hi: float, tolerance: float = 1e-9) -> float:
+    """The instant f turns from < 0 to >= 0 in [lo, hi] (f(lo) < 0 <= f(hi)), as the master's bisection."""
+    assert f(lo) < 0 <= f(hi)
+    while hi - lo > tolerance:
+        mid = (lo + hi) / 2
+        lo, hi = (lo, mid) if f(mid) >= 0 else (mid, hi)
+    return hi
+
+
+# ---- geometry by hand ------------------------------------------------------------------------------------
+
+def test_rotated_ego_corner_to_vehicle_edge():
+    # Ego 4 x 2 m (half 2, 1) turned by 30 deg: its front-right corner is (2 cos30 + sin30, 2 sin30 - cos30)
+    # = (sqrt3 + 0.5, 1 - sqrt3 / 2) = (2.232, 0.134). A 4 x 2 vehicle centred at (5, 0) has its rear edge
+    # at x = 3 for |y| <= 1, which that corner faces: distance 3 - sqrt3 - 0.5 = 0.76795.
+    ego = Footprint.of(4.0, 2.0, math.radians(30))
+    assert distance(ego, 5.0, 0.0, 4.0, 2.0) == pytest.approx(3 - math.sqrt(3) - 0.5, abs=1e-12)
+
+
+def test_vehicle_corner_to_rotated_ego_edge():
+    # Ego 4 x 2 m turned by -30 deg. The point (0, 1.5) of its body frame lies 0.5 m off the middle of its left
+    # side (v = 1); in the road frame it is R(-30)(0, 1.5) = (1.5 sin30, 1.5 cos30) = (0.75, 1.299). A 4 x 2
+    # vehicle with its rear-right corner there (centre (2.75, 2.299)) lies beyond that side: its other
+    # corners are farther (e.g. (4.75, 1.299) is at body (3.46, 3.5)) and the ego's nearest corner, the rear
+    # left at (-2 cos30 + sin30, 2 sin30 + cos30) = (-1.232, 1.866), is 1.98 m left of the vehicle's rear
+    # edge x = 0.75. Distance 0.5.
+    psi = math.radians(-30)
+    ego = Footprint.of(4.0, 2.0, psi)
+    corner = (-1.5 * math.sin(psi), 1.5 * math.cos(psi))
+    assert corner == pytest.approx((0.75, 1.5 * math.cos(math.radians(30))))
+    assert distance(ego, corner[0] + 2.0, corner[1] + 1.0, 4.0, 2.0) == pytest.approx(0.5, abs=1e-12)
+
+
+def test_rotated_ego_corner_to_vehicle_corner():
+    # Ego 4 x 2 m turned by 30 deg, front-right corner (2.232, 0.134) (as above). A 4 x 2 vehicle whose
+    # front-left... rather its top-left corner sits 3 m further in x and 4 m lower in y, at (5.232, -3.866)
+    # (centre (7.232, -4.866)): the closest pair is corner to corner, hypot(3, 4) = 5. (The vehicle's corner
+    # seen from the ego's body frame, (2.598, -5.964), is 0.598 past the ego's front and 4.964 past its right
+    # side: hypot = 5 too, the same pair.)
+    ego = Footprint.of(4.0, 2.0, math.radians(30))
+    front_right = (math.sqrt(3) + 0.5, 1 - math.sqrt(3) / 2)
+    dx, dy = front_right[0] + 3 + 2, front_right[1] - 4 - 1
+    assert distance(ego, dx, dy, 4.0, 2.0) == pytest.approx(5.0, abs=1e-12)
+
+
+def test_overlapping_footprints_have_distance_zero_and_signed_minus_the_depth():
+    # Both 4 x 2 m, aligned, centres 3 m apart lengthwise and 0.5 m sideways: they overlap by 4 - 3 = 1 m
+    # lengthwise and 2 - 0.5 = 1.5 m sideways; the shortest separating translation is 1 m.
+    ego = Footprint.of(4.0, 2.0, 0.0)
+    assert signed_distance(ego, 3.0, 0.5, 4.0, 2.0) == -1.0
+    assert distance(ego, 3.0, 0.5, 4.0, 2.0) == 0.0
+    # touching end to end: 0, and no rate
+    assert distance(ego, 4.0, 0.0, 4.0, 2.0) == 0.0
+    assert distance_rate(ego, 4.0, 0.0, -10.0, 0.0, 0.0, 4.0, 2.0) == 0.0
+
+
+# ---- an oncoming vehicle in the adjacent lane --------------------------------------------------------------
+
+def oncoming(t, ego_speed=25.0, car_speed=20.0, gap0=120.0, lateral=LANE):
+    """Ego at 25 m/s on y = 0 (yaw 0); a car oncoming at 20 m/s in the lane to the left (y = 3.6 m), its
+    centre 120 m ahead at t = 0. Relative position (vehicle - ego) and velocity."""
+    return gap0 - (ego_speed + car_speed) * t, lateral, -(ego_speed + car_speed), 0.0
+
+
+def test_oncoming_vehicle_in_the_adjacent_lane_distance_is_the_lateral_clearance_over_the_whole_overlap():
+    # Lateral clearance = 3.6 - 1.8 / 2 - 1.8 / 2 = 1.8 m. The footprints overlap lengthwise while
+    # |dx| <= (4.6 + 4.5) / 2 = 4.55 m, i.e. for dx = 120 - 45 t in [-4.55, 4.55]: t in [115.45, 124.55] / 45.
+    # There the nearest points are on the two facing sides: distance 1.8 and rate 0. Outside, corner to
+    # corner: sqrt((|dx| - 4.55)^2 + 1.8^2), with rate -45 (|dx| - 4.55) / distance * sign(dx).
+    ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, 0.0)
+    clearance = LANE - EGO_WIDTH / 2 - CAR_WIDTH / 2
+    half_sum = (EGO_LENGTH + CAR_LENGTH) / 2
+    start, end = (120 - half_sum) / 45, (120 + half_sum) / 45
+    for k, t in enumerate(np.linspace(start, end, 101)):
+        dx, dy, vx, vy = oncoming(t)
+        assert distance(ego, dx, dy, CAR_LENGTH, CAR_WIDTH) == pytest.approx(clearance, abs=1e-12)
+        rate = distance_rate(ego, dx, dy, vx, vy, 0.0, CAR_LENGTH, CAR_WIDTH)
+        # at the two ends round-off in dx may put a corner a hair past the other's side
+        assert rate == 0.0 if 0 < k < 100 else abs(rate) < 1e-12
+        assert ttc(ego, dx, dy, vx, vy, CAR_LENGTH, CAR_WIDTH) == math.inf  # parallel: no collision course
+    for t in (0.0, 1.0, start - 0.01, end + 0.01, 4.0):
+        dx, dy, vx, vy = oncoming(t)
+        along = abs(dx) - half_sum
+        expected = math.sqrt(along**2 + clearance**2)
+        assert distance(ego, dx, dy, CAR_LENGTH, CAR_WIDTH) == pytest.approx(expected, rel=1e-12)
+        rate = distance_rate(ego, dx, dy, vx, vy, 0.0, CAR_LENGTH, CAR_WIDTH)
+        assert rate == pytest.approx(-45 * along / expected * math.copysign(1, dx), rel=1e-12)
+    # the closest approach located as the root of the rate (from - to >= 0): the overlap's start, where the
+    # minimum is first reached, to the bisection's tolerance
+    located = bisect_root(lambda t: distance_rate(ego, *oncoming(t), 0.0, CAR_LENGTH, CAR_WIDTH), 0.0, 3.0)
+    assert located == pytest.approx(start, abs=1e-8)
+    assert distance(ego, *oncoming(located)[:2], CAR_LENGTH, CAR_WIDTH) == pytest.approx(clearance, abs=1e-9)
+
+
+# ---- head-on in the ego's lane -----------------------------------------------------------------------------
+
+def test_head_on_in_the_ego_lane_ttc_is_gap_over_closing_speed_and_drac_closing_squared_over_twice_the_gap():
+    # Same speeds, the car in the ego's lane (dy = 0): closing speed 45 m/s, bumper gap g = dx - 4.55.
+    # Constant velocities: contact after g / 45 s, so TTC = g / 45 and DRAC = 45^2 / (2 g); TTC falls at
+    # exactly 1 s per s (ttc_rate -1). In contact (g < 0) TTC is 0 and DRAC undefined.
+    ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, 0.0)
+    half_sum = (EGO_LENGTH + CAR_LENGTH) / 2
+    for t in np.linspace(0, 2.5, 26):
+        dx, dy, vx, vy = oncoming(t, lateral=0.0)
+        gap = dx - half_sum
+        value = ttc(ego, dx, dy, vx, vy, CAR_LENGTH, CAR_WIDTH)
+        assert value == pytest.approx(gap / 45, rel=1e-12)
+        assert drac(value, vx, vy) == pytest.approx(45**2 / (2 * gap), rel=1e-12)
+        assert ttc_rate(ego, dx, dy, vx, vy, 0.0, 0.0, 0.0, CAR_LENGTH, CAR_WIDTH) == pytest.approx(-1, abs=1e-12)
+        assert distance(ego, dx, dy, CAR_LENGTH, CAR_WIDTH) == pytest.approx(gap, rel=1e-12)
+    dx, dy, vx, vy = oncoming(2.67, lateral=0.0)  # gap 120 - 120.15 - 4.55 < 0: overlapping
+    assert ttc(ego, dx, dy, vx, vy, CAR_LENGTH, CAR_WIDTH) == 0.0
+    assert math.isnan(drac(0.0, vx, vy))
+    # the same car 1 m to the side still hits (the footprints overlap laterally: 1 < 1.8), 2 m does not
+    assert ttc(ego, 50.0, 1.0, -45.0, 0.0, CAR_LENGTH, CAR_WIDTH) == pytest.approx((50 - half_sum) / 45)
+    assert ttc(ego, 50.0, 2.0, -45.0, 0.0, CAR_LENGTH, CAR_WIDTH) == math.inf
+    # a car ahead moving away faster than the ego: no collision course
+    assert ttc(ego, 50.0, 0.0, 5.0, 0.0, CAR_LENGTH, CAR_WIDTH) == math.inf
+
+
+def test_crossing_ttc_is_the_latest_entry_over_the_axes():
+    # The ego (4.6 x 1.8, yaw 0) at rest; a 4.5 x 1.8 car 20 m ahead and 10 m to the left, moving at (-2, -1)
+    # relative (heading diagonally toward the ego's lane). Lengthwise the projections overlap once
+    # |20 - 2t| < 4.55, i.e. t in (7.725, 12.275); sideways once |10 - t| < 1.8, i.e. t in (8.2, 11.8).
+    # Both from 8.2 s: TTC = 8.2 s, and DRAC = |v| / (2 TTC) = sqrt5 / 16.4.
+    ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, 0.0)
+    value = ttc(ego, 20.0, 10.0, -2.0, -1.0, CAR_LENGTH, CAR_WIDTH)
+    assert value == pytest.approx(8.2, rel=1e-12)
+    assert drac(value, -2.0, -1.0) == pytest.approx(math.sqrt(5) / 16.4, rel=1e-12)
+    # moving at (-2, -0.5) it crosses y = 0 later: sideways t in (16.4, 23.6), lengthwise out by 12.275: inf
+    assert ttc(ego, 20.0, 10.0, -2.0, -0.5, CAR_LENGTH, CAR_WIDTH) == math.inf
+
+
+# ---- rates against finite differences of the closed forms along a motion -----------------------------------
+
+def motion(t, start):
+    """A relative motion with constant relative acceleration (ax, ay) and the ego turning at a constant yaw
+    rate: (ego footprint, dx, dy, vx, vy)."""
+    dx0, dy0, vx0, vy0, ax, ay, psi0, yaw_rate = start
+    return (Footprint.of(EGO_LENGTH, EGO_WIDTH, psi0 + yaw_rate * t), dx0 + vx0 * t + ax * t * t / 2,
+            dy0 + vy0 * t + ay * t * t / 2, vx0 + ax * t, vy0 + ay * t)
+
+
+def test_distance_rate_and_ttc_rate_are_the_derivatives_along_the_motion():
+    # A central difference (f(h) - f(-h)) / 2h of a smooth function errs by h^2 f''' / 6 plus round-off
+    # eps |f| / h: with h = 1e-5 s, |f'''| < 1e3 and |f| < 100 that is < 2e-8 + 2e-9. The tolerance 1e-6 is
+    # far above both and far below the rates (order 1..50); configurations where the nearest feature or the
+    # axis setting TTC switches within +-h (a kink) are skipped by requiring one-sided differences to agree.
+    rng = np.random.default_rng(3)
+    h = 1e-5
+    checked_distance = checked_ttc = 0
+    for _ in range(3000):
+        start = (rng.uniform(-30, 30), rng.uniform(-8, 8), rng.uniform(-40, 10), rng.uniform(-3, 3),
+                 rng.uniform(-8, 8), rng.uniform(-3, 3), rng.uniform(-0.5, 0.5), rng.uniform(-0.6, 0.6))
+        ego, dx, dy, vx, vy = motion(0.0, start)
+        ax, ay, yaw_rate = start[4], start[5], start[7]
+        before, now, after = (distance(*motion(s, start)[:3], CAR_LENGTH, CAR_WIDTH) for s in (-h, 0.0, h))
+        if now > 0 and abs((after - now) - (now - before)) < 1e-9:
+            rate = distance_rate(ego, dx, dy, vx, vy, yaw_rate, CAR_LENGTH, CAR_WIDTH)
+            assert rate == pytest.approx((after - before) / (2 * h), abs=1e-6)
+            checked_distance += 1
+        value = ttc(ego, dx, dy, vx, vy, CAR_LENGTH, CAR_WIDTH)
+        if 0 < value < math.inf:
+            before, after = (ttc(*motion(s, start), CAR_LENGTH, CAR_WIDTH) for s in (-h, h))
+            if math.isfinite(before + after) and abs((after - value) - (value - before)) < 1e-9:
+                rate = ttc_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, CAR_LENGTH, CAR_WIDTH)
+                assert rate == pytest.approx((after - before) / (2 * h), abs=1e-6)
+                checked_ttc += 1
+    assert checked_distance > 2000 and checked_ttc > 100
+
+
+# ---- horizons hold on motions within their bounds ------------------------------------------------------------
+
+def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
+    # Motions with |relative acceleration| <= A and |yaw rate| <= r_max (constant here, any within the
+    # bounds would do): before distance_horizon the distance stays above the floor, before approach_horizon
+    # the rate stays below 0. Checked on a fine grid up to each horizon.
+    rng = np.random.default_rng(5)
+    acceleration, yaw_rate_bound = 12.0, 0.8
+    radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
+    turn = radius * yaw_rate_bound
+    checked = 0
+    for _ in range(400):
+        angle = rng.uniform(0, 2 * math.pi)
+        size = rng.uniform(0, acceleration)
+        start = (rng.uniform(-60, 60), rng.uniform(-10, 10), rng.uniform(-45, 45), rng.uniform(-4, 4),
+                 size * math.cos(angle), size * math.sin(angle), rng.uniform(-0.3, 0.3),
+                 rng.uniform(-yaw_rate_bound, yaw_rate_bound))
+        ego, dx, dy, vx, vy = motion(0.0, start)
+        d = distance(ego, dx, dy, CAR_LENGTH, CAR_WIDTH)
+        if d <= 0:
+            continue
+        frozen = distance_rate(ego, dx, dy, vx, vy, 0.0, CAR_LENGTH, CAR_WIDTH)
+        floor = d * rng.uniform(0.2, 0.9)
+        until = distance_horizon(d, frozen, floor, turn, acceleration)
+        for s in np.linspace(0, until, 200):
+            assert distance(*motion(s, start)[:3], CAR_LENGTH, CAR_WIDTH) > floor - 1e-9
+        approach = approach_horizon(d, frozen, math.hypot(vx, vy), turn, acceleration, yaw_rate_bound)
+        if approach > 0:
+            for s in np.linspace(0, approach, 200)[:-1]:
+                ego_s, dx_s, dy_s, vx_s, vy_s = motion(s, start)
+                assert distance_rate(ego_s, dx_s, dy_s, vx_s, vy_s, start[7], CAR_LENGTH, CAR_WIDTH) < 0
+            checked += 1
+    assert checked > 50
+
+
+# ---- PET on a hand-built crossing -------------------------------------------------------------------------------
+
+def test_post_encroachment_time_of_a_vehicle_crossing_into_the_ego_lane_and_back():
+    # Road frame, lateral + right. The ego's lane is the band 0 < lateral < 3.6; a 4.5 x 1.8 car oncoming
+    # at 10 m/s (station 200 - 10 t) in the other lane (lateral -1.8) moves into the ego's lane (to 1.8) over
+    # 2 s from t = 1, and back (to -1.8) over 2 s from t = 5. Its footprint overlaps the band while its
+    # centre is within (-0.9, 4.5): it enters when -1.8 + 1.8 (t - 1) = -0.9, t = 1.5, and leaves when
+    # 1.8 - 1.8 (t - 5) = -0.9, t = 6.5. Then it stands at station 200 - 65 = 135, its rear (toward the ego)
+    # at 132.75: the conflict area's near end. The ego (4.6 m long, front 2.3 m ahead of its centre) at a
+    # constant 15 m/s from station 0 reaches it when 15 t + 2.3 = 132.75: t = 8.69667 s. PET = 2.19667 s.
+    assert band_times(1.0, -1.8, 1.8, 2.0, CAR_WIDTH, 0.0, LANE) == pytest.approx((1.5, math.inf))
+    enter, leave = band_times(5.0, 1.8, -1.8, 2.0, CAR_WIDTH, 0.0, LANE)
+    assert enter == -math.inf and leave == pytest.approx(6.5, abs=1e-12)
+    station = 200 - 10 * leave
+    near_end = conflict_station(station, CAR_LENGTH)
+    assert near_end == pytest.approx(132.75, abs=1e-12)
+    ego_reaches = (near_end - EGO_LENGTH / 2) / 15
+    assert post_encroachment_time(leave, ego_reaches) == pytest.approx((132.75 - 2.3) / 15 - 6.5, abs=1e-12)
+    # at 25 m/s the ego's front is there at 5.218 s, before the car left: no post-encroachment
+    assert math.isnan(post_encroachment_time(leave, (near_end - EGO_LENGTH / 2) / 25))
+    # a move that stays out of the band (to -0.95: the centre never passes -0.9) never encroaches
+    assert all(math.isnan(v) for v in band_times(1.0, -1.8, -0.95, 2.0, CAR_WIDTH, 0.0, LANE))
+
+
+# ---- time headway ---------------------------------------------------------------------------------------------
+
+def test_time_headway_to_a_vehicle_ahead_moving_the_same_way():
+    # Ego at 25 m/s, a car 50 m ahead (centres) in its lane at 20 m/s the same way: bumper gap
+    # 50 - 2.3 - 2.25 = 45.45 m, headway 45.45 / 25 = 1.818 s. Oncoming, beside (lateral offset 1.8 + 0.1:
+    # no lateral overlap of the footprints) or behind: no headway.
+    ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, 0.0)
+    assert headway(ego, 50.0, 0.0, 25.0, 20.0, CAR_LENGTH, CAR_WIDTH) == pytest.approx(45.45 / 25, rel=1e-12)
+    assert headway(ego, 50.0, 0.0, 25.0, -20.0, CAR_LENGTH, CAR_WIDTH) == math.inf
+    assert headway(ego, 50.0, 1.9, 25.0, 20.0, CAR_LENGTH, CAR_WIDTH) == math.inf
+    assert headway(ego, -50.0, 0.0, 25.0, 20.0, CAR_LENGTH, CAR_WIDTH) == math.inf
+
+
+# ---- plain floats and arrays give the same bits --------------------------------------------------------------
+
+def mix(rng, *options):
+    """Per element, one of the option arrays at random."""
+    pick = rng.integers(0, len(options), len(options[0]))
+    return np.choose(pick, options)
+
+
+def random_vehicles(rng, n):
+    """Positions from overlapping to far, exact ties (same station, same lateral, standing still), velocities
+    parallel to an axis (q = 0 on it), oblique, and aimed at the ego."""
+    dx = mix(rng, rng.uniform(-6, 6, n), rng.uniform(-100, 100, n), rng.choice([0.0, 4.55, -3.0], n))
+    dy = mix(rng, rng.uniform(-4, 4, n), rng.choice([0.0, 1.8, 3.6], n))
+    aim = rng.uniform(1, 10, n)  # s, some aimed at the ego: on a collision course
+    vx = mix(rng, rng.uniform(-50, 20, n), np.zeros(n), -dx / aim)
+    vy = mix(rng, rng.uniform(-3, 3, n), np.zeros(n), -dy / aim)
+    return dx, dy, vx, vy, rng.uniform(3, 12, n), rng.uniform(1.5, 2.6, n)
+
+
+@pytest.mark.parametrize("psi", [0.0, 0.1, -0.4, math.pi / 2, 3.0])
+def test_plain_float_forms_equal_the_array_forms_bit_for_bit(psi):
+    rng = np.random.default_rng(17)
+    ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, psi)
+    dx, dy, vx, vy, length, width = random_vehicles(rng, 3000)
+    rows = list(zip(dx.tolist(), dy.tolist(), vx.tolist(), vy.tolist(), length.tolist(), width.tolist()))
+    expected = signed_distances(ego, dx, dy, length, width)
+    assert np.array_equal([signed_distance(ego, x, y, l, w) for x, y, _, _, l, w in rows], expected)
+    assert np.array_equal([distance(ego, x, y, l, w) for x, y, _, _, l, w in rows],
+                          distances(ego, dx, dy, length, width))
+    assert (expected < 0).sum() > 100 and (expected > 0).sum() > 1000
+    for yaw_rate in (0.0, 0.3):
+        assert np.array_equal([distance_rate(ego, x, y, u, v, yaw_rate, l, w) for x, y, u, v, l, w in rows],
+                              distance_rates(ego, dx, dy, vx, vy, yaw_rate, length, width))
+    times = ttcs(ego, dx, dy, vx, vy, length, width)
+    assert np.array_equal([ttc(ego, *row) for row in rows], times)
+    assert ((times > 0) & (times < math.inf)).sum() > 300
+    assert np.array_equal([drac(t, u, v) for t, (_, _, u, v, _, _) in zip(times.tolist(), rows)],
+                          dracs(times, vx, vy), equal_nan=True)
+    for station_rate in (25.0, 0.0):
+        assert np.array_equal([headway(ego, x, y, station_rate, u, l, w) for x, y, u, _, l, w in rows],
+                              headways(ego, dx, dy, station_rate, vx, length, width))

@@ -301,3 +301,177 @@ def test_plain_float_forms_equal_the_array_forms_bit_for_bit(psi):
     for station_rate in (25.0, 0.0):
         assert np.array_equal([headway(ego, x, y, station_rate, u, l, w) for x, y, u, _, l, w in rows],
                               headways(ego, dx, dy, station_rate, vx, length, width))
+
+
+# ---- the run's record, with located instants, whatever the step ------------------------------------------------
+
+from typing import NamedTuple  # noqa: E402
+
+from sdl_fmu.cosim.criticality import Extremes  # noqa: E402
+from sdl_fmu.cosim.traffic import Traffic  # noqa: E402
+from sdl_fmu.units import FOOT, from_si  # noqa: E402
+
+
+class State(NamedTuple):
+    """The EgoState fields the measures read (ISO 8855; body-frame velocity and acceleration)."""
+
+    time: float
+    x: float
+    y: float
+    psi: float
+    vx: float
+    vy: float
+    ax: float
+    ay: float
+    yaw_rate: float
+
+
+def traffic_of(*vehicles) -> Traffic:
+    """Vehicles with one motion each: (t0, station0, lateral0, speed0, lateral1, speed1, duration)."""
+    traffic = Traffic(capacity=max(len(vehicles), 1))
+    traffic.size = len(vehicles)
+    for i, row in enumerate(vehicles):
+        for name, value in zip(("t0", "station0", "lateral0", "speed0", "lateral1", "speed1", "duration"), row):
+            getattr(traffic, name)[i] = value
+        traffic.length[i], traffic.width[i] = CAR_LENGTH, CAR_WIDTH
+    traffic.present[:traffic.size] = True
+    traffic.active = np.arange(traffic.size)
+    return traffic
+
+
+def braking(v0: float, deceleration: float):
+    """The ego on y = 0 braking from v0 at a constant deceleration until it stops."""
+    stop = v0 / deceleration
+
+    def state(t: float) -> State:
+        if t >= stop:
+            return State(t, v0 * stop / 2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return State(t, v0 * t - deceleration * t * t / 2, 0.0, 0.0, v0 - deceleration * t, 0.0, -deceleration,
+                     0.0, 0.0)
+    return state
+
+
+def cruising(v: float):
+    return lambda t: State(t, v * t, 0.0, 0.0, v, 0.0, 0.0, 0.0, 0.0)
+
+
+def master_like_run(traffic: Traffic, ego, step: float, end: float, period: float = 0.05) -> Extremes:
+    """What the master does with the record: offer the values at every communication point (the step's ends
+    and the driver's samples), and where a vehicle's distance rate or TTC rate turned from < 0 at the step's
+    start to >= 0 at its end, bisect that instant to 1e-9 s and offer the values there too."""
+    extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
+    points = sorted(set(np.round(np.arange(0, end + step / 2, step), 12)) | set(np.round(np.arange(0, end, period), 12)))
+    idx = traffic.active
+    previous = None
+    for t in points:
+        state = ego(t)
+        now = {i: extremes.rates(traffic, i, state) for i in idx.tolist()}
+        if previous is not None:
+            for i in idx.tolist():
+                for k in (0, 1):
+                    if previous[1][i][k] < 0 and now[i][k] >= 0:
+                        def condition(probe, i=i, k=k):
+                            return -1.0 if extremes.rates(traffic, i, ego(probe))[k] < 0 else 1.0
+                        located = bisect_root(condition, previous[0], t)
+                        extremes.observe(traffic, idx, ego(located))
+        extremes.observe(traffic, idx, state)
+        previous = (t, now)
+    return extremes
+
+
+STEPS = (0.001, 0.01, 1.0, 10.0)
+
+
+@pytest.mark.parametrize("step", STEPS)
+def test_oncoming_vehicle_in_the_adjacent_lane_minimum_distance_and_its_instant_whatever_the_step(step):
+    # The ego at 25 m/s on lateral 0, a car oncoming at 20 m/s on lateral -3.6 (the lane to the left; road
+    # lateral + right), its centre 120 m ahead at t = 0: the footprints are 1.8 m apart over the whole
+    # lengthwise overlap, first at t = (120 - 4.55) / 45 = 2.56556 s (see the test above). No collision
+    # course: TTC and DRAC never apply; no headway (oncoming). In feet: 1.8 / 0.3048 = 5.9055 ft.
+    traffic = traffic_of((0.0, 120.0, -LANE, 20.0, -LANE, 20.0, 0.0))
+    extremes = master_like_run(traffic, cruising(25.0), step, end=4.0)
+    summary = extremes.summary([1], lambda value: from_si(value, "English"))
+    vehicle = summary["vehicles"][0]
+    assert vehicle["vehicle"] == 1
+    assert vehicle["min_distance"] == pytest.approx(1.8 / FOOT, abs=1e-6)
+    assert vehicle["min_distance_time_s"] == pytest.approx((120 - 4.55) / 45, abs=1e-6)
+    assert vehicle["min_ttc_s"] is None and vehicle["max_drac"] is None and vehicle["min_headway_s"] is None
+    assert vehicle["min_pet_s"] is None
+    assert {k: v for k, v in summary.items() if k != "vehicles"} == {k: v for k, v in vehicle.items()
+                                                                     if k != "vehicle"}
+
+
+@pytest.mark.parametrize("step", STEPS)
+def test_braking_ego_and_a_stopped_car_ahead_minimum_distance_ttc_and_drac_whatever_the_step(step):
+    # The ego brakes from v0 = 20 m/s at a = 6 m/s2 (stops at 10/3 s after 100/3 m) toward a car standing in
+    # its lane with a bumper gap g0 = 10 + 100/3 m (centre 4.55 further). The gap is
+    # g = g0 - (v0 t - a t^2 / 2), its rate -v: the minimum distance G = g0 - v0^2 / 2a = 10 m is reached
+    # when v = 0, t = 10/3 s (the root of the rate). Constant-velocity TTC = g / v; with g = G + v^2 / 2a
+    # (the stopping distance still ahead), dTTC/dt = -1 + g a / v^2 = 0 at v^2 / 2a = G: v = sqrt(2 a G) =
+    # sqrt(120) m/s, t = (20 - sqrt(120)) / 6 = 1.50763 s, TTC = 2 G / v = sqrt(2 G / a) = 1.82574 s.
+    # DRAC = v^2 / (2 g) = v^2 / (2 G + v^2 / a) grows with v: its maximum is at t = 0, 400 / (2 g0) =
+    # 4.61538 m/s2. None of these instants but t = 0 is a communication point (multiples of 0.05 s or of the
+    # step): they are located.
+    g0 = 10 + 400 / 12
+    traffic = traffic_of((0.0, g0 + 4.55, 0.0, 0.0, 0.0, 0.0, 0.0))
+    extremes = master_like_run(traffic, braking(20.0, 6.0), step, end=6.0)
+    summary = extremes.summary([7], lambda value: from_si(value, "Metric"))
+    assert summary["min_distance"] == pytest.approx(10.0, abs=1e-6)
+    assert summary["min_distance_time_s"] == pytest.approx(10 / 3, abs=1e-6)
+    assert summary["min_ttc_s"] == pytest.approx(math.sqrt(20 / 6), abs=1e-6)
+    assert summary["min_ttc_time_s"] == pytest.approx((20 - math.sqrt(120)) / 6, abs=1e-6)
+    assert summary["max_drac"] == pytest.approx(400 / (2 * g0), rel=1e-12)
+    assert summary["max_drac_time_s"] == 0.0
+    assert summary["vehicles"][0]["vehicle"] == 7
+
+
+def test_time_headway_minimum_to_a_slower_car_ahead():
+    # The ego at 25 m/s behind a car at 20 m/s the same way, bumper gap 45.45 m at t = 0 closing at 5 m/s:
+    # headway (45.45 - 5 t) / 25 is smallest at the end of the observation (t = 3 s): 30.45 / 25 = 1.218 s;
+    # TTC = gap / 5 likewise, 6.09 s; DRAC = 5^2 / (2 x 30.45).
+    traffic = traffic_of((0.0, 50.0, 0.0, -20.0, 0.0, -20.0, 0.0))
+    extremes = master_like_run(traffic, cruising(25.0), 0.5, end=3.0)
+    summary = extremes.summary([1], lambda value: value)
+    assert summary["min_headway_s"] == pytest.approx(30.45 / 25, rel=1e-12)
+    assert summary["min_headway_time_s"] == pytest.approx(3.0)
+    assert summary["min_ttc_s"] == pytest.approx(30.45 / 5, rel=1e-12)
+    assert summary["max_drac"] == pytest.approx(25 / (2 * 30.45), rel=1e-12)
+
+
+def test_post_encroachment_time_recorded_when_the_ego_reaches_the_conflict_station():
+    # The crossing of test_post_encroachment_time_... above: the car leaves the ego's lane at 6.5 s standing
+    # at station 135; the ego at 15 m/s reaches 132.75 with its front at t = 8.69667 s: PET 2.19667 s.
+    extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
+    ego = cruising(15.0)
+    extremes.path_left(0, 6.5, 135.0, CAR_LENGTH, ego(6.5).x + EGO_LENGTH / 2)
+    assert extremes.pending_stations().tolist() == [132.75]
+    reaches = (132.75 - EGO_LENGTH / 2) / 15
+    extremes.reach(ego(reaches - 1e-3))
+    assert extremes.pending_stations().tolist() == [132.75]
+    extremes.reach(ego(reaches))
+    assert len(extremes.pending_stations()) == 0
+    summary = extremes.summary([3], lambda value: value)
+    assert summary["min_pet_s"] == pytest.approx(reaches - 6.5, abs=1e-12)
+    # the ego already past the area's near end when the car left: they were there together, no PET
+    extremes.path_left(1, 6.5, 100.0, CAR_LENGTH, ego(6.5).x + EGO_LENGTH / 2)
+    assert len(extremes.pending_stations()) == 0
+
+
+def test_record_of_a_few_vehicles_in_plain_floats_equals_the_array_form_bit_for_bit():
+    # Extremes.observe takes up to SCALAR_VEHICLES vehicles one by one in plain floats, more at once in
+    # arrays: both must record the same bits. The same 4 vehicles observed alone (floats) and among 12
+    # (arrays), in every phase of a transition.
+    rng = np.random.default_rng(23)
+    rows = [(rng.uniform(0, 2), rng.uniform(-40, 80), rng.uniform(-5, 5), rng.uniform(-30, 30),
+             rng.uniform(-5, 5), rng.uniform(-30, 30), rng.choice([0.0, 1.5, 4.0])) for _ in range(12)]
+    traffic = traffic_of(*rows)
+    few, many = Extremes(EGO_LENGTH, EGO_WIDTH), Extremes(EGO_LENGTH, EGO_WIDTH)
+    for t in np.linspace(2, 8, 61):
+        state = State(float(t), 20 * t, rng.uniform(-1, 1), rng.uniform(-0.2, 0.2), rng.uniform(5, 30),
+                      rng.uniform(-1, 1), rng.uniform(-5, 5), rng.uniform(-3, 3), rng.uniform(-0.3, 0.3))
+        few.observe(traffic, np.arange(4), state)
+        many.observe(traffic, np.arange(12), state)
+    for name in few.value:
+        assert np.array_equal(few.value[name][:4], many.value[name][:4], equal_nan=True), name
+        assert np.array_equal(few.time[name][:4], many.time[name][:4], equal_nan=True), name
+    assert np.isfinite(many.value["min_ttc"]).sum() >= 2  # collision courses among them

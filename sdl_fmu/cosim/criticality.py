@@ -446,3 +446,247 @@ def approach_horizon(distance: float, frozen_rate: float, relative_speed: float,
     speed = relative_speed + acceleration * half
     growth = acceleration + speed * (4 * (speed + turn) / distance + yaw_rate_bound)
     return min(half, closing / growth)
+
+
+def _reach_times(distance, rate, acceleration):
+    """`_reach_time` over arrays (triggers.reach_time)."""
+    used_up = distance <= 0.0
+    distance = np.maximum(distance, 0.0)
+    root = np.sqrt(rate * rate + 2 * acceleration * distance)
+    return np.where(used_up, 0.0,
+                    np.where(rate > 0, 2 * distance / np.maximum(rate + root, 1e-300), (root - rate) / acceleration))
+
+
+def distance_horizons(distance, frozen_rate, floor, turn: float, acceleration):
+    """`distance_horizon` over arrays of vehicles."""
+    return _reach_times(distance - floor, turn - frozen_rate, acceleration)
+
+
+def approach_horizons(distance, frozen_rate, relative_speed, turn: float, acceleration, yaw_rate_bound: float):
+    """`approach_horizon` over arrays of vehicles."""
+    closing = -frozen_rate - turn
+    with np.errstate(divide="ignore", invalid="ignore"):
+        half = _reach_times(distance / 2, relative_speed + turn, acceleration)
+        speed = relative_speed + acceleration * half
+        growth = acceleration + speed * (4 * (speed + turn) / distance + yaw_rate_bound)
+        bound = np.minimum(half, closing / growth)
+    return np.where((closing <= 0.0) | (distance <= 0.0), 0.0, bound)
+
+
+# ---- the run's record: per vehicle, its extremes ---------------------------------------------------------------
+
+FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is better by more than this
+SCALAR_VEHICLES = 4  # as master.SCALAR_VEHICLES: up to this many vehicles in plain floats
+
+MEASURES = ("min_distance", "min_ttc", "max_drac", "min_pet", "min_headway")
+
+
+class Extremes:
+    """Per traffic vehicle (index as in traffic.Traffic), the extreme of each measure and the instant it was
+    first reached, offered values at every communication point and at every instant the master locates (a
+    root of a rate, a contact's or a collision course's start or end, a PET instant).
+
+    A later value replaces the recorded one only when better by more than FLAT, so that a flat extreme (the
+    distance to a car passing in the next lane, constant over the whole overlap) keeps the first instant it
+    was reached, whatever the samples after it: with the start located, the instant does not depend on the
+    step. Values are SI (m, s, m/s2); `summary` converts lengths at the results boundary."""
+
+    def __init__(self, ego_length: float, ego_width: float, capacity: int = 16):
+        self.ego_length, self.ego_width = ego_length, ego_width
+        self.size = 0
+        self.value = {name: np.full(capacity, np.nan) for name in MEASURES}
+        self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
+        self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
+        self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
+
+    def _grow(self, size: int) -> None:
+        while size > len(self.left_path):
+            for table in (self.value, self.time):
+                for name, values in table.items():
+                    table[name] = np.concatenate([values, np.full(len(values), np.nan)])
+            self.left_path = np.concatenate([self.left_path, np.full(len(self.left_path), np.nan)])
+            self.conflict = np.concatenate([self.conflict, np.full(len(self.conflict), np.nan)])
+        self.size = max(self.size, size)
+
+    # -- offering values
+
+    def offer(self, name: str, i: int, t: float, value: float) -> None:
+        """One vehicle's value of one measure at instant t (nan or inf: not applicable now)."""
+        if not math.isfinite(value):
+            return
+        if i >= self.size:
+            self._grow(i + 1)
+        values = self.value[name]
+        recorded = float(values[i])
+        if name == "max_drac":
+            better = recorded != recorded or value > recorded + FLAT
+        else:
+            better = recorded != recorded or value < recorded - FLAT
+        if better:
+            values[i] = value
+            self.time[name][i] = t
+        elif (value > recorded) if name == "max_drac" else (value < recorded):
+            values[i] = value  # within FLAT: the value improves, the first instant stays
+
+    def offers(self, name: str, idx: np.ndarray, t: float, values: np.ndarray) -> None:
+        """`offer` for vehicles idx at once."""
+        if len(idx) and int(idx.max()) >= self.size:
+            self._grow(int(idx.max()) + 1)
+        recorded = self.value[name][idx]
+        finite = np.isfinite(values)
+        empty = np.isnan(recorded)
+        if name == "max_drac":
+            better = finite & (empty | (values > recorded + FLAT))
+            improves = finite & ~empty & (values > recorded)
+        else:
+            better = finite & (empty | (values < recorded - FLAT))
+            improves = finite & ~empty & (values < recorded)
+        self.value[name][idx] = np.where(better | improves, values, recorded)
+        self.time[name][idx[better]] = t
+
+    def observe(self, traffic, idx: np.ndarray, state) -> None:
+        """Offers the distance, TTC, DRAC and headway of vehicles idx (traffic.Traffic indices) at the ego's
+        state (EgoState: ISO 8855 position x, y, yaw psi, body-frame velocity vx, vy), and completes any PET
+        whose conflict station the ego's front has reached. A few vehicles in plain floats."""
+        t = state.time
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c  # inertial
+        if len(idx) <= SCALAR_VEHICLES:
+            for i in idx.tolist():
+                station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+                length, width = float(traffic.length[i]), float(traffic.width[i])
+                dx, dy = station - state.x, -lateral - state.y
+                vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+                self.offer("min_distance", i, t, distance(ego, dx, dy, length, width))
+                value = ttc(ego, dx, dy, vx, vy, length, width)
+                self.offer("min_ttc", i, t, value)
+                self.offer("max_drac", i, t, drac(value, vx, vy))
+                self.offer("min_headway", i, t, headway(ego, dx, dy, ego_vx, -speed, length, width))
+        else:
+            station, lateral, speed, lateral_rate, _ = traffic.motion(idx, t)
+            length, width = traffic.length[idx], traffic.width[idx]
+            dx, dy = station - state.x, -lateral - state.y
+            vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+            self.offers("min_distance", idx, t, distances(ego, dx, dy, length, width))
+            values = ttcs(ego, dx, dy, vx, vy, length, width)
+            self.offers("min_ttc", idx, t, values)
+            self.offers("max_drac", idx, t, dracs(values, vx, vy))
+            self.offers("min_headway", idx, t, headways(ego, dx, dy, ego_vx, -speed, length, width))
+        self.reach(state)
+
+    def rates(self, traffic, i: int, state) -> tuple[float, float]:
+        """(distance rate, TTC rate) of vehicle i at the ego's state: the master's "criticality" condition at
+        a probe is a change of either from < 0 at the step's start to >= 0 (a closest approach, a smallest
+        TTC), which it bisects; nan where TTC is undefined."""
+        ego, dx, dy, vx, vy, ax, ay, length, width = relative_motion(traffic, i, state, self.ego_length,
+                                                                    self.ego_width)
+        return (distance_rate(ego, dx, dy, vx, vy, state.yaw_rate, length, width),
+                ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width))
+
+    # -- post-encroachment time
+
+    def path_left(self, i: int, t: float, station: float, length: float, ego_front: float) -> None:
+        """Vehicle i's footprint left the ego's path at t (`band_times`' leave instant, which the master steps
+        to), standing at `station`. If the ego's front has not yet reached the area it stood on, a PET is
+        pending until it does (`pending_stations`, `reach`); if it has, the two were there together (a
+        contact or a near miss: distance and TTC tell) and there is none."""
+        if i >= self.size:
+            self._grow(i + 1)
+        near_end = conflict_station(station, length)
+        if ego_front < near_end:
+            self.left_path[i], self.conflict[i] = t, near_end
+        else:
+            self.left_path[i] = self.conflict[i] = np.nan
+
+    def pending_stations(self) -> np.ndarray:
+        """The conflict stations the ego's front has yet to reach (the master's PET trigger: a station, like
+        an event distance; horizon reach_time(station - front, station_rate + R r_max, A))."""
+        conflict = self.conflict[:self.size]
+        return conflict[~np.isnan(conflict)]
+
+    def reach(self, state) -> None:
+        """Completes the PETs whose conflict station the ego's front has reached by this state."""
+        conflict = self.conflict[:self.size]
+        if not (conflict == conflict).any():
+            return
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        front = state.x + self.ego_length / 2 * abs(c) + self.ego_width / 2 * abs(s)
+        for i in np.flatnonzero(conflict <= front).tolist():
+            self.offer("min_pet", i, state.time, post_encroachment_time(float(self.left_path[i]), state.time))
+            self.left_path[i] = self.conflict[i] = np.nan
+
+    # -- the results
+
+    def summary(self, vehicle_ids, to_scenario_units) -> dict:
+        """SPEC §5's `criticality` object: run-wide extremes and one entry per vehicle, lengths (and DRAC, a
+        length per s^2) through `to_scenario_units` (units.from_si), null where a measure never applied.
+        Keys added to the SPEC's: max_drac_time_s, min_headway_s, min_headway_time_s."""
+        def number(x):
+            return None if x != x else float(x)
+
+        def entry(values: dict, times: dict) -> dict:
+            length = {"min_distance", "max_drac"}
+            out = {}
+            for name, key, time_key in (("min_distance", "min_distance", "min_distance_time_s"),
+                                        ("min_ttc", "min_ttc_s", "min_ttc_time_s"),
+                                        ("max_drac", "max_drac", "max_drac_time_s"),
+                                        ("min_pet", "min_pet_s", None),
+                                        ("min_headway", "min_headway_s", "min_headway_time_s")):
+                value = number(values[name])
+                out[key] = None if value is None else (to_scenario_units(value) if name in length else value)
+                if time_key:
+                    out[time_key] = number(times[name])
+            return out
+
+        n = min(self.size, len(vehicle_ids))
+        vehicles = [{"vehicle": int(vehicle_ids[i]),
+                     **entry({k: self.value[k][i] for k in MEASURES}, {k: self.time[k][i] for k in MEASURES})}
+                    for i in range(n)]
+        overall_values, overall_times = {}, {}
+        for name in MEASURES:
+            values, times = self.value[name][:n], self.time[name][:n]
+            if n == 0 or np.isnan(values).all():
+                overall_values[name] = overall_times[name] = math.nan
+                continue
+            # the best value; among vehicles within FLAT of it, the earliest instant
+            best = np.nanmax(values) if name == "max_drac" else np.nanmin(values)
+            near = np.abs(values - best) <= FLAT
+            overall_values[name] = best
+            overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
+        return {**entry(overall_values, overall_times), "vehicles": vehicles}
+
+
+def relative_motion(traffic, i: int, state, ego_length: float, ego_width: float):
+    """(ego footprint, dx, dy, vx, vy, ax, ay, length, width): vehicle i relative to the ego at its state, in
+    the inertial frame (the ego's body-frame velocity vx, vy and acceleration ax, ay turned by psi; the
+    vehicle's station acceleration -(speed1 - speed0) / duration during a transition, its lateral rate
+    constant)."""
+    c, s = math.cos(state.psi), math.sin(state.psi)
+    station, lateral, speed, lateral_rate = _motion(traffic, i, state.time)
+    elapsed, duration = state.time - float(traffic.t0[i]), float(traffic.duration[i])
+    station_acceleration = -(float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration \
+        if elapsed < duration else 0.0
+    return (Footprint(ego_length / 2, ego_width / 2, c, s), station - state.x, -lateral - state.y,
+            -speed - (state.vx * c - state.vy * s), -lateral_rate - (state.vx * s + state.vy * c),
+            station_acceleration - (state.ax * c - state.ay * s), -(state.ax * s + state.ay * c),
+            float(traffic.length[i]), float(traffic.width[i]))
+
+
+def _motion(traffic, i: int, t: float) -> tuple[float, float, float, float]:
+    """(station, lateral, speed, lateral rate) of vehicle i at t in plain floats, operation for operation as
+    Traffic.motion (so that both forms record the same bits)."""
+    t0, station0, lateral0, speed0, lateral1, speed1, duration = (
+        float(traffic.t0[i]), float(traffic.station0[i]), float(traffic.lateral0[i]), float(traffic.speed0[i]),
+        float(traffic.lateral1[i]), float(traffic.speed1[i]), float(traffic.duration[i]))
+    elapsed = t - t0
+    if elapsed < duration:
+        fraction = elapsed / duration
+        travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
+        lateral_rate = (lateral1 - lateral0) / duration
+    else:
+        fraction = 1.0
+        travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
+        lateral_rate = 0.0
+    return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed0 + (speed1 - speed0) * fraction,
+            lateral_rate)

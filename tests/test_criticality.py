@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, band_times, conflict_station, distance,
-                                       distance_horizon, distance_rate, distance_rates, distances, drac, dracs,
+                                       distance_horizon, distance_horizons, distance_rate, distance_rates, distances, drac,
+                                       drac_rate, dracs, approach_horizons,
                                        headway, headways, post_encroachment_time, signed_distance,
                                        signed_distances, ttc, ttc_rate, ttcs)
 
@@ -160,14 +161,14 @@ def motion(t, start):
             dy0 + vy0 * t + ay * t * t / 2, vx0 + ax * t, vy0 + ay * t)
 
 
-def test_distance_rate_and_ttc_rate_are_the_derivatives_along_the_motion():
+def test_distance_ttc_and_drac_rates_are_the_derivatives_along_the_motion():
     # A central difference (f(h) - f(-h)) / 2h of a smooth function errs by h^2 f''' / 6 plus round-off
     # eps |f| / h: with h = 1e-5 s, |f'''| < 1e3 and |f| < 100 that is < 2e-8 + 2e-9. The tolerance 1e-6 is
     # far above both and far below the rates (order 1..50); configurations where the nearest feature or the
     # axis setting TTC switches within +-h (a kink) are skipped by requiring one-sided differences to agree.
     rng = np.random.default_rng(3)
     h = 1e-5
-    checked_distance = checked_ttc = 0
+    checked_distance = checked_ttc = checked_drac = 0
     for _ in range(3000):
         start = (rng.uniform(-30, 30), rng.uniform(-8, 8), rng.uniform(-40, 10), rng.uniform(-3, 3),
                  rng.uniform(-8, 8), rng.uniform(-3, 3), rng.uniform(-0.5, 0.5), rng.uniform(-0.6, 0.6))
@@ -185,7 +186,17 @@ def test_distance_rate_and_ttc_rate_are_the_derivatives_along_the_motion():
                 rate = ttc_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, CAR_LENGTH, CAR_WIDTH)
                 assert rate == pytest.approx((after - before) / (2 * h), abs=1e-6)
                 checked_ttc += 1
-    assert checked_distance > 2000 and checked_ttc > 100
+                if value < 0.1:
+                    continue
+                # DRAC ~ S / 2T grows without bound as TTC T -> 0: its third derivative ~ 3 S / T^4, so the
+                # central difference errs by ~ h^2 S / 2T^4 against a rate ~ S / 2T^2, relatively h^2 / T^2
+                # <= 1e-8 for T >= 0.1 s: compared relatively, to 1e-6
+                before, after = (drac(ttc(*motion(s, start), CAR_LENGTH, CAR_WIDTH), *motion(s, start)[3:])
+                                 for s in (-h, h))
+                rate = drac_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, CAR_LENGTH, CAR_WIDTH)
+                assert rate == pytest.approx((after - before) / (2 * h), abs=1e-6, rel=1e-6)
+                checked_drac += 1
+    assert checked_distance > 2000 and checked_ttc > 100 and checked_drac > 50
 
 
 # ---- horizons hold on motions within their bounds ------------------------------------------------------------
@@ -212,11 +223,11 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
         frozen = distance_rate(ego, dx, dy, vx, vy, 0.0, CAR_LENGTH, CAR_WIDTH)
         floor = d * rng.uniform(0.2, 0.9)
         until = distance_horizon(d, frozen, floor, turn, acceleration)
-        for s in np.linspace(0, until, 200):
+        for s in np.linspace(0, until, 80):
             assert distance(*motion(s, start)[:3], CAR_LENGTH, CAR_WIDTH) > floor - 1e-9
         approach = approach_horizon(d, frozen, math.hypot(vx, vy), turn, acceleration, yaw_rate_bound)
         if approach > 0:
-            for s in np.linspace(0, approach, 200)[:-1]:
+            for s in np.linspace(0, approach, 80)[:-1]:
                 ego_s, dx_s, dy_s, vx_s, vy_s = motion(s, start)
                 assert distance_rate(ego_s, dx_s, dy_s, vx_s, vy_s, start[7], CAR_LENGTH, CAR_WIDTH) < 0
             checked += 1
@@ -357,8 +368,9 @@ def cruising(v: float):
 
 def master_like_run(traffic: Traffic, ego, step: float, end: float, period: float = 0.05) -> Extremes:
     """What the master does with the record: offer the values at every communication point (the step's ends
-    and the driver's samples), and where a vehicle's distance rate or TTC rate turned from < 0 at the step's
-    start to >= 0 at its end, bisect that instant to 1e-9 s and offer the values there too."""
+    and the driver's samples), and where a vehicle's distance rate, TTC rate or minus DRAC rate turned from
+    < 0 at the step's start to >= 0 at its end, bisect that instant to 1e-9 s and offer the values there
+    too."""
     extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
     points = sorted(set(np.round(np.arange(0, end + step / 2, step), 12)) | set(np.round(np.arange(0, end, period), 12)))
     idx = traffic.active
@@ -368,7 +380,7 @@ def master_like_run(traffic: Traffic, ego, step: float, end: float, period: floa
         now = {i: extremes.rates(traffic, i, state) for i in idx.tolist()}
         if previous is not None:
             for i in idx.tolist():
-                for k in (0, 1):
+                for k in (0, 1, 2):
                     if previous[1][i][k] < 0 and now[i][k] >= 0:
                         def condition(probe, i=i, k=k):
                             return -1.0 if extremes.rates(traffic, i, ego(probe))[k] < 0 else 1.0
@@ -475,3 +487,21 @@ def test_record_of_a_few_vehicles_in_plain_floats_equals_the_array_form_bit_for_
         assert np.array_equal(few.value[name][:4], many.value[name][:4], equal_nan=True), name
         assert np.array_equal(few.time[name][:4], many.time[name][:4], equal_nan=True), name
     assert np.isfinite(many.value["min_ttc"]).sum() >= 2  # collision courses among them
+
+
+def test_horizons_plain_float_forms_equal_the_array_forms_bit_for_bit():
+    rng = np.random.default_rng(29)
+    n = 5000
+    d = mix(rng, rng.uniform(0, 100, n), rng.uniform(0, 1, n), np.zeros(n))
+    frozen = mix(rng, rng.uniform(-50, 50, n), np.zeros(n), rng.uniform(-3, 0, n))
+    floor = d * rng.uniform(0, 1.2, n)
+    speed = np.abs(frozen) + rng.uniform(0, 10, n)
+    acceleration = rng.uniform(5, 30, n)
+    turn, yaw_rate_bound = 2.5, 1.1
+    assert np.array_equal(distance_horizons(d, frozen, floor, turn, acceleration),
+                          [distance_horizon(*row, turn, a) for row, a in zip(zip(d.tolist(), frozen.tolist(),
+                                                                                  floor.tolist()), acceleration)])
+    expected = approach_horizons(d, frozen, speed, turn, acceleration, yaw_rate_bound)
+    assert np.array_equal(expected, [approach_horizon(x, f, v, turn, float(a), yaw_rate_bound)
+                                     for x, f, v, a in zip(d.tolist(), frozen.tolist(), speed.tolist(), acceleration)])
+    assert (expected > 0).sum() > 500  # approaching: a positive bound (about 700 of the 5000 cases)

@@ -337,6 +337,19 @@ def ttc_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ax: flo
     return rate
 
 
+def drac_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ax: float, ay: float, yaw_rate: float,
+              length: float, width: float) -> float:
+    """d/dt of `drac` along the present motion: DRAC = |v| / (2 TTC), so
+    DRAC' = (|v|' TTC - |v| TTC') / (2 TTC^2) with |v|' = v . a / |v|. nan where DRAC is not defined. Its
+    maximum is where this turns from > 0 to <= 0 (or at a collision course's start or end)."""
+    t = ttc(ego, dx, dy, vx, vy, length, width)
+    if not 0.0 < t < INF:
+        return math.nan
+    speed = math.sqrt(vx * vx + vy * vy)
+    speed_rate = (vx * ax + vy * ay) / speed
+    return (speed_rate * t - speed * ttc_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, length, width)) / (2 * t * t)
+
+
 # ---- time headway -----------------------------------------------------------------------------------------
 
 def headway(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
@@ -575,14 +588,15 @@ class Extremes:
             self.offers("min_headway", idx, t, headways(ego, dx, dy, ego_vx, -speed, length, width))
         self.reach(state)
 
-    def rates(self, traffic, i: int, state) -> tuple[float, float]:
-        """(distance rate, TTC rate) of vehicle i at the ego's state: the master's "criticality" condition at
-        a probe is a change of either from < 0 at the step's start to >= 0 (a closest approach, a smallest
-        TTC), which it bisects; nan where TTC is undefined."""
+    def rates(self, traffic, i: int, state) -> tuple[float, float, float]:
+        """(distance rate, TTC rate, minus the DRAC rate) of vehicle i at the ego's state: the master's
+        "criticality" condition at a probe is a change of any of them from < 0 at the step's start to >= 0 (a
+        closest approach, a smallest TTC, a largest DRAC), which it bisects; nan where TTC is undefined."""
         ego, dx, dy, vx, vy, ax, ay, length, width = relative_motion(traffic, i, state, self.ego_length,
                                                                     self.ego_width)
         return (distance_rate(ego, dx, dy, vx, vy, state.yaw_rate, length, width),
-                ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width))
+                ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width),
+                -drac_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width))
 
     # -- post-encroachment time
 

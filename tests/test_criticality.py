@@ -505,3 +505,40 @@ def test_horizons_plain_float_forms_equal_the_array_forms_bit_for_bit():
     assert np.array_equal(expected, [approach_horizon(x, f, v, turn, float(a), yaw_rate_bound)
                                      for x, f, v, a in zip(d.tolist(), frozen.tolist(), speed.tolist(), acceleration)])
     assert (expected > 0).sum() > 500  # approaching: a positive bound (about 700 of the 5000 cases)
+
+
+def test_record_horizon_skips_far_vehicles_and_never_passes_a_new_minimum():
+    # An oncoming car in the next lane 400 m ahead, closing at 45 m/s: it comes within RANGE (50 m) of the
+    # ego's footprint no earlier than the horizon says, and a master that looks at the vehicle only at its
+    # horizons (and at every communication point within RANGE) records the same minimum distance and
+    # instant as one that looks at every communication point, with far fewer looks.
+    from sdl_fmu.cosim.criticality import RANGE
+
+    traffic = traffic_of((0.0, 400.0, -LANE, 20.0, -LANE, 20.0, 0.0))
+    ego = cruising(25.0)
+    acceleration, yaw_rate_bound = 15.0, 1.0
+    radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
+    extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
+    extremes.observe(traffic, traffic.active, ego(0.0))
+    first = extremes.horizon(traffic, 0, ego(0.0), acceleration, yaw_rate_bound, radius)
+    # beyond RANGE until the lengthwise corner distance hypot(400 - 45 t - 4.55, 1.8) is 50 m: t > 7.776 s
+    assert 0 < first < (400 - 4.55 - math.sqrt(50**2 - 1.8**2)) / 45
+    assert distance(Footprint.of(EGO_LENGTH, EGO_WIDTH, 0.0), *oncoming(first, gap0=400.0)[:2], CAR_LENGTH,
+                    CAR_WIDTH) > RANGE
+    looks, next_look, previous = 0, 0.0, None
+    for t in np.round(np.arange(0, 12, 0.05), 12):
+        state = ego(t)
+        rate = extremes.rates(traffic, 0, state)[0]
+        if t >= next_look:
+            looks += 1
+            if previous is not None and previous[1] < 0 <= rate:
+                located = bisect_root(lambda p: extremes.rates(traffic, 0, ego(p))[0], previous[0], t)
+                extremes.observe(traffic, traffic.active, ego(located))
+            extremes.observe(traffic, traffic.active, state)
+            next_look = t + extremes.horizon(traffic, 0, state, acceleration, yaw_rate_bound, radius)
+            previous = (t, rate)
+    every = master_like_run(traffic, ego, 0.05, end=12.0)
+    assert extremes.value["min_distance"][0] == every.value["min_distance"][0]
+    assert extremes.time["min_distance"][0] == pytest.approx(every.time["min_distance"][0], abs=1e-8)
+    assert extremes.time["min_distance"][0] == pytest.approx((400 - 4.55) / 45, abs=1e-8)
+    assert looks < 240 / 2  # of 240 communication points

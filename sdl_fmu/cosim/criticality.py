@@ -85,19 +85,6 @@ class Footprint(NamedTuple):
 
 # ---- footprint distance ---------------------------------------------------------------------------------
 
-def _point_box(x: float, y: float, half_x: float, half_y: float) -> float:
-    """Distance from (x, y) to the axis-aligned box |x| <= half_x, |y| <= half_y (0 inside)."""
-    ex = max(abs(x) - half_x, 0.0)
-    ey = max(abs(y) - half_y, 0.0)
-    return math.sqrt(ex * ex + ey * ey)
-
-
-def _point_boxes(x, y, half_x, half_y):
-    ex = np.maximum(np.abs(x) - half_x, 0.0)
-    ey = np.maximum(np.abs(y) - half_y, 0.0)
-    return np.sqrt(ex * ex + ey * ey)
-
-
 def _corners(ego: Footprint, dx, dy, length, width):
     """The eight (x, y, half_x, half_y) corner-to-box problems whose minimum is the distance of two disjoint
     convex polygons (the closest pair always has a vertex of one of them): the ego's four corners relative
@@ -154,10 +141,12 @@ def signed_distance(ego: Footprint, dx: float, dy: float, length: float, width: 
     depth = penetration(ego, dx, dy, length, width)
     if depth > 0.0:
         return -depth
-    best = INF
+    best = INF  # the smallest squared corner distance; one square root at the end (sqrt is monotone)
     for x, y, half_x, half_y in _corners(ego, dx, dy, length, width):
-        best = min(best, _point_box(x, y, half_x, half_y))
-    return best
+        ex = max(abs(x) - half_x, 0.0)
+        ey = max(abs(y) - half_y, 0.0)
+        best = min(best, ex * ex + ey * ey)
+    return math.sqrt(best)
 
 
 def signed_distances(ego: Footprint, dx, dy, length, width):
@@ -165,8 +154,10 @@ def signed_distances(ego: Footprint, dx, dy, length, width):
     depth = penetrations(ego, dx, dy, length, width)
     best = np.full(np.shape(depth), INF)
     for x, y, half_x, half_y in _corners(ego, dx, dy, length, width):
-        best = np.minimum(best, _point_boxes(x, y, half_x, half_y))
-    return np.where(depth > 0.0, -depth, best)
+        ex = np.maximum(np.abs(x) - half_x, 0.0)
+        ey = np.maximum(np.abs(y) - half_y, 0.0)
+        best = np.minimum(best, ex * ex + ey * ey)
+    return np.where(depth > 0.0, -depth, np.sqrt(best))
 
 
 def distance(ego: Footprint, dx: float, dy: float, length: float, width: float) -> float:
@@ -489,6 +480,9 @@ def approach_horizons(distance, frozen_rate, relative_speed, turn: float, accele
 # ---- the run's record: per vehicle, its extremes ---------------------------------------------------------------
 
 FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is better by more than this
+# m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
+# follows encounters within device.ssm.range (default 50 m); the distance everywhere
+RANGE = 50.0
 SCALAR_VEHICLES = 4  # as master.SCALAR_VEHICLES: up to this many vehicles in plain floats
 
 MEASURES = ("min_distance", "min_ttc", "max_drac", "min_pet", "min_headway")
@@ -597,6 +591,35 @@ class Extremes:
         return (distance_rate(ego, dx, dy, vx, vy, state.yaw_rate, length, width),
                 ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width),
                 -drac_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width))
+
+    def horizon(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float, radius: float) -> float:
+        """A lower bound (s from the state's instant) on when vehicle i next needs looking at: 0 within RANGE
+        (TTC, DRAC and headway are followed at every communication point there, their roots and collision
+        courses located by the master); beyond it, the earliest of the vehicle coming within RANGE and of a
+        new minimum distance (which needs both the distance below the recorded minimum and an approach
+        ending: the later of `distance_horizon` and `approach_horizon`). The ego's bounds as in triggers.py:
+        |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner. Valid while
+        the vehicle's motion is unchanged (until an action fires, and never past the end of a lateral
+        transition, where its velocity changes at once), like the master's other vehicle bounds."""
+        ego, dx, dy, vx, vy, _, _, length, width = relative_motion(traffic, i, state, self.ego_length,
+                                                                  self.ego_width)
+        d = distance(ego, dx, dy, length, width)
+        if d <= RANGE:
+            return 0.0
+        frozen = distance_rate(ego, dx, dy, vx, vy, 0.0, length, width)
+        turn = radius * yaw_rate_bound
+        elapsed, duration = state.time - float(traffic.t0[i]), float(traffic.duration[i])
+        relative = acceleration + (abs(float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration
+                                   if elapsed < duration else 0.0)
+        entering = distance_horizon(d, frozen, RANGE, turn, relative)
+        recorded = float(self.value["min_distance"][i]) if i < self.size else math.nan
+        new_minimum = distance_horizon(d, frozen, recorded - FLAT, turn, relative) if recorded == recorded else 0.0
+        if frozen < -turn:
+            new_minimum = max(new_minimum, approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
+                                                            yaw_rate_bound))
+        # a lateral transition's end changes the vehicle's velocity at once: no bound reaches past it
+        transition_end = duration - elapsed if elapsed < duration else INF
+        return min(min(entering, new_minimum), transition_end)
 
     # -- post-encroachment time
 

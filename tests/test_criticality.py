@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, band_times, conflict_station, distance,
+from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, band_times, heading_horizon, conflict_station, distance,
                                        distance_horizon, distance_horizons, distance_rate, distance_rates, distances, drac,
                                        drac_rate, dracs, approach_horizons,
                                        headway, headways, post_encroachment_time, signed_distance,
@@ -204,7 +204,8 @@ def test_distance_ttc_and_drac_rates_are_the_derivatives_along_the_motion():
 def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
     # Motions with |relative acceleration| <= A and |yaw rate| <= r_max (constant here, any within the
     # bounds would do): before distance_horizon the distance stays above the floor, before approach_horizon
-    # the rate stays below 0. Checked on a fine grid up to each horizon.
+    # and heading_horizon the rate stays below 0. Checked on a grid up to each horizon; positions out to
+    # 300 m so that heading_horizon (the far one) binds in many cases.
     rng = np.random.default_rng(5)
     acceleration, yaw_rate_bound = 12.0, 0.8
     radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
@@ -213,7 +214,8 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
     for _ in range(400):
         angle = rng.uniform(0, 2 * math.pi)
         size = rng.uniform(0, acceleration)
-        start = (rng.uniform(-60, 60), rng.uniform(-10, 10), rng.uniform(-45, 45), rng.uniform(-4, 4),
+        start = (rng.choice([rng.uniform(-60, 60), rng.uniform(-300, 300)]), rng.uniform(-10, 10),
+                 rng.uniform(-45, 45), rng.uniform(-4, 4),
                  size * math.cos(angle), size * math.sin(angle), rng.uniform(-0.3, 0.3),
                  rng.uniform(-yaw_rate_bound, yaw_rate_bound))
         ego, dx, dy, vx, vy = motion(0.0, start)
@@ -225,7 +227,9 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
         until = distance_horizon(d, frozen, floor, turn, acceleration)
         for s in np.linspace(0, until, 80):
             assert distance(*motion(s, start)[:3], CAR_LENGTH, CAR_WIDTH) > floor - 1e-9
-        approach = approach_horizon(d, frozen, math.hypot(vx, vy), turn, acceleration, yaw_rate_bound)
+        approach = max(approach_horizon(d, frozen, math.hypot(vx, vy), turn, acceleration, yaw_rate_bound),
+                       heading_horizon(dx, dy, vx, vy, radius + math.hypot(CAR_LENGTH, CAR_WIDTH) / 2, turn,
+                                       acceleration) if frozen < -turn else 0.0)
         if approach > 0:
             for s in np.linspace(0, approach, 80)[:-1]:
                 ego_s, dx_s, dy_s, vx_s, vy_s = motion(s, start)
@@ -318,7 +322,7 @@ def test_plain_float_forms_equal_the_array_forms_bit_for_bit(psi):
 
 from typing import NamedTuple  # noqa: E402
 
-from sdl_fmu.cosim.criticality import Extremes  # noqa: E402
+from sdl_fmu.cosim.criticality import RANGE, Extremes, relative_motion  # noqa: E402
 from sdl_fmu.cosim.traffic import Traffic  # noqa: E402
 from sdl_fmu.units import FOOT, from_si  # noqa: E402
 
@@ -507,20 +511,18 @@ def test_horizons_plain_float_forms_equal_the_array_forms_bit_for_bit():
     assert (expected > 0).sum() > 500  # approaching: a positive bound (about 700 of the 5000 cases)
 
 
-def test_record_horizon_skips_far_vehicles_and_never_passes_a_new_minimum():
+def test_looks_at_horizons_skip_far_vehicles_and_never_pass_a_new_minimum():
     # An oncoming car in the next lane 400 m ahead, closing at 45 m/s: it comes within RANGE (50 m) of the
     # ego's footprint no earlier than the horizon says, and a master that looks at the vehicle only at its
-    # horizons (and at every communication point within RANGE) records the same minimum distance and
-    # instant as one that looks at every communication point, with far fewer looks.
-    from sdl_fmu.cosim.criticality import RANGE
-
+    # horizons (Extremes.look; at every communication point within RANGE) records the same minimum distance
+    # and instant as one that offers every communication point (Extremes.observe), with far fewer looks.
     traffic = traffic_of((0.0, 400.0, -LANE, 20.0, -LANE, 20.0, 0.0))
     ego = cruising(25.0)
     acceleration, yaw_rate_bound = 15.0, 1.0
     radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
     extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
     extremes.observe(traffic, traffic.active, ego(0.0))
-    first = extremes.horizon(traffic, 0, ego(0.0), acceleration, yaw_rate_bound, radius)
+    first = extremes.look(traffic, 0, ego(0.0), acceleration, yaw_rate_bound, radius)[1]
     # beyond RANGE until the lengthwise corner distance hypot(400 - 45 t - 4.55, 1.8) is 50 m: t > 7.776 s
     assert 0 < first < (400 - 4.55 - math.sqrt(50**2 - 1.8**2)) / 45
     assert distance(Footprint.of(EGO_LENGTH, EGO_WIDTH, 0.0), *oncoming(first, gap0=400.0)[:2], CAR_LENGTH,
@@ -534,11 +536,39 @@ def test_record_horizon_skips_far_vehicles_and_never_passes_a_new_minimum():
             if previous is not None and previous[1] < 0 <= rate:
                 located = bisect_root(lambda p: extremes.rates(traffic, 0, ego(p))[0], previous[0], t)
                 extremes.observe(traffic, traffic.active, ego(located))
-            extremes.observe(traffic, traffic.active, state)
-            next_look = t + extremes.horizon(traffic, 0, state, acceleration, yaw_rate_bound, radius)
+            next_look = t + extremes.look(traffic, 0, state, acceleration, yaw_rate_bound, radius)[1]
             previous = (t, rate)
     every = master_like_run(traffic, ego, 0.05, end=12.0)
     assert extremes.value["min_distance"][0] == every.value["min_distance"][0]
     assert extremes.time["min_distance"][0] == pytest.approx(every.time["min_distance"][0], abs=1e-8)
     assert extremes.time["min_distance"][0] == pytest.approx((400 - 4.55) / 45, abs=1e-8)
     assert looks < 240 / 2  # of 240 communication points
+
+
+def test_a_look_offers_what_observe_offers_and_returns_the_rates():
+    # Extremes.look (the master's one-pass path) against Extremes.observe and the rates from the measures'
+    # own functions: the same bits, within and beyond RANGE, on and off a collision course.
+    rng = np.random.default_rng(31)
+    rows = [(rng.uniform(0, 2), rng.uniform(-40, 150), rng.uniform(-5, 5), rng.uniform(-30, 30),
+             rng.uniform(-5, 5), rng.uniform(-30, 30), rng.choice([0.0, 1.5, 4.0])) for _ in range(40)]
+    traffic = traffic_of(*rows)
+    looked, observed = Extremes(EGO_LENGTH, EGO_WIDTH), Extremes(EGO_LENGTH, EGO_WIDTH)
+    courses = 0
+    for t in np.linspace(2, 8, 31):
+        state = State(float(t), 20 * t, rng.uniform(-1, 1), rng.uniform(-0.2, 0.2), rng.uniform(5, 30),
+                      rng.uniform(-1, 1), rng.uniform(-5, 5), rng.uniform(-3, 3), rng.uniform(-0.3, 0.3))
+        for i in range(traffic.size):
+            rates, _ = looked.look(traffic, i, state, 15.0, 1.0, 2.5)
+            observed.observe(traffic, np.array([i]), state)
+            ego, dx, dy, vx, vy, ax, ay, length, width = relative_motion(traffic, i, state, EGO_LENGTH, EGO_WIDTH)
+            assert rates[0] == distance_rate(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
+            if distance(ego, dx, dy, length, width) <= RANGE and 0 < ttc(ego, dx, dy, vx, vy, length, width) < math.inf:
+                assert rates[1] == ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
+                assert rates[2] == -drac_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
+                courses += 1
+            else:
+                assert math.isnan(rates[1]) and math.isnan(rates[2])
+    for name in looked.value:
+        assert np.array_equal(looked.value[name], observed.value[name], equal_nan=True), name
+        assert np.array_equal(looked.time[name], observed.time[name], equal_nan=True), name
+    assert courses > 20

@@ -182,29 +182,48 @@ def distance_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ya
     An ego corner e (turned with the ego) relative to the vehicle's centre: p = e - d,
     p' = yaw_rate (-e_y, e_x) - v. A vehicle corner in the ego's body frame: q = R(-psi)(d + f),
     q' = R(-psi) v + yaw_rate (q_v, -q_u)."""
+    return _distance_and_rates(ego, dx, dy, vx, vy, yaw_rate, length, width)[1]
+
+
+def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: float, yaw_rate: float, length: float,
+                        width: float) -> tuple[float, float, float]:
+    """(distance, its rate, its rate with the ego's yaw frozen) in one pass over the corners (the master's
+    look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0."""
     if penetration(ego, dx, dy, length, width) >= 0.0:
-        return 0.0
+        return 0.0, 0.0, 0.0
     a, b, c, s = ego
     vu, vv = vx * c + vy * s, -vx * s + vy * c
-    best, rate = INF, INF
+    best, rate, frozen = INF, INF, INF
+    sqrt = math.sqrt
     for k, (x, y, half_x, half_y) in enumerate(_corners(ego, dx, dy, length, width)):
-        ex = max(abs(x) - half_x, 0.0)
-        ey = max(abs(y) - half_y, 0.0)
-        d = math.sqrt(ex * ex + ey * ey)
+        # max(|x| - half_x, 0) without the call (the per-look path); the same value as np.maximum
+        ex = (x if x >= 0.0 else -x) - half_x
+        if ex < 0.0:
+            ex = 0.0
+        ey = (y if y >= 0.0 else -y) - half_y
+        if ey < 0.0:
+            ey = 0.0
+        d = sqrt(ex * ex + ey * ey)
         if d > best:
             continue
         gx = ex if x >= 0.0 else -ex
         gy = ey if y >= 0.0 else -ey
         if k < 4:  # ego corner: e = p + d
-            px_rate = -yaw_rate * (y + dy) - vx
-            py_rate = yaw_rate * (x + dx) - vy
+            px_rate, py_rate = -yaw_rate * (y + dy) - vx, yaw_rate * (x + dx) - vy
+            r_frozen = (gx * -vx + gy * -vy) / d
         else:
-            px_rate = vu + yaw_rate * y
-            py_rate = vv - yaw_rate * x
+            px_rate, py_rate = vu + yaw_rate * y, vv - yaw_rate * x
+            r_frozen = (gx * vu + gy * vv) / d
         r = (gx * px_rate + gy * py_rate) / d
-        rate = r if d < best else min(rate, r)
+        if d < best:
+            rate, frozen = r, r_frozen
+        else:
+            if r < rate:
+                rate = r
+            if r_frozen < frozen:
+                frozen = r_frozen
         best = d
-    return rate
+    return best, rate, frozen
 
 
 def distance_rates(ego: Footprint, dx, dy, vx, vy, yaw_rate: float, length, width):
@@ -257,11 +276,15 @@ def ttc(ego: Footprint, dx: float, dy: float, vx: float, vy: float, length: floa
                 return INF  # never overlapping along this axis
             continue
         t1, t2 = (-h - p) / q, (h - p) / q
-        entry = max(entry, min(t1, t2))
-        leave = min(leave, max(t1, t2))
+        if t2 < t1:
+            t1, t2 = t2, t1
+        if t1 > entry:
+            entry = t1
+        if t2 < leave:
+            leave = t2
     if entry >= leave or leave <= 0.0:
         return INF
-    return max(entry, 0.0)
+    return entry if entry > 0.0 else 0.0
 
 
 def ttcs(ego: Footprint, dx, dy, vx, vy, length, width):
@@ -305,6 +328,12 @@ def ttc_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ax: flo
     t = ttc(ego, dx, dy, vx, vy, length, width)
     if not 0.0 < t < INF:
         return math.nan
+    return _ttc_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, length, width)
+
+
+def _ttc_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ax: float, ay: float, yaw_rate: float,
+              length: float, width: float) -> float:
+    """`ttc_rate` where TTC is known to be defined and > 0."""
     a, b, c, s = ego
     hl, hw = length / 2, width / 2
     sc, ss = math.copysign(1.0, c), math.copysign(1.0, s)
@@ -336,9 +365,13 @@ def drac_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ax: fl
     t = ttc(ego, dx, dy, vx, vy, length, width)
     if not 0.0 < t < INF:
         return math.nan
+    return _drac_rate(t, _ttc_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, length, width), vx, vy, ax, ay)
+
+
+def _drac_rate(t: float, t_rate: float, vx: float, vy: float, ax: float, ay: float) -> float:
     speed = math.sqrt(vx * vx + vy * vy)
     speed_rate = (vx * ax + vy * ay) / speed
-    return (speed_rate * t - speed * ttc_rate(ego, dx, dy, vx, vy, ax, ay, yaw_rate, length, width)) / (2 * t * t)
+    return (speed_rate * t - speed * t_rate) / (2 * t * t)
 
 
 # ---- time headway -----------------------------------------------------------------------------------------
@@ -452,6 +485,33 @@ def approach_horizon(distance: float, frozen_rate: float, relative_speed: float,
     return min(half, closing / growth)
 
 
+def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: float, turn: float,
+                    acceleration: float) -> float:
+    """A lower bound (s) on when an approach can end, for a vehicle far compared to the footprints' sizes
+    (`approach_horizon` is the tighter near): it needs no bound on the ego's yaw beyond `turn`.
+
+    The closest points p_A, p_B lie within R_A, R_B of the centres (radius_sum = R_A + R_B), so the unit
+    normal n = (p_B - p_A) / d is within asin(radius_sum / rho) of the centre offset c = (dx, dy),
+    rho = |c|. The distance's rate is n . v_rel plus the turning part (at most `turn`), so it stays < 0 while
+    the angle between n and -v_rel stays below acos(turn / |v_rel|). Over tau_1 = min(reach_time(rho / 2,
+    |v|, A), |v| / 2A), rho >= rho0 / 2 and |v_rel| >= |v0| / 2; the direction of c turns at most at
+    S1 / (rho0 / 2) (S1 = |v0| + A tau_1) and that of v_rel at most at A / (|v0| / 2). So the approach
+    cannot end before min(tau_1, (acos(2 turn / |v0|) - asin(2 radius_sum / rho0) - alpha0) / (2 S1 / rho0 +
+    2 A / |v0|)), alpha0 the angle between c and -v_rel now; 0 if that is not positive."""
+    rho = math.sqrt(dx * dx + dy * dy)
+    speed = math.sqrt(vx * vx + vy * vy)
+    if speed <= 2 * turn or rho <= 2 * radius_sum:
+        return 0.0
+    cos_alpha = -(dx * vx + dy * vy) / (rho * speed)
+    alpha = math.acos(min(1.0, max(-1.0, cos_alpha)))
+    margin = math.acos(2 * turn / speed) - math.asin(2 * radius_sum / rho) - alpha
+    if margin <= 0.0:
+        return 0.0
+    within = min(_reach_time(rho / 2, speed, acceleration), speed / (2 * acceleration))
+    fastest = speed + acceleration * within
+    return min(within, margin / (2 * fastest / rho + 2 * acceleration / speed))
+
+
 def _reach_times(distance, rate, acceleration):
     """`_reach_time` over arrays (triggers.reach_time)."""
     used_up = distance <= 0.0
@@ -552,8 +612,8 @@ class Extremes:
         self.time[name][idx[better]] = t
 
     def observe(self, traffic, idx: np.ndarray, state) -> None:
-        """Offers the distance, TTC, DRAC and headway of vehicles idx (traffic.Traffic indices) at the ego's
-        state (EgoState: ISO 8855 position x, y, yaw psi, body-frame velocity vx, vy), and completes any PET
+        """Offers the distance (and within RANGE, TTC, DRAC and headway) of vehicles idx (traffic.Traffic
+        indices) at the ego's state (EgoState: ISO 8855 position x, y, yaw psi, body-frame velocity vx, vy), and completes any PET
         whose conflict station the ego's front has reached. A few vehicles in plain floats."""
         t = state.time
         c, s = math.cos(state.psi), math.sin(state.psi)
@@ -565,61 +625,92 @@ class Extremes:
                 length, width = float(traffic.length[i]), float(traffic.width[i])
                 dx, dy = station - state.x, -lateral - state.y
                 vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-                self.offer("min_distance", i, t, distance(ego, dx, dy, length, width))
-                value = ttc(ego, dx, dy, vx, vy, length, width)
-                self.offer("min_ttc", i, t, value)
-                self.offer("max_drac", i, t, drac(value, vx, vy))
-                self.offer("min_headway", i, t, headway(ego, dx, dy, ego_vx, -speed, length, width))
+                d = distance(ego, dx, dy, length, width)
+                self.offer("min_distance", i, t, d)
+                if d <= RANGE:
+                    value = ttc(ego, dx, dy, vx, vy, length, width)
+                    self.offer("min_ttc", i, t, value)
+                    self.offer("max_drac", i, t, drac(value, vx, vy))
+                    self.offer("min_headway", i, t, headway(ego, dx, dy, ego_vx, -speed, length, width))
         else:
             station, lateral, speed, lateral_rate, _ = traffic.motion(idx, t)
             length, width = traffic.length[idx], traffic.width[idx]
             dx, dy = station - state.x, -lateral - state.y
             vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-            self.offers("min_distance", idx, t, distances(ego, dx, dy, length, width))
-            values = ttcs(ego, dx, dy, vx, vy, length, width)
+            d = distances(ego, dx, dy, length, width)
+            self.offers("min_distance", idx, t, d)
+            near = d <= RANGE  # beyond: inf, not applicable
+            values = np.where(near, ttcs(ego, dx, dy, vx, vy, length, width), INF)
             self.offers("min_ttc", idx, t, values)
             self.offers("max_drac", idx, t, dracs(values, vx, vy))
-            self.offers("min_headway", idx, t, headways(ego, dx, dy, ego_vx, -speed, length, width))
+            self.offers("min_headway", idx, t, np.where(near, headways(ego, dx, dy, ego_vx, -speed, length, width),
+                                                        INF))
         self.reach(state)
 
-    def rates(self, traffic, i: int, state) -> tuple[float, float, float]:
-        """(distance rate, TTC rate, minus the DRAC rate) of vehicle i at the ego's state: the master's
-        "criticality" condition at a probe is a change of any of them from < 0 at the step's start to >= 0 (a
-        closest approach, a smallest TTC, a largest DRAC), which it bisects; nan where TTC is undefined."""
-        ego, dx, dy, vx, vy, ax, ay, length, width = relative_motion(traffic, i, state, self.ego_length,
-                                                                    self.ego_width)
-        return (distance_rate(ego, dx, dy, vx, vy, state.yaw_rate, length, width),
-                ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width),
-                -drac_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width))
+    def _evaluate(self, traffic, i: int, state):
+        """Vehicle i at the ego's state, in one pass: (values to offer {measure: value}, rates, what the horizon
+        needs). Beyond RANGE only the distance and its rates."""
+        t = state.time
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+        station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+        elapsed, duration = t - float(traffic.t0[i]), float(traffic.duration[i])
+        moving = elapsed < duration
+        speed_rate = (float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration if moving else 0.0
+        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+        length, width = float(traffic.length[i]), float(traffic.width[i])
+        dx, dy = station - state.x, -lateral - state.y
+        vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+        d, rate, frozen = _distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
+        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF)
+        if d > RANGE:
+            return {"min_distance": d}, (rate, math.nan, math.nan), motion
+        value = ttc(ego, dx, dy, vx, vy, length, width)
+        values = {"min_distance": d, "min_ttc": value,
+                  "min_headway": headway(ego, dx, dy, ego_vx, -speed, length, width)}
+        if not 0.0 < value < INF:
+            return values, (rate, math.nan, math.nan), motion
+        ax, ay = -speed_rate - (state.ax * c - state.ay * s), -(state.ax * s + state.ay * c)
+        values["max_drac"] = drac(value, vx, vy)
+        value_rate = _ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
+        return values, (rate, value_rate, -_drac_rate(value, value_rate, vx, vy, ax, ay)), motion
 
-    def horizon(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float, radius: float) -> float:
-        """A lower bound (s from the state's instant) on when vehicle i next needs looking at: 0 within RANGE
-        (TTC, DRAC and headway are followed at every communication point there, their roots and collision
-        courses located by the master); beyond it, the earliest of the vehicle coming within RANGE and of a
-        new minimum distance (which needs both the distance below the recorded minimum and an approach
-        ending: the later of `distance_horizon` and `approach_horizon`). The ego's bounds as in triggers.py:
-        |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner. Valid while
-        the vehicle's motion is unchanged (until an action fires, and never past the end of a lateral
-        transition, where its velocity changes at once), like the master's other vehicle bounds."""
-        ego, dx, dy, vx, vy, _, _, length, width = relative_motion(traffic, i, state, self.ego_length,
-                                                                  self.ego_width)
-        d = distance(ego, dx, dy, length, width)
+    def rates(self, traffic, i: int, state) -> tuple[float, float, float]:
+        """(distance rate, TTC rate, minus the DRAC rate) of vehicle i at the ego's state (nan where TTC is not
+        defined or beyond RANGE). The master's "criticality" condition at a bisection probe: any of them
+        turned from < 0 at the step's start to >= 0 (a closest approach, a smallest TTC, a largest DRAC)."""
+        return self._evaluate(traffic, i, state)[1]
+
+    def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
+             radius: float) -> tuple[tuple[float, float, float], float]:
+        """The master's look at vehicle i at a communication point or a located instant: offers its values
+        and returns its rates (`rates`) and a horizon: a lower bound (s from now) on when it next needs a
+        look. 0 within RANGE (TTC, DRAC and headway are followed at every communication point there, their
+        roots and collision courses located by the master); beyond it, the earliest of the vehicle coming
+        within RANGE and of a new minimum distance (which needs both the distance below the recorded minimum
+        and an approach ending: the latest of `distance_horizon`, `approach_horizon` and `heading_horizon`),
+        and never past the
+        end of a lateral transition (the vehicle's velocity changes at once there). The ego's bounds as in
+        triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
+        Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
+        vehicle bounds."""
+        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left) = \
+            self._evaluate(traffic, i, state)
+        t = state.time
+        for name, value in values.items():
+            self.offer(name, i, t, value)
         if d <= RANGE:
-            return 0.0
-        frozen = distance_rate(ego, dx, dy, vx, vy, 0.0, length, width)
+            return rates, 0.0
         turn = radius * yaw_rate_bound
-        elapsed, duration = state.time - float(traffic.t0[i]), float(traffic.duration[i])
-        relative = acceleration + (abs(float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration
-                                   if elapsed < duration else 0.0)
+        relative = acceleration + abs(speed_rate)
         entering = distance_horizon(d, frozen, RANGE, turn, relative)
-        recorded = float(self.value["min_distance"][i]) if i < self.size else math.nan
-        new_minimum = distance_horizon(d, frozen, recorded - FLAT, turn, relative) if recorded == recorded else 0.0
+        new_minimum = distance_horizon(d, frozen, float(self.value["min_distance"][i]) - FLAT, turn, relative)
         if frozen < -turn:
+            vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
             new_minimum = max(new_minimum, approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
-                                                            yaw_rate_bound))
-        # a lateral transition's end changes the vehicle's velocity at once: no bound reaches past it
-        transition_end = duration - elapsed if elapsed < duration else INF
-        return min(min(entering, new_minimum), transition_end)
+                                                            yaw_rate_bound),
+                              heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
+        return rates, min(min(entering, new_minimum), transition_left)
 
     # -- post-encroachment time
 

@@ -9,6 +9,7 @@ import pytest
 
 from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, band_times, heading_horizon, conflict_station, distance,
                                        distance_horizon, distance_horizons, distance_rate, distance_rates, distances, drac,
+                                       headway_rate,
                                        drac_rate, dracs, approach_horizons,
                                        headway, headways, post_encroachment_time, signed_distance,
                                        signed_distances, ttc, ttc_rate, ttcs)
@@ -372,7 +373,7 @@ def cruising(v: float):
 
 def master_like_run(traffic: Traffic, ego, step: float, end: float, period: float = 0.05) -> Extremes:
     """What the master does with the record: offer the values at every communication point (the step's ends
-    and the driver's samples), and where a vehicle's distance rate, TTC rate or minus DRAC rate turned from
+    and the driver's samples), and where a vehicle's distance, TTC, minus DRAC or headway rate turned from
     < 0 at the step's start to >= 0 at its end, bisect that instant to 1e-9 s and offer the values there
     too."""
     extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
@@ -384,7 +385,7 @@ def master_like_run(traffic: Traffic, ego, step: float, end: float, period: floa
         now = {i: extremes.rates(traffic, i, state) for i in idx.tolist()}
         if previous is not None:
             for i in idx.tolist():
-                for k in (0, 1, 2):
+                for k in range(len(now[i])):
                     if previous[1][i][k] < 0 and now[i][k] >= 0:
                         def condition(probe, i=i, k=k):
                             return -1.0 if extremes.rates(traffic, i, ego(probe))[k] < 0 else 1.0
@@ -441,17 +442,32 @@ def test_braking_ego_and_a_stopped_car_ahead_minimum_distance_ttc_and_drac_whate
     assert summary["vehicles"][0]["vehicle"] == 7
 
 
-def test_time_headway_minimum_to_a_slower_car_ahead():
-    # The ego at 25 m/s behind a car at 20 m/s the same way, bumper gap 45.45 m at t = 0 closing at 5 m/s:
-    # headway (45.45 - 5 t) / 25 is smallest at the end of the observation (t = 3 s): 30.45 / 25 = 1.218 s;
-    # TTC = gap / 5 likewise, 6.09 s; DRAC = 5^2 / (2 x 30.45).
-    traffic = traffic_of((0.0, 50.0, 0.0, -20.0, 0.0, -20.0, 0.0))
-    extremes = master_like_run(traffic, cruising(25.0), 0.5, end=3.0)
+@pytest.mark.parametrize("step", STEPS)
+def test_time_headway_minimum_to_a_slower_car_ahead_whatever_the_step(step):
+    # The ego slows from 15 m/s at 1 m/s2 behind a car at 10 m/s the same way, bumper gap g0 = 20 m:
+    # v = 15 - t, g = 20 - (5 t - t^2 / 2). Headway h = g / v, h' = (g' v - g v') / v^2 = 0 where
+    # g = v (v - 10): 20 - 5 t + t^2 / 2 = (15 - t)(5 - t), i.e. t^2 / 2 - 15 t + 55 = 0,
+    # t = 15 - sqrt(115) = 4.27620 s, v = sqrt(115), h = g / v = v - 10 = 0.72381 s.
+    traffic = traffic_of((0.0, 20.0 + 4.55, 0.0, -10.0, 0.0, -10.0, 0.0))
+    extremes = master_like_run(traffic, braking(15.0, 1.0), step, end=8.0)
     summary = extremes.summary([1], lambda value: value)
-    assert summary["min_headway_s"] == pytest.approx(30.45 / 25, rel=1e-12)
-    assert summary["min_headway_time_s"] == pytest.approx(3.0)
-    assert summary["min_ttc_s"] == pytest.approx(30.45 / 5, rel=1e-12)
-    assert summary["max_drac"] == pytest.approx(25 / (2 * 30.45), rel=1e-12)
+    assert summary["min_headway_s"] == pytest.approx(math.sqrt(115) - 10, abs=1e-6)
+    assert summary["min_headway_time_s"] == pytest.approx(15 - math.sqrt(115), abs=1e-6)
+
+
+def test_headway_rate_is_the_derivative_along_the_motion():
+    # headway g / v of a car ahead along a motion with the ego braking and turning slightly; the central
+    # difference with h = 1e-5 s errs by h^2 (third derivative) / 6 + eps |headway| / h, < 1e-9 here:
+    # compared to 1e-7
+    h = 1e-5
+    for psi0, yaw_rate, brake in ((0.0, 0.0, 1.0), (0.05, 0.1, 3.0), (-0.1, -0.2, 0.5)):
+        def at(t, psi0=psi0, yaw_rate=yaw_rate, brake=brake):
+            return (Footprint.of(EGO_LENGTH, EGO_WIDTH, psi0 + yaw_rate * t), 30.0 + 12 * t - (20 * t - brake * t * t / 2),
+                    0.3, 20 - brake * t, 12.0)
+        values = [headway(*at(t), CAR_LENGTH, CAR_WIDTH) for t in (-h, h)]
+        ego, dx, dy, v, lead = at(0.0)
+        rate = headway_rate(ego, dx, dy, v, lead, -brake, yaw_rate, CAR_LENGTH, CAR_WIDTH)
+        assert rate == pytest.approx((values[1] - values[0]) / (2 * h), abs=1e-7)
 
 
 def test_post_encroachment_time_recorded_when_the_ego_reaches_the_conflict_station():

@@ -391,6 +391,21 @@ def headway(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_s
     return gap / station_rate
 
 
+def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
+                 station_acceleration: float, yaw_rate: float, length: float, width: float) -> float:
+    """d/dt of `headway` along the present motion (nan where it is not defined): headway = g / v with the
+    gap g = dx - (a |cos psi| + b |sin psi|) - l / 2, so headway' = (g' v - g v') / v^2 with
+    g' = vehicle_station_rate - station_rate - (a d|cos psi|/dt + b d|sin psi|/dt), v' = station_acceleration."""
+    value = headway(ego, dx, dy, station_rate, vehicle_station_rate, length, width)
+    if value == INF:
+        return math.nan
+    a, b, c, s = ego
+    cos_rate = -math.copysign(1.0, c) * s * yaw_rate
+    sin_rate = math.copysign(1.0, s) * c * yaw_rate
+    gap_rate = vehicle_station_rate - station_rate - (a * cos_rate + b * sin_rate)
+    return (gap_rate - value * station_acceleration) / station_rate
+
+
 def headways(ego: Footprint, dx, dy, station_rate: float, vehicle_station_rate, length, width):
     a, b, c, s = ego
     ac, as_ = abs(c), abs(s)
@@ -664,25 +679,28 @@ class Extremes:
         d, rate, frozen = _distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
         motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF)
         if d > RANGE:
-            return {"min_distance": d}, (rate, math.nan, math.nan), motion
+            return {"min_distance": d}, (rate, math.nan, math.nan, math.nan), motion
         value = ttc(ego, dx, dy, vx, vy, length, width)
+        ego_ax = state.ax * c - state.ay * s
         values = {"min_distance": d, "min_ttc": value,
                   "min_headway": headway(ego, dx, dy, ego_vx, -speed, length, width)}
+        headway_change = headway_rate(ego, dx, dy, ego_vx, -speed, ego_ax, state.yaw_rate, length, width)
         if not 0.0 < value < INF:
-            return values, (rate, math.nan, math.nan), motion
-        ax, ay = -speed_rate - (state.ax * c - state.ay * s), -(state.ax * s + state.ay * c)
+            return values, (rate, math.nan, math.nan, headway_change), motion
+        ax, ay = -speed_rate - ego_ax, -(state.ax * s + state.ay * c)
         values["max_drac"] = drac(value, vx, vy)
         value_rate = _ttc_rate(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
-        return values, (rate, value_rate, -_drac_rate(value, value_rate, vx, vy, ax, ay)), motion
+        return values, (rate, value_rate, -_drac_rate(value, value_rate, vx, vy, ax, ay), headway_change), motion
 
-    def rates(self, traffic, i: int, state) -> tuple[float, float, float]:
-        """(distance rate, TTC rate, minus the DRAC rate) of vehicle i at the ego's state (nan where TTC is not
-        defined or beyond RANGE). The master's "criticality" condition at a bisection probe: any of them
-        turned from < 0 at the step's start to >= 0 (a closest approach, a smallest TTC, a largest DRAC)."""
+    def rates(self, traffic, i: int, state) -> tuple[float, float, float, float]:
+        """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
+        where the measure is not defined, and for all but the distance beyond RANGE). The master's
+        "criticality" condition at a bisection probe: any of them turned from < 0 at the step's start to >= 0
+        (a closest approach, a smallest TTC, a largest DRAC, a smallest headway)."""
         return self._evaluate(traffic, i, state)[1]
 
     def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
-             radius: float) -> tuple[tuple[float, float, float], float]:
+             radius: float) -> tuple[tuple[float, float, float, float], float]:
         """The master's look at vehicle i at a communication point or a located instant: offers its values
         and returns its rates (`rates`) and a horizon: a lower bound (s from now) on when it next needs a
         look. 0 within RANGE (TTC, DRAC and headway are followed at every communication point there, their

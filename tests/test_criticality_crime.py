@@ -9,7 +9,7 @@ CriMe's TTC takes both speeds along the lanelet's direction whatever the vehicle
 checked against its hand computation in test_criticality.py.
 
 Skipped only where commonroad-crime is not installed (it is not a dependency of sdl-fmu: it pulls the
-CommonRoad stack; `pip install commonroad-crime` in a separate venv, see the README)."""
+CommonRoad stack; `pip install -e '.[test,crime]'` in a separate venv, see the README)."""
 
 import logging
 import math

@@ -38,25 +38,36 @@ vectorised twin (suffix `s`, NumPy arrays over vehicles) doing the same operatio
 the two give the same bits (tested), as in triggers.py. Square roots as sqrt(x*x + y*y) (math.sqrt and
 np.sqrt are both correctly rounded; math.hypot and np.hypot are not the same algorithm).
 
-Design: how the master uses these (one accumulator per vehicle; see `VehicleExtremes`).
-1. At every communication point (and at every located instant) the master evaluates, for the vehicles
-   near the ego, the distance, its rate, TTC and DRAC (and headway), and offers them to the vehicle's
-   accumulator: an extreme is never worse than the best value seen at an instant the master stood on.
-2. Between two communication points an extreme can lie inside the step. It is the root of a derivative
-   (`distance_rate` from - to +: the closest approach; `ttc_rate` from - to +: the smallest TTC), or the
-   start or end of a contact (already located by the master's contact triggers) or of a collision course
-   (TTC jumps from / to infinity: the condition `ttc < inf` changes). The master adds a trigger kind
-   "criticality" whose condition at a probe is: some watched vehicle's derivative changed sign from - at the
-   step start to >= 0 (or its collision course began or ended). It bisects it as any trigger (rollback,
-   TIME_TOLERANCE) and offers the values at the located instant to the accumulator.
-3. Horizons bound when such an instant can come, as triggers.py's do for the triggers, from the ego's
-   bounds (acceleration A of its CG, yaw rate r_max, corner radius R): `distance_horizon` (the distance
-   cannot fall to the vehicle's recorded minimum before it: no new minimum distance can occur) and
-   `approach_horizon` (an approach at rate -d' cannot end before it). A vehicle receding from its recorded
-   minimum is watched only after its distance horizon; an approaching one only within its approach horizon.
-   PET needs the instant the vehicle leaves the ego's path band (closed form in its motion: `band_times`)
-   and the instant the ego's front reaches the conflict station, a distance trigger with the horizon
-   reach_time(station - front, station_rate + R r_max, A) as the master's event distances.
+Design: how the master uses these (one record for the run, `Extremes`, one row per traffic vehicle).
+1. Looks. At a look (`Extremes.look`, one pass) a vehicle's values at the ego's state are offered to the
+   record (a value replaces the recorded extreme only when better by more than FLAT, so the first instant
+   an extreme is reached stays), and the look returns the vehicle's rates and its horizon. The master
+   keeps a next-look instant per vehicle and their minimum, as it keeps its traffic bounds: at a
+   communication point it looks at the vehicles whose instant has come, and drops every next-look instant
+   when something fires (an action changes a vehicle's motion). It also looks at every vehicle at its
+   spawn, its departure and the run's end (an extreme at the end of an interval), and at every located
+   instant below.
+2. Located instants. Inside a step an extreme is the root of its rate (`Extremes.rates`: distance, TTC,
+   minus DRAC, headway; from < 0 to >= 0), or a contact's start or end (the master's contact triggers
+   already locate them; TTC is 0 and the distance 0 there), or a collision course's start or end (TTC
+   turns finite / infinite). The master adds a trigger kind "criticality" whose condition at a probe is: a
+   looked-at vehicle's rate turned from < 0 at the step's start to >= 0, or its collision course began or
+   ended. It bisects it like any trigger (rollback, TIME_TOLERANCE) and looks at the vehicle at the
+   located instant.
+3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range), where TTC,
+   DRAC and headway are followed at every communication point (the driver's 20 Hz samples at least):
+   their roots and courses are found by the sign checks of 2, which assume at most one change of sign
+   between two communication points (no horizon bounds TTC's or headway's rate yet). Beyond RANGE only the
+   distance applies, and the horizon is a proven lower bound, from the ego's bounds as in triggers.py (the
+   acceleration A of its CG, its yaw rate r_max, the radius R of its footprint): the earliest of coming
+   within RANGE (`distance_horizon`) and of a new minimum distance, which needs both the distance below the
+   recorded minimum (`distance_horizon`) and an approach ending (`approach_horizon` near,
+   `heading_horizon` far), and never past the end of a lateral transition.
+4. PET: when an action starts a lateral move, `band_times` gives the instant the vehicle's footprint
+   leaves the ego's lane (closed form); the master steps to it like a driver sample and calls
+   `Extremes.path_left`; the conflict stations then pending (`Extremes.pending_stations`) are distance
+   triggers for the ego's front, horizon reach_time(station - front, station_rate + R r_max, A) as for the
+   master's event distances, and at the located instant `Extremes.reach` records the PET.
 """
 
 from __future__ import annotations

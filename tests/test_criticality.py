@@ -374,8 +374,8 @@ def cruising(v: float):
 def master_like_run(traffic: Traffic, ego, step: float, end: float, period: float = 0.05) -> Extremes:
     """What the master does with the record: offer the values at every communication point (the step's ends
     and the driver's samples), and where a vehicle's distance, TTC, minus DRAC or headway rate turned from
-    < 0 at the step's start to >= 0 at its end, bisect that instant to 1e-9 s and offer the values there
-    too."""
+    < 0 at the step's start to >= 0 at its end, or its collision course began or ended, bisect that instant
+    to 1e-9 s and offer the values there too."""
     extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
     points = sorted(set(np.round(np.arange(0, end + step / 2, step), 12)) | set(np.round(np.arange(0, end, period), 12)))
     idx = traffic.active
@@ -391,6 +391,13 @@ def master_like_run(traffic: Traffic, ego, step: float, end: float, period: floa
                             return -1.0 if extremes.rates(traffic, i, ego(probe))[k] < 0 else 1.0
                         located = bisect_root(condition, previous[0], t)
                         extremes.observe(traffic, idx, ego(located))
+                if math.isnan(previous[1][i][1]) != math.isnan(now[i][1]):  # a collision course began or ended
+                    was = math.isnan(previous[1][i][1])
+
+                    def changed(probe, i=i, was=was):
+                        return 1.0 if math.isnan(extremes.rates(traffic, i, ego(probe))[1]) != was else -1.0
+                    located = bisect_root(changed, previous[0], t)
+                    extremes.observe(traffic, idx, ego(located - 1e-9))  # the last instant on the course
         extremes.observe(traffic, idx, state)
         previous = (t, now)
     return extremes
@@ -588,3 +595,21 @@ def test_a_look_offers_what_observe_offers_and_returns_the_rates():
         assert np.array_equal(looked.value[name], observed.value[name], equal_nan=True), name
         assert np.array_equal(looked.time[name], observed.time[name], equal_nan=True), name
     assert courses > 20
+
+
+@pytest.mark.parametrize("step", STEPS)
+def test_smallest_ttc_at_the_end_of_a_collision_course_whatever_the_step(step):
+    # The ego at 20 m/s on lateral 0; a 4.5 x 1.8 car standing with its centre 30.55 m ahead (bumper gap 26 m)
+    # and 2.5 m to the right, moving toward the ego's lane at 1 m/s for 0.63 s (to lateral 1.87), then
+    # holding. The footprints overlap sideways while |lateral| < 1.8. Under constant velocities, from t:
+    # sideways overlap after 2.5 - t - 1.8 = 0.7 - t s, lengthwise contact after (26 - 20 t) / 20 = 1.3 - t s,
+    # later: a collision course with TTC = 1.3 - t. At t = 0.63 the car stops 0.07 m outside the ego's width:
+    # the course ends. The smallest TTC is its value then, 0.67 s at 0.63 s (no communication point), and
+    # DRAC = |v_rel| / (2 TTC) with v_rel = (-20, -1) is largest there: sqrt(401) / 1.34.
+    traffic = traffic_of((0.0, 26.0 + 4.55, 2.5, 0.0, 1.87, 0.0, 0.63))
+    extremes = master_like_run(traffic, cruising(20.0), step, end=2.0)
+    summary = extremes.summary([1], lambda value: value)
+    assert summary["min_ttc_s"] == pytest.approx(0.67, abs=1e-6)
+    assert summary["min_ttc_time_s"] == pytest.approx(0.63, abs=1e-6)
+    assert summary["max_drac"] == pytest.approx(math.sqrt(401) / 1.34, rel=1e-6)
+    assert summary["max_drac_time_s"] == pytest.approx(0.63, abs=1e-6)

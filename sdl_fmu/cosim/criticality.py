@@ -707,7 +707,9 @@ class Extremes:
         """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
         where the measure is not defined, and for all but the distance beyond RANGE). The master's
         "criticality" condition at a bisection probe: any of them turned from < 0 at the step's start to >= 0
-        (a closest approach, a smallest TTC, a largest DRAC, a smallest headway)."""
+        (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), or the TTC rate turned
+        from nan to a number or back (a collision course began or ended, or the vehicle crossed RANGE: the
+        value there bounds the interval over which the extreme is taken)."""
         return self._evaluate(traffic, i, state)[1]
 
     def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
@@ -796,7 +798,8 @@ class Extremes:
                     out[time_key] = number(times[name])
             return out
 
-        n = min(self.size, len(vehicle_ids))
+        n = len(vehicle_ids)
+        self._grow(n)  # a vehicle never looked at has all its measures null
         vehicles = [{"vehicle": int(vehicle_ids[i]),
                      **entry({k: self.value[k][i] for k in MEASURES}, {k: self.time[k][i] for k in MEASURES})}
                     for i in range(n)]

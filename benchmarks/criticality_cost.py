@@ -10,8 +10,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sdl_fmu.cosim.criticality import (Extremes, Footprint, approach_horizon, distance, distance_rate,
-                                       distances, headway, relative_motion, ttc, ttc_rate, ttcs)
+from sdl_fmu.cosim.criticality import (Extremes, Footprint, approach_horizon, distance, distance_rate, distances,
+                                       headway, ttc, ttc_rate, ttcs)
 from sdl_fmu.cosim.traffic import Traffic
 
 
@@ -52,24 +52,33 @@ def traffic_of(n: int) -> Traffic:
 
 def main() -> None:
     ego = Footprint.of(4.6, 1.8, 0.02)
-    print(f"distance (float)            {per_call(lambda: distance(ego, 30.0, 3.6, 4.5, 1.8)):6.2f} µs")
-    print(f"distance_rate (float)       {per_call(lambda: distance_rate(ego, 30.0, 3.6, -45.0, 0.1, 0.01, 4.5, 1.8)):6.2f} µs")
-    print(f"ttc (float)                 {per_call(lambda: ttc(ego, 30.0, 0.5, -45.0, 0.1, 4.5, 1.8)):6.2f} µs")
-    print(f"ttc_rate (float)            {per_call(lambda: ttc_rate(ego, 30.0, 0.5, -45.0, 0.1, 1.0, 0.0, 0.01, 4.5, 1.8)):6.2f} µs")
-    print(f"headway (float)             {per_call(lambda: headway(ego, 30.0, 0.5, 25.0, 20.0, 4.5, 1.8)):6.2f} µs")
-    print(f"approach_horizon (float)    {per_call(lambda: approach_horizon(30.0, -40.0, 45.0, 2.6, 15.0, 1.3)):6.2f} µs")
+    calls = {
+        "distance (float)": lambda: distance(ego, 30.0, 3.6, 4.5, 1.8),
+        "distance_rate (float)": lambda: distance_rate(ego, 30.0, 3.6, -45.0, 0.1, 0.01, 4.5, 1.8),
+        "ttc (float)": lambda: ttc(ego, 30.0, 0.5, -45.0, 0.1, 4.5, 1.8),
+        "ttc_rate (float)": lambda: ttc_rate(ego, 30.0, 0.5, -45.0, 0.1, 1.0, 0.0, 0.01, 4.5, 1.8),
+        "headway (float)": lambda: headway(ego, 30.0, 0.5, 25.0, 20.0, 4.5, 1.8),
+        "approach_horizon (float)": lambda: approach_horizon(30.0, -40.0, 45.0, 2.6, 15.0, 1.3),
+    }
+    for name, call in calls.items():
+        print(f"{name:28} {per_call(call):6.2f} µs")
     state = State(1.0, 25.0, 0.0, 0.02, 25.0, 0.1, 0.5, 0.1, 0.01)
     for n in (1, 4, 16, 64):
         traffic = traffic_of(n)
         extremes = Extremes(4.6, 1.8)
         idx = traffic.active
-        print(f"Extremes.observe, {n:2d} vehicles {per_call(lambda: extremes.observe(traffic, idx, state), 2000):7.1f} µs")
-    traffic = traffic_of(1)
+        cost = per_call(lambda: extremes.observe(traffic, idx, state), 2000)
+        print(f"Extremes.observe, {n:2d} vehicles {cost:7.1f} µs")
+    traffic = traffic_of(2)
+    traffic.station0[:2] = 40.0, 300.0  # within RANGE and beyond
     extremes = Extremes(4.6, 1.8)
-    print(f"Extremes.rates, 1 vehicle   {per_call(lambda: extremes.rates(traffic, 0, state), 5000):6.2f} µs")
-    print(f"relative_motion, 1 vehicle  {per_call(lambda: relative_motion(traffic, 0, state, 4.6, 1.8), 5000):6.2f} µs")
+    for i, where in enumerate(("within 50 m", "beyond 50 m")):
+        cost = per_call(lambda: extremes.look(traffic, i, state, 15.0, 2.5, 2.5), 5000)
+        print(f"Extremes.look, {where}  {cost:6.2f} µs")
+    print(f"Extremes.rates, 1 vehicle    {per_call(lambda: extremes.rates(traffic, 0, state), 5000):6.2f} µs")
     dx = np.linspace(10, 200, 64)
-    print(f"distances + ttcs, 64 (array) {per_call(lambda: (distances(ego, dx, 3.6, 4.5, 1.8), ttcs(ego, dx, 3.6, -45.0, 0.0, 4.5, 1.8)), 2000):6.1f} µs")
+    cost = per_call(lambda: (distances(ego, dx, 3.6, 4.5, 1.8), ttcs(ego, dx, 3.6, -45.0, 0.0, 4.5, 1.8)), 2000)
+    print(f"distances + ttcs, 64 (array) {cost:6.1f} µs")
 
 
 if __name__ == "__main__":

@@ -7,12 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, band_times, heading_horizon, conflict_station, distance,
-                                       distance_horizon, distance_horizons, distance_rate, distance_rates, distances, drac,
-                                       headway_rate,
-                                       drac_rate, dracs, approach_horizons,
-                                       headway, headways, post_encroachment_time, signed_distance,
-                                       signed_distances, ttc, ttc_rate, ttcs)
+from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, approach_horizons, band_times, conflict_station,
+                                       distance, distance_horizon, distance_horizons, distance_rate, distance_rates,
+                                       distances, drac, drac_rate, dracs, heading_horizon, headway, headway_rate,
+                                       headways, post_encroachment_time, signed_distance, signed_distances, ttc,
+                                       ttc_rate, ttcs)
 
 EGO_LENGTH, EGO_WIDTH = 4.6, 1.8  # m
 CAR_LENGTH, CAR_WIDTH = 4.5, 1.8
@@ -377,7 +376,8 @@ def master_like_run(traffic: Traffic, ego, step: float, end: float, period: floa
     < 0 at the step's start to >= 0 at its end, or its collision course began or ended, bisect that instant
     to 1e-9 s and offer the values there too."""
     extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
-    points = sorted(set(np.round(np.arange(0, end + step / 2, step), 12)) | set(np.round(np.arange(0, end, period), 12)))
+    points = sorted(set(np.round(np.arange(0, end + step / 2, step), 12))
+                    | set(np.round(np.arange(0, end, period), 12)))
     idx = traffic.active
     previous = None
     for t in points:
@@ -469,8 +469,8 @@ def test_headway_rate_is_the_derivative_along_the_motion():
     h = 1e-5
     for psi0, yaw_rate, brake in ((0.0, 0.0, 1.0), (0.05, 0.1, 3.0), (-0.1, -0.2, 0.5)):
         def at(t, psi0=psi0, yaw_rate=yaw_rate, brake=brake):
-            return (Footprint.of(EGO_LENGTH, EGO_WIDTH, psi0 + yaw_rate * t), 30.0 + 12 * t - (20 * t - brake * t * t / 2),
-                    0.3, 20 - brake * t, 12.0)
+            return (Footprint.of(EGO_LENGTH, EGO_WIDTH, psi0 + yaw_rate * t),
+                    30.0 + 12 * t - (20 * t - brake * t * t / 2), 0.3, 20 - brake * t, 12.0)
         values = [headway(*at(t), CAR_LENGTH, CAR_WIDTH) for t in (-h, h)]
         ego, dx, dy, v, lead = at(0.0)
         rate = headway_rate(ego, dx, dy, v, lead, -brake, yaw_rate, CAR_LENGTH, CAR_WIDTH)

@@ -639,8 +639,9 @@ class Extremes:
 
     def observe(self, traffic, idx: np.ndarray, state) -> None:
         """Offers the distance (and within RANGE, TTC, DRAC and headway) of vehicles idx (traffic.Traffic
-        indices) at the ego's state (EgoState: ISO 8855 position x, y, yaw psi, body-frame velocity vx, vy), and completes any PET
-        whose conflict station the ego's front has reached. A few vehicles in plain floats."""
+        indices) at the ego's state (EgoState: ISO 8855 position x, y, yaw psi, body-frame velocity vx, vy),
+        and completes any PET whose conflict station the ego's front has reached. A few vehicles in plain
+        floats, more in arrays (the same bits)."""
         t = state.time
         c, s = math.cos(state.psi), math.sin(state.psi)
         ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)

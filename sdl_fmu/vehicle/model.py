@@ -12,9 +12,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from ..interface import WHEELS
 from .vehicle_map import (Channel, FrictionMeaning, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path)
 
-WHEELS = ("fl", "fr", "rl", "rr")  # the contact points' order everywhere: front left, front right, rear left, rear right
 # surface value of a lane nobody set, per friction meaning: 10 x the nominal mu 0.8, or attribute 0
 DEFAULT_SURFACE = {"mu": 8.0, "attribute": 0.0, None: 8.0}
 # [vehicle] values a map may leave out, SI (the driver model's feed-forward and the trigger bounds use them)

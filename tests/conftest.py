@@ -94,6 +94,14 @@ def foreign_vehicle(tmp_path_factory):
     return vehicle
 
 
+def foreign_parameters(fmu: Path) -> dict[str, float]:
+    """The foreign car's parameter start values, in its own units."""
+    from fmpy import read_model_description
+
+    return {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
+            if v.causality == "parameter"}
+
+
 class FmpyCar:
     """A co-simulation FMU (FMI 2.0 or 3.0) opened directly through fmpy, driven by variable name:
     car = FmpyCar(fmu, {"v_init": 100.0}); car.set(brake_pressure=60.0); car.step(0.05); car.get("veh_speed")."""

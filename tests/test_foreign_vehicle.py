@@ -9,7 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from conftest import WEAK_PARAMETERS, FmpyCar
+from conftest import WEAK_PARAMETERS, FmpyCar, foreign_parameters
 from sdl_fmu.api import EGO_VARIABLES
 
 pytestmark = pytest.mark.slow  # builds the FMUs with PythonFMU / pythonfmu3
@@ -20,13 +20,6 @@ OUTPUTS = {"earth_x", "earth_y", "heading_angle", "veh_speed", "yaw_velocity", "
 # derivatives of order 1e-2 or less); what remains is rounding, about 1e-16 per operation over some 1e4 sub-steps
 # on values below 100: 1e-10. The tolerances below take 1e-9 (m, m/s).
 RK4_TOLERANCE = 1e-9
-
-
-def start_values(fmu_path):
-    from fmpy import read_model_description
-
-    return {v.name: float(v.start) for v in read_model_description(str(fmu_path)).modelVariables
-            if v.causality == "parameter"}
 
 
 @pytest.mark.parametrize("fmi_version", [2, 3])
@@ -79,7 +72,7 @@ def braking_closed_form(parameters, pressure, mu, v0):
                          ids=["pressure-limited", "grip-limited", "ice"])
 def test_foreign_car_brakes_as_its_closed_form(foreign_vehicle, fmi_version, pressure, mu):
     fmu, _ = foreign_vehicle(fmi_version)
-    parameters = start_values(fmu)
+    parameters = foreign_parameters(fmu)
     v0 = 100 / 3.6
     speed, distance, t_stop = braking_closed_form(parameters, pressure, mu, v0)
     car = FmpyCar(fmu, {"v_init": 100.0})
@@ -105,7 +98,7 @@ def test_foreign_car_turns_right_for_a_positive_steering_wheel_angle(foreign_veh
         x' = v cos(r t + beta), y' = v sin(r t + beta)
         => x = (v / r) (sin(r t + beta) - sin(beta)),  y = (v / r) (cos(beta) - cos(r t + beta))."""
     fmu, _ = foreign_vehicle(fmi_version)
-    parameters = start_values(fmu)
+    parameters = foreign_parameters(fmu)
     v, swa = 10.0, 90.0
     delta = math.radians(swa) / parameters["steering_ratio"]
     beta = math.atan(math.tan(delta) / 2)
@@ -135,7 +128,7 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
     fmu, map_path = foreign_vehicle(3, weak=True)
     with open(map_path, "rb") as file:
         assert tomllib.load(file)["parameters"] == WEAK_PARAMETERS
-    parameters = {**start_values(fmu), **WEAK_PARAMETERS, "solver_step": 0.01}
+    parameters = {**foreign_parameters(fmu), **WEAK_PARAMETERS, "solver_step": 0.01}
     m, power = parameters["vehicle_mass"], parameters["drive_power_max"]
     K = parameters["air_rho"] * parameters["cd_a"] / (2 * m)
     rolling = parameters["roll_coeff"] * G

@@ -149,3 +149,36 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
     assert np.all(np.diff(speeds) > 0) and max(speeds) < v_top
     assert speeds[-1] >= v_top * (1 - math.exp(-lam * 400.0)) - RK4_TOLERANCE
     assert v_top * 3.6 == pytest.approx(84.7, abs=0.05)  # the figure conftest.WEAK_PARAMETERS quotes
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_foreign_car_through_its_map_speaks_iso_si(foreign_vehicle, fmi_version):
+    """Through its vehicle map (sdl_fmu.vehicle) the SAE car reads in sdl-fmu's ISO 8855 SI frame. A road-wheel
+    angle delta > 0 (left) goes to the FMU as -15.5 degrees(delta) of steering wheel (right-negative), so the car
+    turns left: in ISO axes (y left, yaw counter-clockwise) the kinematic bicycle's CG, at constant speed (drag and
+    rolling resistance off), follows
+        beta = atan(tan(delta) / 2), r = v cos(beta) tan(delta) / L,
+        psi = r t, x = (v / r) (sin(r t + beta) - sin(beta)), y = y0 + (v / r) (cos(beta) - cos(r t + beta)).
+    The distance the car lacks is derived by the trapezoid rule over the speed, exact for a constant speed: v t."""
+    from sdl_fmu.vehicle import EgoModel
+
+    fmu, map_path = foreign_vehicle(fmi_version)
+    model = EgoModel.open(fmu, map_path)
+    assert not model.can_roll_back and model.wheelbase == 2.7 and model.mass == 1450.0
+    v, delta, y0 = 15.0, 0.05, -1.8288
+    beta = math.atan(math.tan(delta) / 2)
+    r = v * math.cos(beta) * math.tan(delta) / model.wheelbase
+    with model.instantiate(start={"speed": v, "x": 0.0, "y": y0, "yaw": 0.0},
+                           parameters={"roll_coeff": 0.0, "cd_a": 0.0}) as ego:
+        ego.set_controls(0.0, 0.0, delta)
+        ego.set_friction((0.8,) * 4)
+        for k in range(1, 31):
+            ego.step_to(0.1 * k)
+        state = ego.read()
+    t = state.time
+    assert state.v == pytest.approx(v, abs=1e-12) and state.s == pytest.approx(v * t, abs=1e-9)
+    assert state.psi == pytest.approx(r * t, abs=RK4_TOLERANCE) and state.psi > 0
+    assert state.yaw_rate == pytest.approx(r, rel=1e-12)
+    assert state.x == pytest.approx(v / r * (math.sin(r * t + beta) - math.sin(beta)), abs=RK4_TOLERANCE)
+    assert state.y == pytest.approx(y0 + v / r * (math.cos(beta) - math.cos(r * t + beta)), abs=RK4_TOLERANCE)
+    assert state.y > y0 and not state.stopped

@@ -190,3 +190,33 @@ def test_foreign_car_head_on_contact_at_half_the_sum_of_lengths(runs, foreign_ve
     gap_ft = spawn["distance"] + 800.0 - 40.0 * (contact["time_s"] - spawn["time_s"]) - contact["distance"]
     closing_ft_s = contact["speed"] + 40.0
     assert abs(gap_ft * FOOT - (4.6 + 4.85) / 2) <= closing_ft_s * FOOT * contact["time_uncertainty_s"] + NUMERIC
+
+
+@pytest.mark.parametrize("fmi_version, replace, key, words", [
+    # a variable the FMU lacks
+    (3, ('"brake_pressure"', '"brake_line_pressure"'), "inputs.brake", "brake_line_pressure"),
+    # an output of the FMU mapped as an input
+    (2, ('throttle = { variable = "accel_pedal"', 'throttle = { variable = "veh_speed"'), "inputs.throttle",
+     "veh_speed"),
+    # a unit that disagrees with the one the FMI 3.0 build declares (km/h)
+    (3, ('variable = "veh_speed", unit = "km/h"', 'variable = "veh_speed", unit = "m/s"'), "outputs.speed.unit",
+     "km/h"),
+], ids=["missing-variable", "output-as-input", "disagreeing-unit"])
+def test_bad_foreign_car_map_is_one_line_naming_file_and_key(foreign_vehicle, tmp_path, fmi_version, replace, key,
+                                                             words):
+    import subprocess
+    import sys
+
+    fmu, good = foreign_vehicle(fmi_version)
+    text = good.read_text()
+    assert replace[0] in text
+    bad = tmp_path / "bad_map.toml"
+    bad.write_text(text.replace(replace[0], replace[1]))
+    out = tmp_path / "results"
+    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "head_on", "--fmu", str(fmu),
+                                "--vehicle", str(bad), "--out", str(out)], capture_output=True, text=True,
+                               cwd=tmp_path, timeout=300)
+    assert completed.returncode == 2 and "Traceback" not in completed.stderr
+    line, = completed.stderr.strip().splitlines()
+    assert str(bad) in line and key in line and words in line
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad_map.toml"]

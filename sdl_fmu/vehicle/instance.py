@@ -9,7 +9,6 @@ import shutil
 from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_uint32, c_void_p, pointer
 from typing import NamedTuple
 
-from fmpy import extract
 
 STANDSTILL_SPEED = 0.5  # m/s: a `stopped` output is read only below this speed (far above any model's hold speed)
 STOPPED_SPEED = 0.01  # m/s: an FMU without a `stopped` output is taken as stopped below this speed
@@ -52,6 +51,8 @@ class EgoInstance:
         self.time = 0.0
         self.warnings: list[str] = []
         self.fmi3 = model.fmi_version == "3.0"
+        from fmpy import extract
+
         self._unzipped = extract(str(model.fmu_path))
         try:
             if self.fmi3:

@@ -238,6 +238,9 @@ class EgoModel:
                 value = self.parameters[value]
             values[key] = float(value)
         self.length, self.width = values["length"], values["width"]
+        values.setdefault("wheelbase", math.nan)  # (only a map without geometry: see parse_vehicle_map)
+        if "track_front" not in values:
+            values.setdefault("track", math.nan)
         if "cg_to_front_axle" in values and "cg_to_rear_axle" in values:
             self.cg_to_front, self.cg_to_rear = values["cg_to_front_axle"], values["cg_to_rear_axle"]
             self.wheelbase = self.cg_to_front + self.cg_to_rear

@@ -96,7 +96,8 @@ def load_vehicle_map(path: str | Path) -> VehicleMap:
     return parse_vehicle_map(data, path)
 
 
-def parse_vehicle_map(data: dict, path: Path | None = None) -> VehicleMap:
+def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = True) -> VehicleMap:
+    """complete=False: a map without wheel geometry (an FMU stepped on its own, not driven through a scenario)."""
     label = str(path) if path is not None else "<vehicle map>"
 
     def fail(key: str, reason: str):
@@ -216,9 +217,9 @@ def parse_vehicle_map(data: dict, path: Path | None = None) -> VehicleMap:
     for key in ("length", "width"):
         if key not in vehicle:
             fail(f"vehicle.{key}", "missing (the footprint: length and width, m)")
-    if "wheelbase" not in vehicle and not {"cg_to_front_axle", "cg_to_rear_axle"} <= set(vehicle):
+    if complete and "wheelbase" not in vehicle and not {"cg_to_front_axle", "cg_to_rear_axle"} <= set(vehicle):
         fail("vehicle.wheelbase", "missing (or give cg_to_front_axle and cg_to_rear_axle)")
-    if "track" not in vehicle and not {"track_front", "track_rear"} <= set(vehicle):
+    if complete and "track" not in vehicle and not {"track_front", "track_rear"} <= set(vehicle):
         fail("vehicle.track", "missing (or give track_front and track_rear)")
     if ("max_acceleration" in vehicle) != ("max_yaw_rate" in vehicle):
         fail("vehicle.max_yaw_rate" if "max_acceleration" in vehicle else "vehicle.max_acceleration",

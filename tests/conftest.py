@@ -52,7 +52,7 @@ VEHICLES = Path(__file__).parent / "vehicles"
 FOREIGN_CAR_MAP = VEHICLES / "foreign_car.toml"
 # the weak variant: at most 9 kW of drive power, so its top speed (84.7 km/h, test_foreign_vehicle.py) stays below
 # 100 km/h; for "cannot reach the entry speed"
-WEAK_PARAMETERS = {"drive_power_max": 9000.0}
+WEAK_PARAMETERS = {"max_engine_power": 9000.0}
 
 
 def build_foreign_car(folder: Path, fmi_version: int = 3) -> Path:

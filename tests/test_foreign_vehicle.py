@@ -10,9 +10,6 @@ import numpy as np
 import pytest
 
 from conftest import WEAK_PARAMETERS, FmpyCar, foreign_parameters
-from sdl_fmu.api import EGO_VARIABLES
-
-pytestmark = pytest.mark.slow  # builds the FMUs with PythonFMU / pythonfmu3
 
 G = 9.80665
 OUTPUTS = {"earth_x", "earth_y", "heading_angle", "veh_speed", "yaw_velocity", "long_accel"}
@@ -22,6 +19,25 @@ OUTPUTS = {"earth_x", "earth_y", "heading_angle", "veh_speed", "yaw_velocity", "
 RK4_TOLERANCE = 1e-9
 
 
+def shipped_names() -> set[str]:
+    """Every variable name of sdl-fmu's two FMUs (their interface files; tire slots as tire0_.., tire7_..)."""
+    import json
+    from importlib import resources
+
+    names = set()
+    for model in ("EgoVehicleSimple", "EgoVehicleAdvanced"):
+        interface = json.loads((resources.files("sdl_fmu") / "interfaces" / f"{model}.json").read_text())
+        for entry in interface["variables"]:
+            if "repeat" in entry:
+                repeat = entry["repeat"]
+                names |= {v["name"].replace(f"{{{repeat['placeholder']}}}", str(k))
+                          for v in entry["variables"] for k in range(repeat["count"])}
+            else:
+                names.add(entry["name"])
+    return names
+
+
+@pytest.mark.slow  # the tests that build the FMUs with PythonFMU / pythonfmu3
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_foreign_car_has_its_own_interface(foreign_vehicle, fmi_version):
     from fmpy import read_model_description
@@ -33,7 +49,7 @@ def test_foreign_car_has_its_own_interface(foreign_vehicle, fmi_version):
     assert not description.coSimulation.canGetAndSetFMUstate
     assert description.coSimulation.canHandleVariableCommunicationStepSize
     names = {v.name for v in description.modelVariables}
-    assert not names & set(EGO_VARIABLES)  # not one of sdl-fmu's names
+    assert not names & shipped_names()  # not one name in common with sdl-fmu's own FMUs
     assert {v.name for v in description.modelVariables if v.causality == "output"} == OUTPUTS  # no path length
     units = {v.name: v.declaredType.unit if v.declaredType else v.unit for v in description.modelVariables}
     if fmi_version == 3:
@@ -67,6 +83,7 @@ def braking_closed_form(parameters, pressure, mu, v0):
     return speed, distance, t_stop
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmi_version", [2, 3])
 @pytest.mark.parametrize("pressure, mu", [(60.0, 0.8), (120.0, 0.8), (120.0, 0.2)],
                          ids=["pressure-limited", "grip-limited", "ice"])
@@ -77,7 +94,7 @@ def test_foreign_car_brakes_as_its_closed_form(foreign_vehicle, fmi_version, pre
     speed, distance, t_stop = braking_closed_form(parameters, pressure, mu, v0)
     car = FmpyCar(fmu, {"v_init": 100.0})
     car.set(brake_pressure=pressure, road_grip=mu)
-    h = 0.05  # communication step; the car sub-steps it by its own solver_step
+    h = 0.05  # communication step; the car sub-steps it by its own rk4_step
     try:
         while car.time < t_stop + 2.0:  # beyond the stop: it must stay where it stopped
             car.step(h)
@@ -90,6 +107,7 @@ def test_foreign_car_brakes_as_its_closed_form(foreign_vehicle, fmi_version, pre
     assert v_kmh == 0.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_foreign_car_turns_right_for_a_positive_steering_wheel_angle(foreign_vehicle, fmi_version):
     """SAE axes: a positive (right) steering-wheel angle turns the car clockwise, to +y. Without drag and rolling
@@ -119,8 +137,9 @@ def test_foreign_car_turns_right_for_a_positive_steering_wheel_angle(foreign_veh
     assert v_kmh == pytest.approx(v * 3.6, abs=1e-12)
 
 
+@pytest.mark.slow
 def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
-    """The weak variant (its map's [parameters]) caps the drive power at P. At full pedal above P / drive_force_max
+    """The weak variant (its map's [parameters]) caps the drive power at P. At full pedal above P / max_tractive_force
     the equations give a(v) = P / (m v) - roll_coeff G - K v^2, zero at the top speed v_top, the positive root of
     K v^3 + roll_coeff G v - P / m = 0. Below v_top a > 0, so v rises towards v_top and never passes it; with
     lambda = min over [0, v_top) of a(v) / (v_top - v), the gap obeys gap' <= -lambda gap, so after T seconds from
@@ -128,16 +147,16 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
     fmu, map_path = foreign_vehicle(3, weak=True)
     with open(map_path, "rb") as file:
         assert tomllib.load(file)["parameters"] == WEAK_PARAMETERS
-    parameters = {**foreign_parameters(fmu), **WEAK_PARAMETERS, "solver_step": 0.01}
-    m, power = parameters["vehicle_mass"], parameters["drive_power_max"]
+    parameters = {**foreign_parameters(fmu), **WEAK_PARAMETERS, "rk4_step": 0.01}
+    m, power = parameters["vehicle_mass"], parameters["max_engine_power"]
     K = parameters["air_rho"] * parameters["cd_a"] / (2 * m)
     rolling = parameters["roll_coeff"] * G
     v_top = max(root.real for root in np.roots([K, 0.0, rolling, -power / m]) if abs(root.imag) < 1e-12)
     assert v_top < 100 / 3.6
     v = np.linspace(0.0, v_top, 100001)[:-1]
-    drive = np.minimum(parameters["drive_force_max"], power / np.maximum(v, 1.0))
+    drive = np.minimum(parameters["max_tractive_force"], power / np.maximum(v, 1.0))
     lam = np.min((drive / m - rolling - K * v**2) / (v_top - v))
-    car = FmpyCar(fmu, {**WEAK_PARAMETERS, "solver_step": 0.01})
+    car = FmpyCar(fmu, {**WEAK_PARAMETERS, "rk4_step": 0.01})
     car.set(accel_pedal=100.0)
     speeds = []
     try:
@@ -151,6 +170,7 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
     assert v_top * 3.6 == pytest.approx(84.7, abs=0.05)  # the figure conftest.WEAK_PARAMETERS quotes
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_foreign_car_through_its_map_speaks_iso_si(foreign_vehicle, fmi_version):
     """Through its vehicle map (sdl_fmu.vehicle) the SAE car reads in sdl-fmu's ISO 8855 SI frame. A road-wheel
@@ -182,3 +202,15 @@ def test_foreign_car_through_its_map_speaks_iso_si(foreign_vehicle, fmi_version)
     assert state.x == pytest.approx(v / r * (math.sin(r * t + beta) - math.sin(beta)), abs=RK4_TOLERANCE)
     assert state.y == pytest.approx(y0 + v / r * (math.cos(beta) - math.cos(r * t + beta)), abs=RK4_TOLERANCE)
     assert state.y > y0 and not state.stopped
+
+
+def test_readme_shows_the_foreign_car_map_as_it_is():
+    """The README's complete map example for a foreign FMU is the test suite's map, key for key."""
+    from conftest import FOREIGN_CAR_MAP
+
+    readme = (FOREIGN_CAR_MAP.parents[2] / "README.md").read_text()
+    section = readme[readme.index("### A vehicle built elsewhere: the test suite's foreign car"):]
+    block = section[section.index("```toml\n") + len("```toml\n"):]
+    block = block[:block.index("```")]
+    with open(FOREIGN_CAR_MAP, "rb") as file:
+        assert tomllib.loads(block) == tomllib.load(file)

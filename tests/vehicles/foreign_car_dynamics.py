@@ -11,12 +11,12 @@ Equations (SI inside; the interface converts):
     slip at the CG     beta = atan(tan(delta) / 2)              (kinematic bicycle, CG mid-wheelbase)
     x' = v cos(psi + beta),  y' = v sin(psi + beta),  psi' = v cos(beta) tan(delta) / wheel_base
     grip force         F_grip  = road_grip * vehicle_mass * G
-    drive force        F_drive = min(accel_pedal / 100 * min(drive_force_max, drive_power_max / max(v, 1 m/s)),
+    drive force        F_drive = min(accel_pedal / 100 * min(max_tractive_force, max_engine_power / max(v, 1 m/s)),
                                      F_grip)
     brake force        F_brake = min(brake_gain * brake_pressure, F_grip)
     v' = (F_drive - F_brake) / m - roll_coeff * G - air_rho * cd_a / (2 m) * v^2     while v > 0
 At rest (v = 0) the car stays at rest unless F_drive > F_brake + roll_coeff m G; it never rolls backwards.
-Integration: classical Runge-Kutta 4 with fixed sub-steps of at most solver_step inside each communication
+Integration: classical Runge-Kutta 4 with fixed sub-steps of at most rk4_step inside each communication
 step; a sub-step in which braking would carry v below 0 ends the motion at the stop instant v / |v'| taken
 with the deceleration at the sub-step's start (exact for constant deceleration; drag changes it by K v^2 / A, below
 1e-7 for the sub-step's speeds), and the car then holds.
@@ -39,13 +39,13 @@ PARAMETERS = {
     "vehicle_mass": (1450.0, "kg", "mass"),
     "wheel_base": (2.7, "m", "wheel base"),
     "steering_ratio": (15.5, "1", "steering-wheel angle per road-wheel angle"),
-    "drive_force_max": (5800.0, "N", "largest drive force at full pedal"),
-    "drive_power_max": (95000.0, "W", "largest drive power at full pedal"),
+    "max_tractive_force": (5800.0, "N", "largest drive force at full pedal"),
+    "max_engine_power": (95000.0, "W", "largest drive power at full pedal"),
     "brake_gain": (100.0, "N/bar", "brake force per bar of line pressure"),
     "roll_coeff": (0.011, "1", "rolling-resistance coefficient"),
     "cd_a": (0.68, "m2", "drag coefficient times frontal area"),
     "air_rho": (1.2, "kg/m3", "air density"),
-    "solver_step": (0.002, "s", "largest Runge-Kutta 4 sub-step"),
+    "rk4_step": (0.002, "s", "largest Runge-Kutta 4 sub-step"),
     "v_init": (0.0, "km/h", "initial speed along the heading"),
     "x_init": (0.0, "m", "initial earth x (forward)"),
     "y_init": (0.0, "m", "initial earth y (SAE: to the right)"),
@@ -106,7 +106,7 @@ def _forces(car):
 def _derivatives(car, state, forces):
     m, beta, curvature, grip, pedal, brake, rolling, drag = forces
     _, _, psi, v = state
-    drive = min(pedal * min(car.drive_force_max, car.drive_power_max / max(v, 1.0)), grip)
+    drive = min(pedal * min(car.max_tractive_force, car.max_engine_power / max(v, 1.0)), grip)
     if v > 0:
         dv = (drive - brake) / m - rolling - drag * v * v
     else:
@@ -117,7 +117,7 @@ def _derivatives(car, state, forces):
 def advance(car, step_size: float) -> None:
     """Integrates the equations over one communication step with the inputs held."""
     forces = _forces(car)
-    n = max(1, ceil(step_size / car.solver_step - 1e-9))
+    n = max(1, ceil(step_size / car.rk4_step - 1e-9))
     h = step_size / n
     state = car.state
     derivative = _derivatives(car, state, forces)

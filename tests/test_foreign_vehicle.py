@@ -144,9 +144,13 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
     K v^3 + roll_coeff G v - P / m = 0. Below v_top a > 0, so v rises towards v_top and never passes it; with
     lambda = min over [0, v_top) of a(v) / (v_top - v), the gap obeys gap' <= -lambda gap, so after T seconds from
     rest v >= v_top (1 - exp(-lambda T))."""
+    from sdl_fmu.vehicle import EgoModel
+
     fmu, map_path = foreign_vehicle(3, weak=True)
     with open(map_path, "rb") as file:
         assert tomllib.load(file)["parameters"] == WEAK_PARAMETERS
+    # the run side sees the cap too: the driver model's power limit comes from the FMU parameter the map sets
+    assert EgoModel.open(fmu, map_path).drive_power_max == WEAK_PARAMETERS["max_engine_power"]
     parameters = {**foreign_parameters(fmu), **WEAK_PARAMETERS, "rk4_step": 0.01}
     m, power = parameters["vehicle_mass"], parameters["max_engine_power"]
     K = parameters["air_rho"] * parameters["cd_a"] / (2 * m)

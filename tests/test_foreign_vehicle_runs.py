@@ -165,7 +165,8 @@ def test_foreign_car_brake_examples_match_its_closed_forms(runs, foreign_vehicle
     assert result.collisions == 0
 
 
-def test_foreign_car_demo_brakes_match_its_closed_forms_without_collision(runs, foreign_vehicle):
+@pytest.mark.parametrize("fmi_version", [3, 2])
+def test_foreign_car_demo_brakes_match_its_closed_forms_without_collision(runs, foreign_vehicle, fmi_version):
     """demo: BRK at 4200 ft on ice (mu 0.2, grip-limited), 6000 ft and 7500 ft on mu 0.8, 9200 ft on mu 0.5 (60 %
     = 72 bar = 7200 N > 0.5 m G = 7110 N: grip-limited). Each hold ends well inside its surface patch.
 
@@ -176,8 +177,8 @@ def test_foreign_car_demo_brakes_match_its_closed_forms_without_collision(runs, 
     ego's lane at closure time 10 s and leaves it at closure time 5 s, 12 ft in 2 s: its lateral offset from the ego
     exceeds half the sum of widths (<= 2.18 m) after at most 2.18 / 3.6576 x 2 s = 1.19 s, at a closure time of at
     least 3.8 s; the gap is then >= 3.8 s x 108 ft/s = 125 m, far more than half the sum of lengths (<= 8.3 m)."""
-    fmu, map_path = foreign_vehicle(3)
-    result = runs("demo")
+    fmu, map_path = foreign_vehicle(fmi_version)
+    result = runs("demo", fmi_version)
     parameters = foreign_parameters(fmu)
     holds = brake_holds(result.events)
     assert [on["line"] for on, _ in holds] == [15, 19, 23, 27]

@@ -7,9 +7,9 @@ Tolerances. The car cannot get or set its state, so the master cannot roll back:
 at most 1 ms, fires what has become true at the end of that step, and reports the step as the event's
 `time_uncertainty_s` (u): the true instant lies in (t - u, t] before the reported t, so a quantity changing at rate
 r has passed its threshold by at most r u when it is reported (one-sided). The event acts from the reported instant
-on (the pedals change there), so a BRK hold's own dynamics start exactly at its reported onset state. What the car
-itself adds is Runge-Kutta 4 rounding (below 1e-9, test_foreign_vehicle.py). The distance sdl-fmu reports is not the car's (it
-has none): sdl-fmu integrates the car's speed between communication points by the trapezoid rule, whose error
+on (the pedals change there), so a BRK hold's own dynamics start exactly at its reported onset state. What the
+car itself adds is Runge-Kutta 4 rounding (below 1e-9, test_foreign_vehicle.py). The distance sdl-fmu reports is
+not the car's (it has none): sdl-fmu integrates the car's speed between communication points by the trapezoid rule, whose error
 per step h is h^3 |v''| / 12, so over T seconds of braking at most T h_max^2 max|v''| / 12 with h_max the
 driver's sampling period (the longest step while the driver or a BRK holds the pedals).
 """
@@ -73,7 +73,7 @@ class Braking:
 
 @pytest.fixture(scope="module")
 def runs(foreign_vehicle):
-    """Each scenario run once per FMI version: {(scenario, fmi_version): api Result}."""
+    """run(scenario, fmi_version, **options): the foreign car through a scenario, each combination run once."""
     cache = {}
 
     def run(scenario, fmi_version=3, **options):
@@ -124,11 +124,10 @@ def check_distance_triggers(result, scenario):
 
 def check_brake_hold(on, off, parameters, brake_scale, mu):
     """One BRK hold against the car's closed forms, from the state its onset reports."""
-    v_on, u_on = on["speed"] * FOOT, on["time_uncertainty_s"]
     # the brakes act from the reported onset on: pressure = the map's scale x pedal
-    braking = Braking(parameters, brake_scale * on["pedal"] / 100, mu, v_on)
+    braking = Braking(parameters, brake_scale * on["pedal"] / 100, mu, on["speed"] * FOOT)
     magnitude = on["magnitude"] * (1.0 if on["threshold"] == "time" else FOOT)
-    t_release, v_release = braking.release(on["threshold"], magnitude)
+    t_release, _ = braking.release(on["threshold"], magnitude)
     t_off, u_off = off["time_s"] - on["time_s"], off["time_uncertainty_s"]
     assert off["reason"] == on["threshold"]
     # the release instant: at or after the closed form's, by at most its uncertainty (0 for the time threshold,
@@ -139,9 +138,6 @@ def check_brake_hold(on, off, parameters, brake_scale, mu):
     trapezoid = t_off * DRIVER_PERIOD**2 * braking.jerk_max / 12
     assert (off["distance"] - on["distance"]) * FOOT == pytest.approx(
         braking.distance_to(braking.speed(t_off)), abs=trapezoid + 2 * NUMERIC)
-    return {"onset_s": on["time_s"], "release_s": off["time_s"], "hand_release_s": on["time_s"] + t_release,
-            "release_speed_ft_s": off["speed"], "hand_release_speed_ft_s": v_release / FOOT,
-            "u_on": u_on, "u_off": u_off}
 
 
 def brake_scale(map_path):
@@ -170,7 +166,7 @@ def test_foreign_car_demo_brakes_match_its_closed_forms_without_collision(runs, 
     """demo: BRK at 4200 ft on ice (mu 0.2, grip-limited), 6000 ft and 7500 ft on mu 0.8, 9200 ft on mu 0.5 (60 %
     = 72 bar = 7200 N > 0.5 m G = 7110 N: grip-limited). Each hold ends well inside its surface patch.
 
-    No collision, by hand: the oncoming cars (lines 6, 7) keep to lateral -6 ft, 12 ft = 3.66 m from the ego's lane
+    No collision, by hand: the oncoming cars (lines 7, 8) keep to lateral -6 ft, 12 ft = 3.66 m from the ego's lane
     centre at +6 ft, more than half the sum of widths (at most (1.8 + 2.55) / 2 = 2.18 m, the widest model). The
     truck (model 7, 2.5 m wide) drifts to -2 ft, 8 ft = 2.44 m from the ego's lane centre; contact would need the
     ego 2.44 - (1.8 + 2.5) / 2 = 0.29 m off its lane centre towards it. The swerving car (line 11) comes into the

@@ -278,3 +278,26 @@ def test_bad_foreign_car_map_is_one_line_naming_file_and_key(foreign_vehicle, tm
     line, = completed.stderr.strip().splitlines()
     assert str(bad) in line and key in line and words in line
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad_map.toml"]
+
+
+def test_foreign_car_sweeps_on_dask(foreign_vehicle, tmp_path):
+    """A sweep drives the foreign car (its Python inside the FMU, one instance per Dask worker thread at once).
+    head_on at v = 70, 80, 90 ft/s: the driver holds v exactly (see the head-on test), so the run ends at ES, 1600 ft,
+    at the first communication point at or past 1600 / v seconds, at most MIN_LOOKAHEAD later; one collision each."""
+    distributed = pytest.importorskip("distributed")
+    from sdl_fmu import sweep as sweeping
+    from sdl_fmu.cosim.master import MIN_LOOKAHEAD
+
+    fmu, map_path = foreign_vehicle(3)
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None)
+    try:
+        with distributed.Client(cluster) as client:
+            rows = sweeping.sweep("head_on", {"speed": [70.0, 80.0, 90.0]}, tmp_path / "sweep", client=client,
+                                  progress=False, fmu=fmu, vehicle=map_path)
+    finally:
+        cluster.close()
+    assert [(row["speed"], row["status"], row["collisions"]) for row in rows] == [
+        (70.0, "ok", 1), (80.0, "ok", 1), (90.0, "ok", 1)]
+    for row in rows:
+        assert row["final_speed"] == pytest.approx(row["speed"], abs=1e-9)
+        assert -NUMERIC <= row["final_time_s"] - 1600.0 / row["speed"] <= MIN_LOOKAHEAD + NUMERIC

@@ -22,6 +22,7 @@ import pytest
 from conftest import foreign_parameters
 from sdl_fmu import api
 from sdl_fmu.units import FOOT, STANDARD_GRAVITY as G
+from sdl_fmu.vehicle import STOPPED_SPEED
 
 pytestmark = pytest.mark.slow  # builds the FMUs with PythonFMU / pythonfmu3 and runs whole scenarios
 
@@ -122,14 +123,19 @@ def check_distance_triggers(result, scenario):
     return checked
 
 
-def check_brake_hold(on, off, parameters, brake_scale, mu):
-    """One BRK hold against the car's closed forms, from the state its onset reports."""
+def check_brake_hold(on, off, parameters, brake_scale, mu, reason=None):
+    """One BRK hold against the car's closed forms, from the state its onset reports; reason: why it ends (its
+    threshold unless given; "stopped": when the speed falls below sdl-fmu's STOPPED_SPEED, the car having no
+    `stopped` output)."""
     # the brakes act from the reported onset on: pressure = the map's scale x pedal
     braking = Braking(parameters, brake_scale * on["pedal"] / 100, mu, on["speed"] * FOOT)
-    magnitude = on["magnitude"] * (1.0 if on["threshold"] == "time" else FOOT)
-    t_release, _ = braking.release(on["threshold"], magnitude)
+    if reason == "stopped":
+        t_release = braking.time_to(STOPPED_SPEED)
+    else:
+        magnitude = on["magnitude"] * (1.0 if on["threshold"] == "time" else FOOT)
+        t_release, _ = braking.release(on["threshold"], magnitude)
     t_off, u_off = off["time_s"] - on["time_s"], off["time_uncertainty_s"]
-    assert off["reason"] == on["threshold"]
+    assert off["reason"] == (reason or on["threshold"])
     # the release instant: at or after the closed form's, by at most its uncertainty (0 for the time threshold,
     # which the master steps to); the speed reported then on the closed-form curve
     assert -NUMERIC <= t_off - t_release <= u_off + NUMERIC
@@ -318,3 +324,18 @@ def test_foreign_car_fmi2_and_fmi3_builds_agree(runs, scenario, options):
                 assert a[key] == pytest.approx(b[key], rel=1e-12, abs=1e-12)
             else:
                 assert a[key] == b[key]
+
+
+def test_foreign_car_brake_hold_ends_when_it_stops(runs, foreign_vehicle, tmp_path):
+    """Full braking for 30 s from 88 ft/s: the car stops long before (t_stop = theta0 / sqrt(A K) = 3.34 s), so the
+    hold ends as `stopped`. The car has no `stopped` output: sdl-fmu takes it as stopped below STOPPED_SPEED, which
+    the closed form reaches at t(STOPPED_SPEED); the release comes at most its uncertainty later. Then the driver
+    model drives off again (the car does not creep backwards meanwhile: its speed never goes below 0)."""
+    scenario = tmp_path / "stop.sdl"
+    scenario.write_text("English\n500,BRK,100,0,30\n1000,ES\n")
+    fmu, map_path = foreign_vehicle(3)
+    result = runs(str(scenario), 3)
+    (on, off), = brake_holds(result.events)
+    check_brake_hold(on, off, foreign_parameters(fmu), brake_scale(map_path), 0.8, reason="stopped")
+    assert off["time_s"] - on["time_s"] < 30.0 and off["speed"] * FOOT < STOPPED_SPEED
+    assert result.arrays["speed_ft/s"].min() >= 0.0 and result.final["distance"] >= 1000.0

@@ -295,7 +295,7 @@ def test_foreign_car_sweeps_on_dask(foreign_vehicle, tmp_path):
     from sdl_fmu.cosim.master import MIN_LOOKAHEAD
 
     fmu, map_path = foreign_vehicle(3)
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None)
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0")
     try:
         with distributed.Client(cluster) as client:
             rows = sweeping.sweep("head_on", {"speed": [70.0, 80.0, 90.0]}, tmp_path / "sweep", client=client,

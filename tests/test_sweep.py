@@ -2,6 +2,12 @@
 resume from the journal, value grammar. An in-process LocalCluster runs the real Simple FMU."""
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
 
@@ -192,3 +198,117 @@ def test_a_folder_with_other_files_or_another_sweep_is_refused(client, scenario,
     sweeping.sweep(scenario, {"speed": [60.0]}, out, client=client, until_distance=200.0, progress=False)
     with pytest.raises(sweeping.SweepError, match="different sweep"):
         sweeping.sweep(scenario, {"seed": [1, 2]}, out, client=client, until_distance=200.0, progress=False)
+
+
+def test_the_tire_files_travel_with_the_attribute_file(tmp_path):
+    # an attribute file naming one tire by a relative path and one by an absolute path, shipped as a bundle and
+    # written elsewhere: the slot start values read from the copy equal those read from the originals
+    from sdl_fmu.dynamics.tires import TIRE_DIRECTORY, slot_parameters
+
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "wet.tir").write_bytes((TIRE_DIRECTORY / "wet_asphalt.tir").read_bytes())
+    attributes = tmp_path / "mine" / "attributes.txt"
+    attributes.write_text(f"// mine\n0 = {TIRE_DIRECTORY / 'dry_asphalt.tir'}\n\n3 = 'wet.tir'  # wet\n")
+    bundle = sweeping.SHIPPED["tires"](attributes)
+    assert [name for name, _ in bundle.files] == ["attributes.txt", "tires/0-dry_asphalt.tir", "tires/1-wet.tir"]
+    local = sweeping.materialize(bundle)
+    assert local.parent.name == bundle.digest[:32] and local.parent.parent.name == sweeping.SHIPPED_FOLDER
+    assert slot_parameters(local)[:2] == slot_parameters(attributes)[:2]
+    assert sweeping.materialize(bundle) == local  # written once
+    assert local.read_text().splitlines()[1] == "0 = tires/0-dry_asphalt.tir"  # on its original line
+
+
+def _stop(process: subprocess.Popen) -> None:
+    """Stops a process this test started, by its PID: SIGTERM, then SIGKILL if it lingers."""
+    if process.poll() is None:
+        os.kill(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _wait_for(condition, processes, what: str, limit: float = 300.0) -> None:
+    """Waits until `condition()` holds; fails if one of `processes` ends first (or after `limit` s: a hang)."""
+    deadline = time.monotonic() + limit
+    while not condition():
+        for process in processes:
+            assert process.poll() is None, f"{process.args[:4]} ended (code {process.returncode}) before {what}"
+        assert time.monotonic() < deadline, f"no {what} within {limit:.0f} s"
+        time.sleep(0.05)
+
+
+@pytest.mark.slow
+def test_a_real_cluster_with_workers_elsewhere_runs_every_row_even_when_a_worker_dies(tmp_path, simple_fmu):
+    # A `dask scheduler` and two `dask worker` processes (no nanny: the worker is the process, and a killed
+    # worker stays dead) started in another folder, each with its own HOME and an empty FMU cache; the sweep
+    # names its scenario by a path relative to its own folder, which the workers do not have. Every run is held
+    # at its first step (the api's test hook) until the test has killed the worker of the first held run.
+    project, elsewhere = tmp_path / "project", tmp_path / "elsewhere"
+    (project / "scenarios").mkdir(parents=True)
+    (project / "scenarios" / "pass.sdl").write_text(SCENARIO)
+    elsewhere.mkdir()
+    hold = tmp_path / "hold"
+    hold.touch()
+    checkout = str(Path(sweeping.__file__).resolve().parents[1])
+    base = {key: value for key, value in os.environ.items()
+            if key not in ("SDL_FMU_CACHE", "XDG_CACHE_HOME", api.HOLD_VARIABLE, "PYTHONPATH")}
+    base["PYTHONPATH"] = checkout  # the code under test, wherever the process starts
+    scheduler_file = tmp_path / "scheduler.json"
+    processes = []
+    try:
+        processes.append(subprocess.Popen(
+            [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+             "--scheduler-file", str(scheduler_file)], cwd=elsewhere, env={**base, "HOME": str(tmp_path / "h0")},
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        _wait_for(lambda: '"address"' in (scheduler_file.read_text() if scheduler_file.exists() else "")
+                  and scheduler_file.read_text().rstrip().endswith("}"), processes, "the scheduler's address")
+        address = json.loads(scheduler_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        homes = [tmp_path / "home1", tmp_path / "home2"]
+        workers = []
+        for home in homes:
+            home.mkdir()
+            workers.append(subprocess.Popen(
+                [sys.executable, "-m", "dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                 "--host", "127.0.0.1"], cwd=elsewhere, env={**base, "HOME": str(home), api.HOLD_VARIABLE: str(hold)},
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        processes += workers
+        with distributed.Client(address, timeout=60) as watcher:
+            watcher.wait_for_workers(2, timeout=300)
+
+        sweep_command = subprocess.Popen(
+            [sys.executable, "-m", "sdl_fmu.cli", "sweep", "scenarios/pass.sdl", "--scheduler", address,
+             "--vary", "until_distance=300", "--vary", "speed=60:110:10", "--out", "table"], cwd=project,
+            env={**base, "SDL_FMU_CACHE": os.environ["SDL_FMU_CACHE"]}, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True)
+        processes.append(sweep_command)
+        running = tmp_path / "hold.running"
+        _wait_for(lambda: running.exists() and running.read_text().endswith("\n"), processes, "a held run")
+        victim_pid = int(running.read_text().split()[0])
+        (victim,) = [worker for worker in workers if worker.pid == victim_pid]
+        os.kill(victim.pid, signal.SIGKILL)  # mid-run
+        victim.wait()
+        hold.unlink()  # the other worker's runs go on
+        stdout, stderr = sweep_command.communicate(timeout=600)
+        assert sweep_command.returncode == 0, stderr
+        assert stdout.splitlines()[0] == "pass.sdl: 6 runs: 6 ok, 0 failed, 0 timed out"
+    finally:
+        for process in reversed(processes):
+            _stop(process)
+
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(project / "table" / sweeping.TABLE_NAME).to_pylist()
+    assert [(row["run"], row["speed_ft/s"], row["status"]) for row in table] == [
+        (k, 60.0 + 10 * k, "ok") for k in range(6)]
+    assert all(row["final_distance_ft"] == pytest.approx(300.0, abs=1e-3) for row in table)
+    # the survivor got the FMU and the scenario as bytes, into its own cache under its own HOME: it built no FMU
+    (survivor,) = [home for home, worker in zip(homes, workers) if worker is not victim]
+    cache = survivor / ".cache" / "sdl-fmu"
+    assert sorted(path.name for path in cache.iterdir()) == [sweeping.SHIPPED_FOLDER]
+    shipped = sorted(path.name for path in (cache / sweeping.SHIPPED_FOLDER).glob("*/*"))
+    assert shipped == ["EgoVehicleSimple.fmu", "pass.sdl"]
+    assert list(elsewhere.iterdir()) == []
+    assert sorted(os.listdir(project)) == ["scenarios", "table"]

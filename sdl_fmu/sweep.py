@@ -168,7 +168,7 @@ def _tire_files(path: Path) -> Bundle:
     for entry in entries:
         source = entry.tire_file.resolve()
         if source not in names:
-            names[source] = f"tires/{len(names)}-{source.name}"
+            names[source] = f"tires/{len(names)}-{re.sub(r'[^A-Za-z0-9._-]', '_', source.name)}"
             files.append((names[source], source.read_bytes()))
         lines[entry.line - 1] = f"{entry.attribute} = {names[source]}"
     return Bundle(((path.name, ("\n".join(lines) + "\n").encode()), *files))

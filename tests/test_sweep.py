@@ -218,7 +218,8 @@ def test_the_tire_files_travel_with_the_attribute_file(tmp_path):
     assert local.read_text().splitlines()[1] == "0 = tires/0-dry_asphalt.tir"  # on its original line
 
 
-def test_a_sweep_with_a_tire_attribute_file_runs_as_a_single_run_does(client, tmp_path, advanced_fmu):
+def test_a_sweep_with_a_tire_attribute_file_runs_as_a_single_run_does(client, scenario, tmp_path,
+                                                                     advanced_fmu):
     # The attribute file sits in the user's folder beside its own tire, named by a relative path; the workers
     # read the shipped copies. Its attribute 9 is beyond the FMU's 8 slots: one warning, which only a run that
     # read this file gives. The sweep's row and a direct api.run agree exactly.
@@ -229,10 +230,10 @@ def test_a_sweep_with_a_tire_attribute_file_runs_as_a_single_run_does(client, tm
     attributes = tmp_path / "mine" / "attributes.txt"
     attributes.write_text("0 = slippery.tir\n9 = slippery.tir\n")
     fixed = {"dynamics": "advanced", "fmu": str(advanced_fmu), "tires": str(attributes)}
-    rows = sweeping.sweep("road_surface_advanced", {"until_distance": [1200.0]}, tmp_path / "sweep",
-                          client=client, progress=False, **fixed)
+    rows = sweeping.sweep(scenario, {"until_distance": [300.0]}, tmp_path / "sweep", client=client,
+                          progress=False, **fixed)
     assert rows[0]["status"] == "ok", rows[0]["error"]
-    direct = api.run("road_surface_advanced", until_distance=1200.0, **fixed)
+    direct = api.run(scenario, until_distance=300.0, **fixed)
     assert rows[0]["warnings"] == len(direct.warnings) == 1 and "attribute 9" in direct.warnings[0]
     assert rows[0]["final_time_s"] == direct.final["time_s"]
     assert rows[0]["final_lateral_ft"] == direct.final["lateral"]

@@ -196,13 +196,14 @@ def _passed_on(bundle: Bundle) -> Bundle:
 def materialize(bundle: Bundle) -> Path:
     """The bundle as files in this machine's FMU cache, shipped/<digest>/, written once (atomically: into a
     temporary folder renamed into place; a concurrent writer's copy is discarded); the first file's path."""
-    from .fmu.cache import cache_directory
+    from .fmu.cache import _remove_abandoned_builds, cache_directory
 
     root = cache_directory() / SHIPPED_FOLDER
     folder = root / bundle.digest[:32]
     if not (folder / bundle.files[0][0]).is_file():
         root.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(prefix=f".partial-{os.getpid()}-", dir=root))
+        _remove_abandoned_builds(root)  # the temporary folders of killed workers
+        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
         try:
             for name, content in bundle.files:
                 (work / name).parent.mkdir(parents=True, exist_ok=True)

@@ -211,8 +211,15 @@ def test_the_tire_files_travel_with_the_attribute_file(tmp_path):
     attributes.write_text(f"// mine\n0 = {TIRE_DIRECTORY / 'dry_asphalt.tir'}\n\n3 = 'wet.tir'  # wet\n")
     bundle = sweeping.SHIPPED["tires"](attributes)
     assert [name for name, _ in bundle.files] == ["attributes.txt", "tires/0-dry_asphalt.tir", "tires/1-wet.tir"]
+    # the temporary folder of a worker killed while writing (a process id that no longer exists) goes away
+    from sdl_fmu.fmu.cache import cache_directory
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    abandoned = cache_directory() / sweeping.SHIPPED_FOLDER / f".building-{dead.stdout.strip()}-x1y2"
+    abandoned.mkdir(parents=True)
     local = sweeping.materialize(bundle)
     assert local.parent.name == bundle.digest[:32] and local.parent.parent.name == sweeping.SHIPPED_FOLDER
+    assert not abandoned.exists()
     assert slot_parameters(local)[:2] == slot_parameters(attributes)[:2]
     assert sweeping.materialize(bundle) == local  # written once
     assert local.read_text().splitlines()[1] == "0 = tires/0-dry_asphalt.tir"  # on its original line

@@ -386,6 +386,31 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
     return update
 
 
+# Test hook, for tests that must catch a run in progress whatever the machine's speed (Ctrl-C, timeouts, a
+# worker killed mid-run): when $SDL_FMU_TEST_HOLD names a file that exists, every run, after its first
+# communication step, appends its process id to that path + ".running" and then waits until the file is
+# removed, its timeout passes (RunTimeout) or it is interrupted.
+HOLD_VARIABLE = "SDL_FMU_TEST_HOLD"
+
+
+def _held(progress: Callable | None, hold: str) -> Callable:
+    held = []
+
+    def hold_once(cosimulation, state) -> None:
+        if progress is not None:
+            progress(cosimulation, state)
+        if not held:
+            held.append(True)
+            with open(hold + ".running", "a", encoding="utf-8") as running:
+                running.write(f"{os.getpid()}\n")
+            while os.path.exists(hold):
+                time.sleep(0.01)
+                if progress is not None:
+                    progress(cosimulation, state)  # the deadline's check
+
+    return hold_once
+
+
 def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
     """The master's per-step callback, raising RunTimeout once `timeout` wall seconds have passed."""
     deadline = time.monotonic() + timeout
@@ -451,6 +476,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, 
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
+    if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
+        options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
     try:
         raw = run_scenario(scenario, model, options, _vehicle_table())
     except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate

@@ -1,6 +1,7 @@
 """The `sdl-fmu` command line: build, check, run, sweep, verify. It only parses arguments, calls sdl_fmu.api and
 prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
-else), Ctrl-C is one line and exit 130."""
+else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
+line on stderr saying how many and where their errors are."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import os
 import sys
 from pathlib import Path
 
-EXIT_SCENARIO, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
+EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED = 1, 2, 3, 130
 DYNAMICS = ("simple", "advanced")
 FMI_VERSIONS = ("2", "3")
 
@@ -101,6 +102,8 @@ def _sweep(args) -> int:
         fixed["vehicle"] = args.vehicle
     if args.param:
         fixed["params"] = _parse_parameters(args.param)
+    if args.tires:
+        fixed["tires"] = args.tires
     if args.skip_unsupported:
         fixed["skip_unsupported"] = True
     scenario = api.resolve_scenario(args.scenario)
@@ -114,11 +117,19 @@ def _sweep(args) -> int:
         print(f"sdl-fmu: sweep interrupted (Ctrl-C); the finished runs are in {out / sweeping.JOURNAL_NAME}: "
               "the same command resumes the sweep", file=sys.stderr)
         return EXIT_INTERRUPTED
-    counts = {status: sum(row.get("status") == status for row in rows) for status in ("ok", "failed", "timeout")}
+    table = out / sweeping.CSV_NAME
+    failures = sweeping.failure_line(rows, table)
+    if failures is not None and all(row.get("status") != "ok" for row in rows):
+        print(f"sdl-fmu: {failures}", file=sys.stderr)
+        return EXIT_RUNS_FAILED
+    counts = {status: sum(row.get("status") == status for row in rows) for status in sweeping.STATUSES}
     print(f"{scenario.name}: {len(rows)} runs: {counts['ok']} ok, {counts['failed']} failed, "
           f"{counts['timeout']} timed out")
-    print(f"table: {out / sweeping.TABLE_NAME}, {out / sweeping.CSV_NAME}")
+    print(f"table: {out / sweeping.TABLE_NAME}, {table}")
     print(f"plot: {out / sweeping.PLOT_NAME}")
+    if failures is not None:
+        print(f"sdl-fmu: {failures}; the same command runs them again", file=sys.stderr)
+        return EXIT_RUNS_FAILED
     return 0
 
 
@@ -197,6 +208,7 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     sweep.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="FMU start value for every run, SI (repeatable)")
+    sweep.add_argument("--tires", help="Tire Attribute File for every run (advanced dynamics)")
     sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
     sweep.add_argument("--timeout", type=_number, default=600.0, help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",
@@ -214,7 +226,8 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 130 Ctrl-C)."""
+    """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 3 a sweep with failed
+    runs, 130 Ctrl-C)."""
     try:
         from .api import InputError
         from .fmu.package import BuildError

@@ -8,18 +8,26 @@ RSA event on that line of the scenario) / `rsa.LINE.LANE` (one lane). VALUES is 
 `start:stop:step` (stop included), or random samples `uniform(lo,hi,n)` / `integers(lo,hi,n)` drawn from
 `--sample-seed`. The runs are every combination of the varied values. Each run goes through sdl_fmu.api.
 
+Every file a run reads (the scenario, the FMU, the Tire Attribute File and the tire files it names: the
+options in SHIPPED) goes to the workers as bytes, through Dask: a future per file bundle, which Dask keeps
+and recomputes if the worker holding it dies. A worker writes each bundle once into its own FMU cache,
+under shipped/<hash of the contents>/, so a worker needs no shared folder and no FMU of its own.
+
 The table (DIR/sweep.parquet and DIR/sweep.csv, one row per run) holds the varied values, the status
 (ok, failed, timeout) and error, collisions, per BRK event its on/off times, reason and the distance
 travelled while it held (a stop distance when it ended with the stop), the minimum longitudinal gap to
-each traffic vehicle, the final state, the wall time and real-time factor. Every finished row is appended
-to DIR/sweep-rows.jsonl at once, so an interrupted sweep resumes from it: rows already there are not run
-again. A run that fails is a row with its error; one that exceeds `--timeout` is stopped by its own
-deadline, and the sweep stops waiting for it after twice that, so the sweep never hangs.
+each traffic vehicle, the final state, the wall time and real-time factor; every column with a unit
+names it (`final_distance_ft`, `brk1_on_time_s`). Every finished row is appended to DIR/sweep-rows.jsonl
+at once, so an interrupted sweep resumes from it: `ok` rows there are kept, `failed` and `timeout` rows
+are run again. A run that fails is a row with its error; one that exceeds `--timeout` is stopped by its
+own deadline, and the sweep stops waiting for it after twice that, so the sweep never hangs.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import itertools
 import json
 import math
@@ -27,11 +35,15 @@ import os
 import random
 import re
 import time
+import tempfile
 import traceback
 from pathlib import Path
+from typing import Callable, Literal
 
 import numpy as np
 
+Status = Literal["ok", "failed", "timeout"]
+STATUSES: tuple[Status, ...] = ("ok", "failed", "timeout")
 TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
     "sweep.parquet", "sweep.csv", "sweep-rows.jsonl", "sweep.json", "sweep.png")
 OWN_FILES = {TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME}
@@ -123,17 +135,106 @@ def _with_rsa(scenario, name: str, value: float):
     return dataclasses.replace(scenario, events=tuple(events))
 
 
+# ---- the files a run reads, shipped to the workers as bytes -------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Bundle:
+    """A file a run reads and the files it names, as bytes: (relative path, content) pairs, the file itself
+    first. The relative paths are the bundle's own layout (the packer rewrites references to match)."""
+
+    files: tuple[tuple[str, bytes], ...]
+
+    @functools.cached_property
+    def digest(self) -> str:
+        hashed = hashlib.sha256()
+        for name, content in self.files:
+            hashed.update(name.encode() + b"\0" + hashlib.sha256(content).digest())
+        return hashed.hexdigest()
+
+
+def _one_file(path: Path) -> Bundle:
+    return Bundle(((path.name, path.read_bytes()),))
+
+
+def _tire_files(path: Path) -> Bundle:
+    """The Tire Attribute File and every tire file it names; the shipped attribute file names them by their
+    place in the bundle, each on its original line (so line numbers in messages stay the same)."""
+    from .dynamics.tires import read_attribute_file
+
+    entries = read_attribute_file(path)
+    lines = [""] * max((entry.line for entry in entries), default=0)
+    names: dict[Path, str] = {}
+    files = []
+    for entry in entries:
+        source = entry.tire_file.resolve()
+        if source not in names:
+            names[source] = f"tires/{len(names)}-{re.sub(r'[^A-Za-z0-9._-]', '_', source.name)}"
+            files.append((names[source], source.read_bytes()))
+        lines[entry.line - 1] = f"{entry.attribute} = {names[source]}"
+    return Bundle(((path.name, ("\n".join(lines) + "\n").encode()), *files))
+
+
+# The file-valued options of api.run: option -> how to pack what a run reads through it. A new file-valued
+# option is one entry here. (The scenario itself always goes, as the bundle "scenario".)
+SHIPPED: dict[str, Callable[[Path], Bundle]] = {"fmu": _one_file, "tires": _tire_files, "vehicle": _one_file}
+SHIPPED_FOLDER = "shipped"
+
+
+def _pack(scenario_path: str, fixed: dict) -> dict[str, Bundle]:
+    bundles = {"scenario": _one_file(Path(scenario_path))}
+    for option, pack in SHIPPED.items():
+        if fixed.get(option) is not None:
+            bundles[option] = pack(Path(fixed[option]))
+    return bundles
+
+
+def _passed_on(bundle: Bundle) -> Bundle:
+    """The task whose result is a bundle: Dask holds the bundle in its graph and recomputes it on loss."""
+    return bundle
+
+
+def materialize(bundle: Bundle) -> Path:
+    """The bundle as files in this machine's FMU cache, shipped/<digest>/, written once (atomically: into a
+    temporary folder renamed into place; a concurrent writer's copy is discarded); the first file's path."""
+    from .fmu.cache import _remove_abandoned_builds, cache_directory
+
+    root = cache_directory() / SHIPPED_FOLDER
+    folder = root / bundle.digest[:32]
+    if not (folder / bundle.files[0][0]).is_file():
+        root.mkdir(parents=True, exist_ok=True)
+        _remove_abandoned_builds(root)  # the temporary folders of killed workers
+        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
+        try:
+            for name, content in bundle.files:
+                (work / name).parent.mkdir(parents=True, exist_ok=True)
+                (work / name).write_bytes(content)
+            try:
+                os.rename(work, folder)
+            except OSError:
+                if not (folder / bundle.files[0][0]).is_file():
+                    raise
+        finally:
+            if work.exists():
+                import shutil
+
+                shutil.rmtree(work, ignore_errors=True)
+    return folder / bundle.files[0][0]
+
+
 # ---- one run (on a worker) ------------------------------------------------------------------------
 
-def run_one(scenario_path: str, values: dict, fixed: dict, timeout: float) -> dict:
-    """One run through sdl_fmu.api; always returns a row, with the error if it failed."""
+def run_one(bundles: dict[str, Bundle], values: dict, fixed: dict, timeout: float) -> dict:
+    """One run through sdl_fmu.api, its files from `bundles`; always returns a row, with the error if it
+    failed."""
     from . import api
 
     began = time.perf_counter()
     row = {"status": "ok", "error": None}
     try:
-        scenario = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))
+        paths = {option: str(materialize(bundle)) for option, bundle in bundles.items()}
+        scenario = api.load(paths.pop("scenario"), skip_unsupported=fixed.get("skip_unsupported", False))
         options = {key: value for key, value in fixed.items() if key != "skip_unsupported"}
+        options.update(paths)
         params = dict(options.pop("params", {}))
         for name, value in values.items():
             if name.startswith("rsa."):
@@ -156,10 +257,14 @@ def run_one(scenario_path: str, values: dict, fixed: dict, timeout: float) -> di
 
 
 def _summarise(result) -> dict:
+    from .units import from_si, length_label, speed_label
+
     raw = result.raw
     final = result.final
-    row = {"collisions": int(result.collisions), "final_time_s": final["time_s"], "final_distance": final["distance"],
-           "final_speed": final["speed"], "final_lateral": final["lateral"],
+    length, speed = length_label(raw.units), speed_label(raw.units)
+    row = {"collisions": int(result.collisions), "final_time_s": final["time_s"],
+           f"final_distance_{length}": final["distance"], f"final_speed_{speed}": final["speed"],
+           f"final_lateral_{length}": final["lateral"],
            "sim_wall_s": raw.timing.get("wall_s"), "real_time_factor": raw.timing.get("real_time_factor"),
            "warnings": len(result.warnings)}
     on = None
@@ -173,17 +278,37 @@ def _summarise(result) -> dict:
         elif event["action"] == "off" and on is not None:
             row[f"brk{count}_off_time_s"] = event["time_s"]
             row[f"brk{count}_reason"] = event.get("reason")
-            row[f"brk{count}_distance"] = event["distance"] - on["distance"]
+            row[f"brk{count}_distance_{length}"] = event["distance"] - on["distance"]
             if event.get("reason") == "stopped":
-                row[f"brk{count}_stop_distance"] = event["distance"] - on["distance"]
-    from .units import from_si
+                row[f"brk{count}_stop_distance_{length}"] = event["distance"] - on["distance"]
 
     station = np.asarray(raw.columns["station"], dtype=float)
     for track in raw.vehicles:
         own = np.asarray(track.station, dtype=float)
         gap = np.abs(own - station[track.first:track.first + len(own)])
-        row[f"A{track.vehicle}_min_gap"] = float(from_si(np.nanmin(gap), raw.units)) if len(gap) else None
+        row[f"A{track.vehicle}_min_gap_{length}"] = float(from_si(np.nanmin(gap), raw.units)) if len(gap) else None
     return row
+
+
+def column_names(varied: list[str], units: str, fmu: Path | None = None) -> dict[str, str]:
+    """The table's column for each varied name, with its unit: `speed_ft/s`, `until_distance_m`,
+    `until_time_s`, an FMU parameter's declared unit (`brake_decel_max_m/s2`); seeds and RSA values (a
+    friction coefficient or an attribute number) have none."""
+    from .units import length_label, speed_label
+
+    units_of = {"speed": speed_label(units), "until_distance": length_label(units), "until_time": "s"}
+    declared = {}
+    if fmu is not None:
+        from . import api
+
+        declared = {v.name: v.unit for v in api._description(Path(fmu)).modelVariables
+                    if v.unit and v.unit != "1"}
+    columns = {}
+    for name in varied:
+        unit = units_of.get(name) if name in RUN_OPTIONS else (
+            None if name.startswith("rsa.") else declared.get(name.removeprefix("param.")))
+        columns[name] = f"{name}_{unit}" if unit else name
+    return columns
 
 
 # ---- the table ------------------------------------------------------------------------------------
@@ -193,8 +318,9 @@ def _key(values: dict) -> str:
 
 
 def _check_folder(out: Path, spec: dict) -> list[dict]:
-    """The rows of an earlier, interrupted run of the same sweep in `out` (resume), or [] for a new folder.
-    A folder holding anything sdl-fmu's sweep did not write, or another sweep's table, is refused."""
+    """The `ok` rows of an earlier, interrupted or partly failed run of the same sweep in `out` (resume), or
+    [] for a new folder. A folder holding anything sdl-fmu's sweep did not write, or another sweep's
+    table, is refused."""
     if out.exists() and not out.is_dir():
         raise SweepError(f"--out {out}: exists and is not a folder")
     if not out.exists():
@@ -207,20 +333,25 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
         return []
     earlier = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
     if earlier != spec:
+        differ = [part for part in ("scenario", "vary", "fixed", "files") if earlier.get(part) != spec.get(part)]
         raise SweepError(f"--out {out}: holds a different sweep ({earlier.get('scenario')}, varying "
-                         f"{', '.join(earlier.get('vary', {}))}); choose another folder")
-    rows = []
+                         f"{', '.join(earlier.get('vary', {}))}; its {' and '.join(differ)} differ: a changed "
+                         "file or option); choose another folder")
+    rows = {}
     if (out / JOURNAL_NAME).exists():
         for line in (out / JOURNAL_NAME).read_text(encoding="utf-8").splitlines():
             try:
-                rows.append(json.loads(line))
+                row = json.loads(line)
             except json.JSONDecodeError:
-                pass  # a line cut short by the interruption: that run is simply run again
-    return rows
+                continue  # a line cut short by the interruption: that run is simply run again
+            if row.get("status") == "ok" and "key" in row:
+                rows[row["key"]] = row
+    return list(rows.values())
 
 
-def write_table(rows: list[dict], out: Path, varied: list[str]) -> None:
-    """sweep.parquet and sweep.csv (same columns: varied values first, then the outcome), and sweep.png."""
+def write_table(rows: list[dict], out: Path, varied: list[str], units: str) -> None:
+    """sweep.parquet and sweep.csv (same columns: varied values first, then the outcome), and sweep.png.
+    `varied`: the varied values' column names."""
     import pyarrow as pa
     import pyarrow.csv as pa_csv
     import pyarrow.parquet as pq
@@ -235,7 +366,7 @@ def write_table(rows: list[dict], out: Path, varied: list[str]) -> None:
     pa_csv.write_csv(table, out / (CSV_NAME + ".partial"))
     os.replace(out / (TABLE_NAME + ".partial"), out / TABLE_NAME)
     os.replace(out / (CSV_NAME + ".partial"), out / CSV_NAME)
-    plot_sweep(rows, varied, out / PLOT_NAME)
+    plot_sweep(rows, varied, units, out / PLOT_NAME)
 
 
 def _column_order(name: str):
@@ -245,37 +376,59 @@ def _column_order(name: str):
     return (0, 0, name)
 
 
-def plot_sweep(rows: list[dict], varied: list[str], path: Path) -> None:
-    """Outcome against the first varied value: collisions, the first BRK's distance and the smallest gap to
-    any vehicle, failed and timed-out runs marked at the bottom."""
+def plotted_quantities(rows: list[dict], varied: list[str]) -> list[str]:
+    """The varied columns the plot shows: each that takes more than one value (the first one if none does)."""
+    shown = [name for name in varied if len({row.get(name) for row in rows}) > 1]
+    return shown or varied[:1]
+
+
+def _axis_label(column: str) -> str:
+    """`speed_ft/s` -> `speed (ft/s)`; a column without a unit stays as it is."""
+    for suffix in ("_ft/s", "_m/s", "_ft", "_m", "_s"):
+        if column.endswith(suffix):
+            return f"{column[:-len(suffix)]} ({suffix[1:]})"
+    match = re.fullmatch(r"(.*?)_([^_]*[/0-9][^_]*|kg|rad|N|W|Pa)", column)
+    return f"{match.group(1)} ({match.group(2)})" if match else column
+
+
+def plot_sweep(rows: list[dict], varied: list[str], units: str, path: Path) -> None:
+    """One row of panels per varied quantity that takes more than one value: collisions, the first BRK's
+    distance and the smallest gap to any vehicle against that quantity; failed and timed-out runs marked
+    at the bottom. Axes carry units."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    name = varied[0]
-    figure = Figure(figsize=(12, 3.8), dpi=100, layout="constrained")
+    from .units import length_label
+
+    length = length_label(units)
+    quantities = plotted_quantities(rows, varied)
+    figure = Figure(figsize=(12, 0.8 + 3.0 * len(quantities)), dpi=100, layout="constrained")
     FigureCanvasAgg(figure)
-    panels = [("collisions", lambda r: r.get("collisions")),
-              ("first BRK: distance while on", lambda r: r.get("brk1_distance")),
-              ("smallest gap to a vehicle", lambda r: min((v for k, v in r.items() if k.endswith("_min_gap")
-                                                           and v is not None), default=None))]
+    panels = [("collisions", "collisions", lambda r: r.get("collisions")),
+              ("first BRK: distance while on", f"distance ({length})", lambda r: r.get(f"brk1_distance_{length}")),
+              ("smallest gap to a vehicle", f"gap ({length})",
+               lambda r: min((v for k, v in r.items() if k.endswith(f"_min_gap_{length}") and v is not None),
+                             default=None))]
     colours = {"ok": "tab:blue", "failed": "tab:red", "timeout": "tab:orange"}
-    for k, (title, value) in enumerate(panels):
-        ax = figure.add_subplot(1, 3, k + 1)
-        for status, colour in colours.items():
-            points = [(r[name], value(r)) for r in rows if r.get("status") == status and isinstance(r.get(name),
-                                                                                                      (int, float))]
-            if status != "ok":
-                points = [(x, 0.0) for x, _ in points]
-            points = [(x, y) for x, y in points if y is not None]
-            if points:
-                xs, ys = zip(*points)
-                ax.scatter(xs, ys, s=18, color=colour, marker="o" if status == "ok" else "x",
-                           label=status if status != "ok" else None)
-        ax.set_xlabel(name)
-        ax.set_title(title, fontsize=10, loc="left")
-        ax.grid(True, alpha=0.3)
-        if k == 0 and any(r.get("status") != "ok" for r in rows):
-            ax.legend(fontsize=8)
+    for row_index, name in enumerate(quantities):
+        for k, (title, ylabel, value) in enumerate(panels):
+            ax = figure.add_subplot(len(quantities), 3, 3 * row_index + k + 1)
+            for status, colour in colours.items():
+                points = [(r[name], value(r)) for r in rows
+                          if r.get("status") == status and isinstance(r.get(name), (int, float))]
+                if status != "ok":
+                    points = [(x, 0.0) for x, _ in points]
+                points = [(x, y) for x, y in points if y is not None]
+                if points:
+                    xs, ys = zip(*points)
+                    ax.scatter(xs, ys, s=18, color=colour, marker="o" if status == "ok" else "x",
+                               label=status if status != "ok" else None)
+            ax.set_xlabel(_axis_label(name))
+            ax.set_ylabel(ylabel)
+            ax.set_title(title, fontsize=10, loc="left")
+            ax.grid(True, alpha=0.3)
+            if row_index == 0 and k == 0 and any(r.get("status") != "ok" for r in rows):
+                ax.legend(fontsize=8)
     figure.suptitle(f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok", fontsize=11)
     figure.savefig(path)
 
@@ -291,20 +444,26 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     Returns the rows, in run order."""
     from . import api
 
-    scenario_path = str(api.resolve_scenario(scenario))
-    api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))  # a bad file fails now
+    scenario_path = str(api.resolve_scenario(scenario).absolute())
+    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))  # a bad file fails now
     if not timeout > 0:
         raise SweepError(f"--timeout {timeout}: must be > 0")
     fixed = dict(fixed)
-    fixed["fmu"] = str(api.ego_fmu(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle")))  # built once, here
+    model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
+    fixed["fmu"] = str(model.fmu_path)
+    if fixed.get("tires") is not None:
+        api._tire_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
+        fixed["tires"] = str(Path(fixed["tires"]).absolute())
     if fixed.get("vehicle") is not None:
         fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())
+    bundles = _pack(scenario_path, fixed)
     out = Path(out).absolute()
-    spec = {"scenario": scenario_path, "vary": varied,
-            "fixed": json.loads(json.dumps(fixed, default=str))}
+    spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
+            "files": {option: bundle.digest for option, bundle in bundles.items()}}
     done = _check_folder(out, spec)
+    columns = column_names(list(varied), loaded.units, Path(fixed["fmu"]))
     runs = combinations(varied)
-    finished = {row["key"]: row for row in done if "key" in row}
+    finished = {row["key"]: row for row in done}
     todo = [(index, values) for index, values in enumerate(runs) if _key(values) not in finished]
     rows = list(finished.values())
     owned = []
@@ -313,13 +472,21 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
             client, owned = _client(workers, scheduler)
         out.mkdir(parents=True, exist_ok=True)
         (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
+        _keep_only(out / JOURNAL_NAME, rows)
         if todo:
-            rows += _run_all(scenario_path, todo, fixed, timeout, out, client, progress)
+            rows += _run_all(bundles, todo, fixed, timeout, out, client, progress, columns)
     finally:
         for thing in owned:
             thing.close()
-    write_table(rows, out, list(varied))
+    write_table(rows, out, list(columns.values()), loaded.units)
     return sorted(rows, key=lambda r: r["run"])
+
+
+def _keep_only(journal: Path, rows: list[dict]) -> None:
+    """The journal with only the rows kept (the `ok` ones): the runs that failed are run again."""
+    partial = journal.with_name(journal.name + ".partial")
+    partial.write_text("".join(json.dumps(row, default=_plain) + "\n" for row in rows), encoding="utf-8")
+    os.replace(partial, journal)
 
 
 def _client(workers: int | None, scheduler: str | None):
@@ -342,7 +509,7 @@ def _client(workers: int | None, scheduler: str | None):
     return client, [client, cluster]
 
 
-def _run_all(scenario_path, todo, fixed, timeout, out, client, progress) -> list[dict]:
+def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> list[dict]:
     """Submits the runs, journals each row as it arrives. Every run stops itself at `timeout`; if no run at
     all comes back for GRACE x timeout (+ 10 s), the runs still processing are given up (cancelled and
     recorded as timeouts), so a stuck worker never hangs the sweep."""
@@ -352,8 +519,10 @@ def _run_all(scenario_path, todo, fixed, timeout, out, client, progress) -> list
     patience = GRACE * timeout + 10.0
     bar = tqdm(total=len(todo), unit="run", disable=progress is False or (progress is None
                                                                           and not _stderr_is_terminal()))
+    shipped = {option: client.submit(_passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
+               for option, bundle in bundles.items()}
     try:
-        futures = {client.submit(run_one, scenario_path, values, fixed, timeout, pure=False): (index, values)
+        futures = {client.submit(run_one, shipped, values, fixed, timeout, pure=False): (index, values)
                    for index, values in todo}
         pending = set(futures)
         last_progress = time.monotonic()
@@ -367,7 +536,7 @@ def _run_all(scenario_path, todo, fixed, timeout, out, client, progress) -> list
                         row = future.result()
                     except Exception as error:  # the worker died or the task could not run
                         row = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
-                    rows.append(_record(journal, row, *futures[future]))
+                    rows.append(_record(journal, row, *futures[future], columns))
                     bar.update()
                     last_progress = now
                 if finished or not pending:
@@ -379,20 +548,38 @@ def _run_all(scenario_path, todo, fixed, timeout, out, client, progress) -> list
                         pending.discard(future)
                         future.cancel()
                         rows.append(_record(journal, {"status": "timeout", "error": f"no result within "
-                                                      f"{patience:.0f} s: given up"}, *futures[future]))
+                                                      f"{patience:.0f} s: given up"}, *futures[future], columns))
                         bar.update()
                     last_progress = now
                 time.sleep(0.05)
     finally:
         bar.close()
+        for future in shipped.values():
+            future.release()
     return rows
 
 
-def _record(journal, row: dict, index: int, values: dict) -> dict:
-    row = {"run": index, **values, **row, "key": _key(values)}
+def _record(journal, row: dict, index: int, values: dict, columns: dict[str, str]) -> dict:
+    row = {"run": index, **{columns[name]: value for name, value in values.items()}, **row, "key": _key(values)}
     journal.write(json.dumps(row, default=_plain) + "\n")
     journal.flush()
     return row
+
+
+def failure_line(rows: list[dict], table: Path) -> str | None:
+    """One line about the runs that did not end `ok` (None when all did): "3 of 24 runs failed (TABLE,
+    column error)", or, when every run failed, that and the first error."""
+    bad = [row for row in rows if row.get("status") != "ok"]
+    if not bad:
+        return None
+    timed_out = sum(row.get("status") == "timeout" for row in bad)
+    what = "timed out" if timed_out == len(bad) else "failed or timed out" if timed_out else "failed"
+    where = f"({table}, column error)"
+    if len(bad) == len(rows):
+        first = min(bad, key=lambda row: row["run"])
+        error = (str(first.get("error") or "").strip().splitlines() or ["no error given"])[0]
+        return f"all {len(rows)} runs {what} {where}; run {first['run']}: {error}"
+    return f"{len(bad)} of {len(rows)} runs {what} {where}"
 
 
 def _plain(value):

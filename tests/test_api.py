@@ -2,7 +2,10 @@
 pandas DataFrame; events, warnings; the progress bar; user mistakes as InputError / ScenarioError."""
 
 import csv
+import os
 import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +25,8 @@ def test_the_readme_example_runs_as_written(tmp_path, monkeypatch, capsys, simpl
     monkeypatch.chdir(tmp_path)
     namespace = {}
     exec(compile(readme_example(), "README.md", "exec"), namespace)
-    result, frame = namespace["result"], namespace["frame"]
+    result = namespace["result"]
+    frame = result.dataframe()  # pandas: in the test extra
     printed = capsys.readouterr().out
     assert re.match(r"\d+ samples, top speed [\d.]+ ft/s, 0 collision\(s\)", printed)
     assert result.final["time_s"] == pytest.approx(20.0)
@@ -35,6 +39,31 @@ def test_the_readme_example_runs_as_written(tmp_path, monkeypatch, capsys, simpl
     # 4 decimals in the file (LENGTH_FORMAT %.4f): half a unit of the last digit
     assert np.allclose([float(row[column]) for row in rows[1:]], result.arrays["speed_ft/s"], rtol=0, atol=5e-5)
     assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == [
+        ".sdl-fmu-results.json", "plot.png", "summary.json", "timeseries.csv"]
+
+
+@pytest.mark.slow
+def test_the_readme_example_runs_after_quick_start_1(tmp_path, simple_fmu):
+    # Quick start 1, exactly: a fresh venv in a checkout (a copy: `pip install .` writes build files beside the
+    # sources) and `pip install .` with the package's own dependencies from the index; then the example, from an
+    # empty folder, with that venv's Python. The FMU comes from the tests' cache (the same sources, the same key).
+    checkout = tmp_path / "checkout"
+    shutil.copytree(README.parent, checkout, ignore=shutil.ignore_patterns(
+        ".venv", ".git", "build", "dist", "runs", "sweeps", "*.egg-info", "__pycache__", ".pytest_cache"))
+    env = {key: value for key, value in os.environ.items() if key not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    installed = subprocess.run(["bash", "-c", "python3 -m venv .venv && . .venv/bin/activate && pip install ."],
+                               cwd=checkout, env=env, capture_output=True, text=True)
+    assert installed.returncode == 0, installed.stdout[-2000:] + installed.stderr[-2000:]
+    python = checkout / ".venv" / "bin" / "python"
+    # the example must not need pandas, which Quick start 1 does not install
+    assert subprocess.run([python, "-c", "import pandas"], env=env, capture_output=True).returncode != 0
+    work = tmp_path / "work"
+    work.mkdir()
+    (tmp_path / "example.py").write_text(readme_example())
+    completed = subprocess.run([python, tmp_path / "example.py"], cwd=work, env=env, capture_output=True, text=True)
+    assert completed.returncode == 0, completed.stderr
+    assert re.match(r"\d+ samples, top speed [\d.]+ ft/s, 0 collision\(s\)", completed.stdout)
+    assert sorted(p.name for p in (work / "runs" / "demo-heavy").iterdir()) == [
         ".sdl-fmu-results.json", "plot.png", "summary.json", "timeseries.csv"]
 
 

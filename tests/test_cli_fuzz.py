@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from sdl_fmu.api import HOLD_VARIABLE
 from sdl_fmu.cli import main
 from sdl_fmu.dynamics.tires import DEFAULT_ATTRIBUTE_FILE
 from sdl_fmu.results_folder import MANIFEST_NAME
@@ -236,20 +237,33 @@ def test_user_mistake_is_one_line_per_problem_and_writes_nothing(argv, code, nee
 
 
 def test_ctrl_c_during_a_run_exits_130_with_one_line_and_no_partial_folder(tmp_path, simple_fmu):
-    # a 2-mile scenario at a 1 ms step runs for about a minute: the signal arrives mid-simulation
-    out = tmp_path / "results"
+    # The run is held at its first communication step (the api's test hook: it says so in hold.running and
+    # waits while the hold file exists): the signal arrives mid-simulation however fast the machine is.
+    work, hold = tmp_path / "work", tmp_path / "hold"
+    work.mkdir()
+    hold.touch()
+    out = work / "results"
     process = subprocess.Popen([sys.executable, "-m", "sdl_fmu.cli", "run", "demo", "--fmu", str(simple_fmu),
-                                "--step", "0.001", "--out", str(out)], cwd=tmp_path, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    time.sleep(4)
-    assert process.poll() is None, process.communicate()
-    process.send_signal(signal.SIGINT)
-    stdout, stderr = process.communicate(timeout=60)
+                                "--out", str(out)], cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, env={**os.environ, HOLD_VARIABLE: str(hold)})
+    try:
+        running = tmp_path / "hold.running"
+        deadline = time.monotonic() + 300  # only against a hang: the loop ends when the run is held
+        while not (running.exists() and running.read_text() == f"{process.pid}\n"):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "the run was never held"
+            time.sleep(0.05)
+        process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
     assert process.returncode == 130
     assert stderr.splitlines() == ["sdl-fmu: interrupted (Ctrl-C); nothing was written"] and stdout == ""
-    assert list(tmp_path.iterdir()) == []
+    assert list(work.iterdir()) == []
     # the interrupted run's folder is free: the next run writes it
     completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "demo", "--fmu", str(simple_fmu),
-                                "--until-time", "1", "--out", str(out)], cwd=tmp_path, capture_output=True, text=True)
+                                "--until-time", "1", "--out", str(out)], cwd=work, capture_output=True, text=True)
     assert completed.returncode == 0, completed.stderr
-    assert os.listdir(tmp_path) == ["results"]
+    assert os.listdir(work) == ["results"]

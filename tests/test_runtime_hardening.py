@@ -5,7 +5,6 @@ checked (GUID hash, checksum, then field by field) before they touch the instanc
 import ctypes
 import math
 import struct
-import time
 import zipfile
 
 import pytest
@@ -118,23 +117,19 @@ def test_nan_communication_point_or_start_time_is_an_error(simple):
 
 def test_time_that_cannot_advance_is_an_error_not_a_hang(simple):
     simple.start(start_time=1e16, v0=10.0)  # 1e16 + 1 ms == 1e16 in double precision
-    began = time.monotonic()
     assert simple("DoStep", 1e16, 1e-3, 1) == ERROR
     assert "time cannot advance" in simple.messages[-1][1]
     assert simple("DoStep", 1e16, 2.0, 1) == ERROR  # t + 2 s exists, but not t + one 1 ms internal step
-    assert time.monotonic() - began < 1.0
     assert simple("DoStep", 1e16, 0.0, 1) == OK  # argument errors: the instance is not in the error state
 
 
 def test_internal_step_budget_bounds_every_do_step(simple):
     simple.start(v0=10.0)
     assert simple.set_real(solver_step=1e-300) == ERROR  # below its declared min 1e-6: refused
-    began = time.monotonic()
     assert simple("DoStep", 0.0, 1e300, 1) == ERROR
     assert simple("DoStep", 0.0, 0.1 * 50001, 1) == ERROR  # the budget: 50000 internal steps of at most
     # solver_step (default 0.1 s) per doStep
-    assert "budget" in simple.messages[-1][1]
-    assert time.monotonic() - began < 1.0
+    assert "budget" in simple.messages[-1][1]  # bounded work, whatever the machine's speed
     assert usable(simple, 0.0)
 
 
@@ -142,7 +137,6 @@ def test_error_controlled_steps_cannot_run_without_bound(simple, simple_fmu, tmp
     # A tolerance no step can meet (1e-300, allowed by the declared minimum 0): every step is rejected and
     # shrinks 5x until time cannot advance; an error, at once.
     simple.start(v0=30.0, steer=0.05, solver_tolerance=1e-300)
-    began = time.monotonic()
     assert simple("DoStep", 0.0, 1.0, 1) == ERROR
     assert "time cannot advance" in simple.messages[-1][1]
     # 1e-15 is met only by steps of ~2 ms in a steady turn (round-off in the estimate): 100 s would take more
@@ -155,7 +149,6 @@ def test_error_controlled_steps_cannot_run_without_bound(simple, simple_fmu, tmp
         assert other("Reset") == OK
     finally:
         other.free()
-    assert time.monotonic() - began < 5.0
     assert simple("Reset") == OK
 
 

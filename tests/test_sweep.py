@@ -2,9 +2,16 @@
 resume from the journal, value grammar. An in-process LocalCluster runs the real Simple FMU."""
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
 
+from sdl_fmu import api
 from sdl_fmu import sweep as sweeping
 
 distributed = pytest.importorskip("distributed")
@@ -14,12 +21,17 @@ SCENARIO = "English\n100,A,50,600,-6,1\n"
 
 
 @pytest.fixture(scope="module")
-def client():
+def cluster():
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                        dashboard_address=None)
+    yield cluster
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def client(cluster):
     with distributed.Client(cluster) as client:
         yield client
-    cluster.close()
 
 
 @pytest.fixture
@@ -43,52 +55,129 @@ def test_value_grammar():
             sweeping.parse_vary([bad])
 
 
-def test_failed_and_timed_out_runs_are_rows(client, scenario, tmp_path):
-    # 2 x 2 runs: brake_decel_max -1 is below the FMU's declared minimum (refused before the run: failed).
-    # until_distance 300000 ft is about 3400 s simulated: beyond the 1 s wall-clock timeout at any speed
-    # this orchestrator reaches: the master takes 20 communication steps per simulated second (the driver's
-    # samples), 68 000 in all, each at least one doStep and a few more calls through fmpy (~15 us at the very
-    # least; BENCHMARKS.md measures 50-100 us), so 3400 s take several seconds. 200 ft (2.3 s simulated)
-    # ends within it even at 10x real time.
+def journal_rows(out):
+    return [json.loads(line) for line in (out / sweeping.JOURNAL_NAME).read_text().splitlines()]
+
+
+def test_failed_runs_are_rows_and_a_resume_runs_only_them_again(client, scenario, tmp_path):
+    # 2 x 2 runs: brake_decel_max -1 is below the FMU's declared minimum (refused before the run: failed)
     out = tmp_path / "sweep"
-    rows = sweeping.sweep(scenario, {"until_distance": [200.0, 300000.0], "brake_decel_max": [9.81, -1.0]}, out,
-                          client=client, timeout=1.0, progress=False)
-    status = {(r["until_distance"], r["brake_decel_max"]): r["status"] for r in rows}
-    assert status == {(200.0, 9.81): "ok", (200.0, -1.0): "failed", (300000.0, 9.81): "timeout",
-                      (300000.0, -1.0): "failed"}
+    varied = {"until_distance": [200.0, 300.0], "brake_decel_max": [9.81, -1.0]}
+    rows = sweeping.sweep(scenario, varied, out, client=client, progress=False)
+    status = {(r["until_distance_ft"], r["brake_decel_max_m/s2"]): r["status"] for r in rows}
+    assert status == {(200.0, 9.81): "ok", (200.0, -1.0): "failed", (300.0, 9.81): "ok", (300.0, -1.0): "failed"}
     failed = [r for r in rows if r["status"] == "failed"]
     assert all("brake_decel_max" in r["error"] for r in failed)
-    timed_out, = [r for r in rows if r["status"] == "timeout"]
-    assert "time limit" in timed_out["error"]
-    ok, = [r for r in rows if r["status"] == "ok"]
-    assert ok["collisions"] == 0 and ok["final_distance"] == pytest.approx(200.0, abs=1e-3)
+    for row in rows:
+        if row["status"] == "ok":
+            assert row["collisions"] == 0
+            assert row["final_distance_ft"] == pytest.approx(row["until_distance_ft"], abs=1e-3)
+    assert sweeping.failure_line(rows, out / "sweep.csv") == f"2 of 4 runs failed ({out / 'sweep.csv'}, column error)"
 
+    # resume: the ok rows are kept as they were, the failed ones are run again (and fail again)
+    again = sweeping.sweep(scenario, varied, out, client=client, progress=False)
+    assert [r["status"] for r in again] == [r["status"] for r in rows]
+    for before, after in zip(rows, again):
+        if before["status"] == "ok":
+            assert after == before  # not run again: the very same row, wall time included
+    journal = journal_rows(out)  # the earlier failed rows were dropped from it, the new ones appended
+    assert sorted((r["run"], r["status"]) for r in journal) == [(0, "ok"), (1, "failed"), (2, "ok"), (3, "failed")]
+    assert [r["run"] for r in journal[2:]] in ([1, 3], [3, 1])
+
+
+def test_every_column_with_a_unit_names_it(client, tmp_path):
+    # English: lengths in ft, speeds in ft/s; Metric: m, m/s; FMU parameters carry their declared unit; a BRK
+    # that stops the car gives its on/off times and distances
+    (tmp_path / "metric.sdl").write_text("Metric\n0,A,15,200,-3,1\n10,BRK,100,0,20\n")
+    out = tmp_path / "sweep"
+    rows = sweeping.sweep(str(tmp_path / "metric.sdl"), {"speed": [20.0], "mass": [1500.0, 1800.0],
+                                                         "until_time": [12.0]}, out, client=client, progress=False)
+    assert [r["status"] for r in rows] == ["ok", "ok"], rows
     import pyarrow.parquet as pq
 
-    table = pq.read_table(out / sweeping.TABLE_NAME)
-    assert table.num_rows == 4
-    assert table.column_names[:5] == ["run", "until_distance", "brake_decel_max", "status", "error"]
-    assert (out / sweeping.CSV_NAME).read_text().count("\n") == 5
-    assert (out / sweeping.PLOT_NAME).read_bytes()[:4] == b"\x89PNG"
+    columns = pq.read_table(out / sweeping.TABLE_NAME).column_names
+    assert columns[:6] == ["run", "speed_m/s", "mass_kg", "until_time_s", "status", "error"]
+    expected = {"collisions", "final_time_s", "final_distance_m", "final_speed_m/s", "final_lateral_m", "sim_wall_s",
+                "real_time_factor", "run_wall_s", "warnings", "brk1_on_time_s", "brk1_off_time_s", "brk1_reason",
+                "brk1_distance_m", "brk1_stop_distance_m", "A1_min_gap_m"}
+    assert set(columns[6:]) == expected
+    assert (out / sweeping.CSV_NAME).read_text().splitlines()[0].split(",")[:3] == ['"run"', '"speed_m/s"', '"mass_kg"']
+    # only mass takes more than one value: the plot has one row of panels, against mass, in kg
+    assert sweeping.plotted_quantities(rows, ["speed_m/s", "mass_kg", "until_time_s"]) == ["mass_kg"]
+    assert sweeping._axis_label("mass_kg") == "mass (kg)" and sweeping._axis_label("speed_ft/s") == "speed (ft/s)"
+    assert sweeping._axis_label("brake_decel_max_m/s2") == "brake_decel_max (m/s2)"
+    assert sweeping._axis_label("seed") == "seed" and sweeping._axis_label("rsa.3") == "rsa.3"
+
+
+def test_the_plot_has_a_row_of_panels_per_quantity_that_varies(client, scenario, tmp_path):
+    from PIL import Image
+
+    out = tmp_path / "sweep"
+    varied = {"until_distance": [200.0], "speed": [60.0, 80.0], "seed": [1, 2]}
+    rows = sweeping.sweep(scenario, varied, out, client=client, progress=False)
+    assert sweeping.plotted_quantities(rows, ["until_distance_ft", "speed_ft/s", "seed"]) == ["speed_ft/s", "seed"]
+    # 0.8 in of title and 3 in per row of panels, at 100 dpi
+    assert Image.open(out / sweeping.PLOT_NAME).size == (1200, 680)
+
+
+def test_a_run_held_past_its_timeout_is_a_timeout_row_and_runs_again_on_resume(client, scenario, tmp_path,
+                                                                               monkeypatch):
+    # Every run is held at its first step (the api's test hook) until the hold file goes: it can only end by
+    # its own wall-clock deadline, however fast the machine is.
+    hold = tmp_path / "hold"
+    hold.touch()
+    monkeypatch.setenv(api.HOLD_VARIABLE, str(hold))
+    out = tmp_path / "sweep"
+    varied = {"until_distance": [200.0], "speed": [60.0, 80.0]}
+    rows = sweeping.sweep(scenario, varied, out, client=client, timeout=0.5, progress=False)
+    assert [r["status"] for r in rows] == ["timeout", "timeout"]
+    assert all("time limit of 0.5 s" in r["error"] and r["run_wall_s"] >= 0.5 for r in rows)
+    assert len((tmp_path / "hold.running").read_text().splitlines()) == 2  # both runs were held
+    assert sweeping.failure_line(rows, out / "sweep.csv") == (
+        f"all 2 runs timed out ({out / 'sweep.csv'}, column error); run 0: {rows[0]['error']}")
+    hold.unlink()  # released: the resumed sweep runs the timed-out rows again, and they end
+    again = sweeping.sweep(scenario, varied, out, client=client, timeout=0.5 + 600, progress=False)
+    assert [r["status"] for r in again] == ["ok", "ok"]
+    assert sweeping.failure_line(again, out / "sweep.csv") is None
+
+
+def test_the_command_line_exits_3_with_one_line_when_runs_failed(cluster, scenario, tmp_path, capsys):
+    from sdl_fmu.cli import EXIT_RUNS_FAILED, main
+
+    common = ["sweep", scenario, "--scheduler", cluster.scheduler_address, "--vary", "until_distance=200"]
+    code = main([*common, "--vary", "brake_decel_max=9.81,-1", "--out", str(tmp_path / "some")])
+    out, err = capsys.readouterr()
+    assert code == EXIT_RUNS_FAILED == 3
+    assert err.splitlines() == [f"sdl-fmu: 1 of 2 runs failed ({tmp_path / 'some' / 'sweep.csv'}, column error); "
+                                "the same command runs them again"]
+    assert out.splitlines()[0] == "pass.sdl: 2 runs: 1 ok, 1 failed, 0 timed out"
+    code = main([*common, "--vary", "brake_decel_max=-1,-2", "--out", str(tmp_path / "none")])
+    out, err = capsys.readouterr()
+    assert code == 3 and out == ""
+    assert err.splitlines() == [f"sdl-fmu: all 2 runs failed ({tmp_path / 'none' / 'sweep.csv'}, column error); "
+                                "run 0: --param brake_decel_max=-1.0: below the declared minimum 0 m/s2 of "
+                                "brake_decel_max"]
+    assert main([*common, "--vary", "speed=60,80", "--out", str(tmp_path / "fine")]) == 0
+    assert capsys.readouterr().err == ""
 
 
 def test_interrupted_sweep_resumes_from_its_journal(client, scenario, tmp_path):
     out = tmp_path / "sweep"
-    varied = {"speed": [60.0, 80.0, 100.0]}
-    first = sweeping.sweep(scenario, varied, out, client=client, timeout=120, until_distance=600.0, progress=False)
+    varied = {"speed": [60.0, 80.0, 100.0], "until_distance": [600.0]}
+    first = sweeping.sweep(scenario, varied, out, client=client, timeout=120, progress=False)
     assert [r["status"] for r in first] == ["ok"] * 3
     # the vehicle (spawned 600 ft ahead at 100 ft, closing at the ego's speed + 50 ft/s) passes 12 ft to the
     # side before 600 ft: the smallest sampled gap is at most half the closing in one 0.05 s driver sample
     for row in first:
-        assert row["A1_min_gap"] <= (row["speed"] + 50) * 0.05 / 2 + 1e-6
+        assert row["A1_min_gap_ft"] <= (row["speed_ft/s"] + 50) * 0.05 / 2 + 1e-6
     # interrupt: the last run's row never reached the journal, and the table was never written
     journal = out / sweeping.JOURNAL_NAME
     lines = journal.read_text().splitlines()
     dropped = json.loads(lines[-1])
     journal.write_text("\n".join(lines[:-1]) + "\n" + lines[-1][:20])  # a line cut short, too
     (out / sweeping.TABLE_NAME).unlink()
-    again = sweeping.sweep(scenario, varied, out, client=client, timeout=120, until_distance=600.0, progress=False)
-    assert [r["speed"] for r in again] == [60.0, 80.0, 100.0]
+    again = sweeping.sweep(scenario, varied, out, client=client, timeout=120, progress=False)
+    assert [r["speed_ft/s"] for r in again] == [60.0, 80.0, 100.0]
     kept = {r["run"]: r for r in map(json.loads, lines[:-1])}
     for row in again:
         if row["run"] in kept:  # not run again: the very same row, wall time included
@@ -109,3 +198,145 @@ def test_a_folder_with_other_files_or_another_sweep_is_refused(client, scenario,
     sweeping.sweep(scenario, {"speed": [60.0]}, out, client=client, until_distance=200.0, progress=False)
     with pytest.raises(sweeping.SweepError, match="different sweep"):
         sweeping.sweep(scenario, {"seed": [1, 2]}, out, client=client, until_distance=200.0, progress=False)
+
+
+def test_the_tire_files_travel_with_the_attribute_file(tmp_path):
+    # an attribute file naming one tire by a relative path and one by an absolute path, shipped as a bundle and
+    # written elsewhere: the slot start values read from the copy equal those read from the originals
+    from sdl_fmu.dynamics.tires import TIRE_DIRECTORY, slot_parameters
+
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "wet.tir").write_bytes((TIRE_DIRECTORY / "wet_asphalt.tir").read_bytes())
+    attributes = tmp_path / "mine" / "attributes.txt"
+    attributes.write_text(f"// mine\n0 = {TIRE_DIRECTORY / 'dry_asphalt.tir'}\n\n3 = 'wet.tir'  # wet\n")
+    bundle = sweeping.SHIPPED["tires"](attributes)
+    assert [name for name, _ in bundle.files] == ["attributes.txt", "tires/0-dry_asphalt.tir", "tires/1-wet.tir"]
+    # the temporary folder of a worker killed while writing (a process id that no longer exists) goes away
+    from sdl_fmu.fmu.cache import cache_directory
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    abandoned = cache_directory() / sweeping.SHIPPED_FOLDER / f".building-{dead.stdout.strip()}-x1y2"
+    abandoned.mkdir(parents=True)
+    local = sweeping.materialize(bundle)
+    assert local.parent.name == bundle.digest[:32] and local.parent.parent.name == sweeping.SHIPPED_FOLDER
+    assert not abandoned.exists()
+    assert slot_parameters(local)[:2] == slot_parameters(attributes)[:2]
+    assert sweeping.materialize(bundle) == local  # written once
+    assert local.read_text().splitlines()[1] == "0 = tires/0-dry_asphalt.tir"  # on its original line
+
+
+def test_a_sweep_with_a_tire_attribute_file_runs_as_a_single_run_does(client, scenario, tmp_path,
+                                                                     advanced_fmu):
+    # The attribute file sits in the user's folder beside its own tire, named by a relative path; the workers
+    # read the shipped copies. Its attribute 9 is beyond the FMU's 8 slots: one warning, which only a run that
+    # read this file gives. The sweep's row and a direct api.run agree exactly.
+    from sdl_fmu.dynamics.tires import TIRE_DIRECTORY
+
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "slippery.tir").write_bytes((TIRE_DIRECTORY / "ice.tir").read_bytes())
+    attributes = tmp_path / "mine" / "attributes.txt"
+    attributes.write_text("0 = slippery.tir\n9 = slippery.tir\n")
+    fixed = {"dynamics": "advanced", "fmu": str(advanced_fmu), "tires": str(attributes)}
+    rows = sweeping.sweep(scenario, {"until_distance": [300.0]}, tmp_path / "sweep", client=client,
+                          progress=False, **fixed)
+    assert rows[0]["status"] == "ok", rows[0]["error"]
+    direct = api.run(scenario, until_distance=300.0, **fixed)
+    assert rows[0]["warnings"] == len(direct.warnings) == 1 and "attribute 9" in direct.warnings[0]
+    assert rows[0]["final_time_s"] == direct.final["time_s"]
+    assert rows[0]["final_lateral_ft"] == direct.final["lateral"]
+
+
+def _stop(process: subprocess.Popen) -> None:
+    """Stops a process this test started, by its PID: SIGTERM, then SIGKILL if it lingers."""
+    if process.poll() is None:
+        os.kill(process.pid, signal.SIGTERM)
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.kill(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _wait_for(condition, processes, what: str, limit: float = 300.0) -> None:
+    """Waits until `condition()` holds; fails if one of `processes` ends first (or after `limit` s: a hang)."""
+    deadline = time.monotonic() + limit
+    while not condition():
+        for process in processes:
+            assert process.poll() is None, f"{process.args[:4]} ended (code {process.returncode}) before {what}"
+        assert time.monotonic() < deadline, f"no {what} within {limit:.0f} s"
+        time.sleep(0.05)
+
+
+@pytest.mark.slow
+def test_a_real_cluster_with_workers_elsewhere_runs_every_row_even_when_a_worker_dies(tmp_path, simple_fmu):
+    # A `dask scheduler` and two `dask worker` processes (no nanny: the worker is the process, and a killed
+    # worker stays dead) started in another folder, each with its own HOME and an empty FMU cache; the sweep
+    # names its scenario by a path relative to its own folder, which the workers do not have. Every run is held
+    # at its first step (the api's test hook) until the test has killed the worker of the first held run.
+    project, elsewhere = tmp_path / "project", tmp_path / "elsewhere"
+    (project / "scenarios").mkdir(parents=True)
+    (project / "scenarios" / "pass.sdl").write_text(SCENARIO)
+    elsewhere.mkdir()
+    hold = tmp_path / "hold"
+    hold.touch()
+    checkout = str(Path(sweeping.__file__).resolve().parents[1])
+    base = {key: value for key, value in os.environ.items()
+            if key not in ("SDL_FMU_CACHE", "XDG_CACHE_HOME", api.HOLD_VARIABLE, "PYTHONPATH")}
+    base["PYTHONPATH"] = checkout  # the code under test, wherever the process starts
+    scheduler_file = tmp_path / "scheduler.json"
+    processes = []
+    try:
+        processes.append(subprocess.Popen(
+            [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+             "--scheduler-file", str(scheduler_file)], cwd=elsewhere, env={**base, "HOME": str(tmp_path / "h0")},
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        _wait_for(lambda: '"address"' in (scheduler_file.read_text() if scheduler_file.exists() else "")
+                  and scheduler_file.read_text().rstrip().endswith("}"), processes, "the scheduler's address")
+        address = json.loads(scheduler_file.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        homes = [tmp_path / "home1", tmp_path / "home2"]
+        workers = []
+        for home in homes:
+            home.mkdir()
+            workers.append(subprocess.Popen(
+                [sys.executable, "-m", "dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard",
+                 "--host", "127.0.0.1"], cwd=elsewhere, env={**base, "HOME": str(home), api.HOLD_VARIABLE: str(hold)},
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        processes += workers
+        with distributed.Client(address, timeout=60) as watcher:
+            watcher.wait_for_workers(2, timeout=300)
+
+        sweep_command = subprocess.Popen(
+            [sys.executable, "-m", "sdl_fmu.cli", "sweep", "scenarios/pass.sdl", "--scheduler", address,
+             "--vary", "until_distance=300", "--vary", "speed=60:110:10", "--out", "table"], cwd=project,
+            env={**base, "SDL_FMU_CACHE": os.environ["SDL_FMU_CACHE"]}, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, text=True)
+        processes.append(sweep_command)
+        running = tmp_path / "hold.running"
+        _wait_for(lambda: running.exists() and running.read_text().endswith("\n"), processes, "a held run")
+        victim_pid = int(running.read_text().split()[0])
+        (victim,) = [worker for worker in workers if worker.pid == victim_pid]
+        os.kill(victim.pid, signal.SIGKILL)  # mid-run
+        victim.wait()
+        hold.unlink()  # the other worker's runs go on
+        stdout, stderr = sweep_command.communicate(timeout=600)
+        assert sweep_command.returncode == 0, stderr
+        assert stdout.splitlines()[0] == "pass.sdl: 6 runs: 6 ok, 0 failed, 0 timed out"
+    finally:
+        for process in reversed(processes):
+            _stop(process)
+
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(project / "table" / sweeping.TABLE_NAME).to_pylist()
+    assert [(row["run"], row["speed_ft/s"], row["status"]) for row in table] == [
+        (k, 60.0 + 10 * k, "ok") for k in range(6)]
+    assert all(row["final_distance_ft"] == pytest.approx(300.0, abs=1e-3) for row in table)
+    # the survivor got the FMU and the scenario as bytes, into its own cache under its own HOME: it built no FMU
+    (survivor,) = [home for home, worker in zip(homes, workers) if worker is not victim]
+    cache = survivor / ".cache" / "sdl-fmu"
+    assert sorted(path.name for path in cache.iterdir()) == [sweeping.SHIPPED_FOLDER]
+    shipped = sorted(path.name for path in (cache / sweeping.SHIPPED_FOLDER).glob("*/*"))
+    assert shipped == ["EgoVehicleSimple.fmu", "pass.sdl"]
+    assert list(elsewhere.iterdir()) == []
+    assert sorted(os.listdir(project)) == ["scenarios", "table"]

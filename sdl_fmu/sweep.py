@@ -290,19 +290,14 @@ def _summarise(result) -> dict:
     return row
 
 
-def column_names(varied: list[str], units: str, fmu: Path | None = None) -> dict[str, str]:
+def column_names(varied: list[str], units: str, model=None) -> dict[str, str]:
     """The table's column for each varied name, with its unit: `speed_ft/s`, `until_distance_m`,
     `until_time_s`, an FMU parameter's declared unit (`brake_decel_max_m/s2`); seeds and RSA values (a
     friction coefficient or an attribute number) have none."""
     from .units import length_label, speed_label
 
     units_of = {"speed": speed_label(units), "until_distance": length_label(units), "until_time": "s"}
-    declared = {}
-    if fmu is not None:
-        from . import api
-
-        declared = {v.name: v.unit for v in api._description(Path(fmu)).modelVariables
-                    if v.unit and v.unit != "1"}
+    declared = {} if model is None else {v.name: v.unit for v in model.variables.values() if v.unit and v.unit != "1"}
     columns = {}
     for name in varied:
         unit = units_of.get(name) if name in RUN_OPTIONS else (
@@ -461,7 +456,7 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
             "files": {option: bundle.digest for option, bundle in bundles.items()}}
     done = _check_folder(out, spec)
-    columns = column_names(list(varied), loaded.units, Path(fixed["fmu"]))
+    columns = column_names(list(varied), loaded.units, model)
     runs = combinations(varied)
     finished = {row["key"]: row for row in done}
     todo = [(index, values) for index, values in enumerate(runs) if _key(values) not in finished]

@@ -302,11 +302,11 @@ def test_foreign_car_sweeps_on_dask(foreign_vehicle, tmp_path):
                                   progress=False, fmu=fmu, vehicle=map_path)
     finally:
         cluster.close()
-    assert [(row["speed"], row["status"], row["collisions"]) for row in rows] == [
+    assert [(row["speed_ft/s"], row["status"], row["collisions"]) for row in rows] == [
         (70.0, "ok", 1), (80.0, "ok", 1), (90.0, "ok", 1)]
     for row in rows:
-        assert row["final_speed"] == pytest.approx(row["speed"], abs=1e-9)
-        assert -NUMERIC <= row["final_time_s"] - 1600.0 / row["speed"] <= MIN_LOOKAHEAD + NUMERIC
+        assert row["final_speed_ft/s"] == pytest.approx(row["speed_ft/s"], abs=1e-9)
+        assert -NUMERIC <= row["final_time_s"] - 1600.0 / row["speed_ft/s"] <= MIN_LOOKAHEAD + NUMERIC
 
 
 @pytest.mark.parametrize("scenario, options", [("brake_examples", {"speed": 100.0}), ("demo", {}), ("head_on", {})])

@@ -63,7 +63,7 @@ CASES += [_case(argv, 2, needle) for argv, needle in [
     (["run", "{good}", "--out"], "--out"), (["run", "{good}", "--param"], "--param"),
     (["run", "{good}", "--fmu"], "--fmu"), (["run", "{good}", "--tires"], "--tires"),
     (["run", "{good}", "extra"], "extra"), (["check"], "scenario"), (["check", "{good}", "{good}"], "unrecognized"),
-    (["check", "{good}", "--dynamics", "simple"], "--dynamics"), (["verify", "--fmu"], "--fmu"),
+    (["check", "{good}", "--dynamics", "turbo"], "--dynamics"), (["verify", "--fmu"], "--fmu"),
     (["verify", "extra"], "extra"), (["build", "--fmi-version", "4"], "--fmi-version"),
     (["build", "--fmi-version", "x"], "--fmi-version"), (["build", "--dynamics", "x"], "--dynamics"),
     (["build", "--out"], "--out"), (["run", "{good}", "--tires", "{ws}/tires/attributes.txt", "--fmu", "{fmu}"],

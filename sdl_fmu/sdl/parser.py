@@ -81,7 +81,7 @@ _ROAD_FIELDS = ("lane width", "lanes", "lanes right of the dividing line")
 # --- limits of the format (README, Scenarios): checked on the text, before anything grows with it ----
 
 MAX_NUMBER_CHARS = 32  # characters of one number (sign, digits, point and exponent): 17 digits make a double
-MAX_SHOWN_CHARS = 24  # a field longer than this is shown shortened in an error
+MAX_SHOWN_CHARS = 40  # a field longer than this is shown shortened in an error
 MAX_LENGTH = 1.0e6  # m: every distance, gap, lateral position and BRK distance (the longest run is 540 km)
 MAX_SPEED = 1.0e3  # m/s: every speed (A speeds, *-offsets, the BRK speed thresholds)
 MAX_DURATION = 1.0e6  # s: closure and transition times, the BRK time threshold (a run lasts at most 3600 s)
@@ -497,8 +497,8 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
                         report("distance", f"{_shown(distance_text)}: events triggered by '@' are not simulated "
                                "(sdl-fmu fires events at a distance); --skip-unsupported runs the file without them")
                     continue
-                if skip_unsupported:
-                    skip(name.upper(), f"event code '{name.upper() if name == code_text else name}'", number)
+                if skip_unsupported:  # a long-form name is shown as first written, a code in capitals
+                    skip(name.upper(), f"event code '{name if ' ' in name else name.upper()}'", number)
                 else:
                     report("event code", f"unsupported event code {_shown(code_text)} (supported: {supported}); "
                            "--skip-unsupported runs the file without it")

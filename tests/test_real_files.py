@@ -106,3 +106,15 @@ def test_supported_events_keep_their_strict_checks_with_skip(text, field):
     with pytest.raises(ScenarioError) as caught:
         parse_text(text, "s.sdl", skip_unsupported=True)
     assert [e.field for e in caught.value.errors] == [field]
+
+
+def test_settings_lines_are_skipped_whatever_their_value_holds():
+    text = "Config_Colors = 255, 255, 255\nConfig_Start_Y = 0{0}\nConfig_Colors = 0, 0, 0\n10,BRK,50,0,1\n"
+    scenario = parse_text(text, skip_unsupported=True)
+    assert [e.code for e in scenario.events] == ["BRK"]
+    assert scenario.warnings == ("line 1: settings line 'Config_Colors = ...' is not simulated: skipped (lines 1, 3)",
+                                 "line 2: settings line 'Config_Start_Y = ...' is not simulated: skipped (line 2)")
+    with pytest.raises(ScenarioError) as caught:
+        parse_text(text, "s.sdl")
+    assert [(e.line, e.field) for e in caught.value.errors] == [(1, "settings line"), (2, "settings line"),
+                                                                (3, "settings line")]

@@ -450,20 +450,21 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
                 if len(errors) >= MAX_ERRORS:
                     raise _TooManyErrors
 
+            setting = _SETTING.match(content)  # 'Name = value' (the value may hold commas): never an event
+            if setting:
+                if skip_unsupported:
+                    skip(f"={setting[1]}", f"settings line '{_shown(setting[1])[1:-1]} = ...'", number)
+                else:
+                    report("settings line", f"'{_shown(setting[1])[1:-1]} = ...' (a STISIM configuration "
+                           "setting) is not simulated; --skip-unsupported runs the file without it")
+                continue
             if "," not in content:
-                setting = _SETTING.match(content)
                 if content.lower() in _UNITS_HEADERS:
                     if first:
                         units = _UNITS_HEADERS[content.lower()]
                     else:
                         report("units header", f"{_shown(content)} must be the first line that is not blank or a "
                                "comment")
-                elif setting:
-                    if skip_unsupported:
-                        skip(f"={setting[1]}", f"settings line '{setting[1]} = ...'", number)
-                    else:
-                        report("settings line", f"'{_shown(setting[1])[1:-1]} = ...' (a STISIM configuration "
-                               "setting) is not simulated; --skip-unsupported runs the file without it")
                 elif first and not _NUMBER.fullmatch(content):
                     report("units header", f"{_shown(content)} is not a units header; expected English or Metric, "
                            "or an event line '<distance>,<CODE>,<parameters>'")

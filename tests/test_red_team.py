@@ -154,10 +154,12 @@ def test_a_whole_number_field_with_too_many_digits_is_one_short_line(tmp_path, s
     ("0,ROAD,1e308,2,1", "ROAD parameter 1 (lane width)"),
     ("0,ROAD,12,100000,1", "ROAD parameter 2 (lanes)"),
     ("0,ROAD,12,1000000,1", "ROAD parameter 2 (lanes)"),
+    ("0,ROAD,12,200,99", "ROAD parameter 3 (lanes right of the dividing line)"),  # 101 left: lane -101 = shoulder
 ])
 def test_values_the_plot_could_not_draw_are_refused_up_front(tmp_path, simple_fmu, event, field):
     result, path, out = run_case(tmp_path, simple_fmu, f"English\n{event}\n")
-    assert "beyond the format's limit" in assert_refused(result, path, out, 2, field)
+    line = assert_refused(result, path, out, 2, field)
+    assert "beyond the format's limit" in line or "at most 100 (lane numbers 101 and -101 are the shoulders)" in line
 
 
 def test_a_1mb_bad_field_is_shown_shortened(tmp_path, simple_fmu):
@@ -218,13 +220,14 @@ EXTREMES = {
     "BRK relative": f"100,BRK,100,3,{S_MAX}\n200,RSA,1,8",
     "BRK tiny": "100,BRK,0,1,0.000000001\n200,BRK,100,0,0.000001",
     "RSA": "100,RSA,1,1000,-1,0,101,1000,-101,0," + "9" * MAX_NUMBER_CHARS + ",5\n300,RSA,1,0\n500,RSA,1,0.0001",
-    "ROAD widest": "0,ROAD,328,1000,1000\n100,RSA,1,3,1000,1",
-    "ROAD narrowest": "0,ROAD,0.000001,1000,1\n100,RSA,1,3,-999,1,101,2",
+    "ROAD widest": f"0,ROAD,328,{MAX_LANES},{MAX_LANES // 2}\n100,RSA,1,3,100,1,-100,5",
+    "ROAD narrowest": f"0,ROAD,0.000001,{MAX_LANES},{MAX_LANES // 2}\n100,RSA,1,3,-999,1,101,2",
+    "ROAD one side": "0,ROAD,12,100,100\n100,RSA,1,3,100,1,-1,5,-101,2",
     "ROAD many lanes": f"0,ROAD,12,{MAX_LANES},{MAX_LANES // 2}\n100,A,20,1000,*0,*1~10,5,*12,20,2",
     "long digit strings": f"{'0' * (MAX_NUMBER_CHARS - 3)}100,BRK,{'0' * (MAX_NUMBER_CHARS - 3)}100,"
                           f"{'0' * (MAX_NUMBER_CHARS - 1)}0,{'3.' + '0' * (MAX_NUMBER_CHARS - 2)}",
-    "long RSA line": "0,ROAD,12,1000,100\n100,RSA," + ",".join(f"{lane},{lane % 9}" for lane in  # every lane
-                                                              [*range(1, 101), *range(-1, -901, -1), 101, -101]),
+    "long RSA line": f"0,ROAD,12,{MAX_LANES},{MAX_LANES // 2}\n100,RSA," + ",".join(  # every lane and shoulder
+        f"{lane},{lane % 9}" for lane in [*range(1, 101), *range(-1, -101, -1), 101, -101]),
 }
 
 
@@ -336,7 +339,7 @@ def test_many_bad_lines_stop_after_a_bounded_report(tmp_path, simple_fmu):
 
 def test_the_plot_draws_the_same_road_however_many_lanes_nothing_uses(simple_fmu):
     # The cost of the road view follows what is drawn: with the ego in lane 1 and no other traffic, a road of
-    # 10, 100 or 1000 lanes shows the same lanes near the path, so the same artists with the same segments.
+    # 20, 100 or 200 lanes shows the same lanes near the path, so the same artists with the same segments.
     import dataclasses
 
     from matplotlib.figure import Figure
@@ -346,7 +349,7 @@ def test_the_plot_draws_the_same_road_however_many_lanes_nothing_uses(simple_fmu
 
     raw = api.run(api.load("brake_examples"), fmu=simple_fmu, until_time=2.0, plot=False).raw
     drawn = []
-    for lanes in (10, 100, 1000):
+    for lanes in (20, 100, MAX_LANES):
         result = dataclasses.replace(raw, road=Road(0, 0.0, raw.road.lane_width, lanes, lanes // 2))
         ax = Figure().add_subplot()
         plots._draw_road(ax, result, 0.0, 200.0, plots._lateral_limits(result))

@@ -86,7 +86,8 @@ MAX_LENGTH = 1.0e6  # m: every distance, gap, lateral position and BRK distance 
 MAX_SPEED = 1.0e3  # m/s: every speed (A speeds, *-offsets, the BRK speed thresholds)
 MAX_DURATION = 1.0e6  # s: closure and transition times, the BRK time threshold (a run lasts at most 3600 s)
 MAX_LANE_WIDTH = 100.0  # m
-MAX_LANES = 1000  # ROAD lanes, both sides together
+MAX_LANES_PER_SIDE = RIGHT_SHOULDER - 1  # lanes 1..100 and -1..-100: the numbers +-101 are the shoulders
+MAX_LANES = 2 * MAX_LANES_PER_SIDE  # ROAD lanes, both sides together
 MAX_SURFACE_VALUE = 1000.0  # RSA value: 10 x mu (Simple) or a surface attribute number (Advanced)
 _LIMITS = {"length": MAX_LENGTH, "speed": MAX_SPEED, "time": MAX_DURATION}
 
@@ -358,6 +359,11 @@ def _road(line: int, distance: float, params: list[str], units: str, report: Rep
     if lanes_right is not None and lanes is not None and not 1 <= lanes_right <= lanes:
         report(field[2], f"{_shown(params[2])} must be from 1 to the number of lanes ({lanes}): the ego starts in "
                "lane 1")
+        lanes_right = None
+    # Lane 101 would be the right shoulder's number, -101 the left's: at most 100 lanes on either side.
+    if lanes_right is not None and lanes is not None and max(lanes_right, lanes - lanes_right) > MAX_LANES_PER_SIDE:
+        report(field[2], f"{_shown(params[2])} leaves {max(lanes_right, lanes - lanes_right)} lanes on one side; at "
+               f"most {MAX_LANES_PER_SIDE} (lane numbers {RIGHT_SHOULDER} and {LEFT_SHOULDER} are the shoulders)")
         lanes_right = None
     if width is None or lanes is None or lanes_right is None:
         return None

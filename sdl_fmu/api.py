@@ -93,12 +93,24 @@ def shipped_scenarios() -> dict[str, Path]:
 
 
 def resolve_scenario(name: str | os.PathLike) -> Path:
-    """A scenario path: the file if it exists, else a shipped example named `name` (with or without .sdl)."""
-    path = Path(name)
-    if os.path.lexists(path) or len(path.parts) != 1:
+    """A scenario path: `name` itself if a file of that name exists, or if it has a folder part; else the shipped
+    example of that short name (with or without .sdl). A short name that is also a folder here, or whose other
+    spelling (with or without .sdl) is a file here, is ambiguous: a ScenarioError of one line."""
+    path, raw = Path(name), os.fspath(name)
+    if any(separator in raw for separator in {"/", os.sep}) or os.path.isfile(path):  # ./demo is a path
         return path
-    shipped = shipped_scenarios()
-    return shipped.get(path.name.removesuffix(".sdl"), path)
+    short = path.name.removesuffix(".sdl")
+    shipped = shipped_scenarios().get(short)
+    if shipped is None:
+        return path
+    here = [spelling for spelling in (path.name, short, f"{short}.sdl") if os.path.lexists(spelling)]
+    if here:
+        what = "a folder" if os.path.isdir(here[0]) else "a file"
+        raise ScenarioError([SdlError(os.fspath(name), 0, "file",
+                                      f"ambiguous: '{here[0]}' is {what} in the working folder and '{short}' is also "
+                                      f"a shipped example ({shipped}); give a path such as ./{here[0]}, or the "
+                                      "example's path")])
+    return shipped
 
 
 @functools.lru_cache(maxsize=None)
@@ -108,9 +120,10 @@ def _vehicle_table():
     return load_vehicle_table(default_vehicle_table_path())
 
 
-def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False) -> Scenario:
+def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: str | None = None) -> Scenario:
     """Reads and checks a scenario file (or a shipped example by name); raises ScenarioError listing every
-    problem. skip_unsupported: event codes sdl-fmu does not simulate become warnings (one per code)."""
+    problem. skip_unsupported: lines sdl-fmu does not simulate become warnings (one per code). dynamics:
+    also apply that model's rules (advanced: RSA values are whole attribute numbers), as `run` does."""
     path = resolve_scenario(scenario)
     if not os.path.lexists(path) and isinstance(scenario, str):
         names = ", ".join(shipped_scenarios())
@@ -120,6 +133,10 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False) -> Scen
     problems = check_models(loaded, _vehicle_table())
     if problems:
         raise ScenarioError(problems)
+    if dynamics is not None and dynamics not in MODELS:
+        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(MODELS)}")
+    if dynamics == "advanced":
+        _whole_attributes(loaded)
     return loaded
 
 

@@ -46,7 +46,7 @@ def _check(args) -> int:
     from . import api
     from .sdl import describe
 
-    scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported)
+    scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics)
     print(describe(scenario))
     for warning in scenario.warnings:
         print(f"warning: {warning}", file=sys.stderr)
@@ -169,8 +169,11 @@ def parser() -> argparse.ArgumentParser:
 
     check = commands.add_parser("check", help="parse a scenario and report, run nothing")
     check.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    check.add_argument("--dynamics", choices=DYNAMICS, default="simple",
+                       help="apply this model's rules, as run --dynamics does (advanced: RSA values are whole "
+                            "surface attribute numbers)")
     check.add_argument("--skip-unsupported", action="store_true",
-                       help="skip event codes sdl-fmu does not simulate (one warning per code)")
+                       help="skip lines sdl-fmu does not simulate (one warning per code)")
     check.set_defaults(handler=_check)
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
@@ -190,7 +193,7 @@ def parser() -> argparse.ArgumentParser:
                      help="FMU start value, SI, within its declared min/max (repeatable)")
     run.add_argument("--tires", help="Tire Attribute File (advanced dynamics)")
     run.add_argument("--skip-unsupported", action="store_true",
-                     help="skip event codes sdl-fmu does not simulate (one warning per code)")
+                     help="skip lines sdl-fmu does not simulate (one warning per code)")
     run.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)
@@ -212,7 +215,7 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
     sweep.add_argument("--timeout", type=_number, default=600.0, help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",
-                       help="skip event codes sdl-fmu does not simulate (one warning per code)")
+                       help="skip lines sdl-fmu does not simulate (one warning per code)")
     sweep.add_argument("--out", help="table folder: new, empty or an interrupted sweep's (resumed); "
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)

@@ -7,6 +7,7 @@ caller's pyplot backend is left alone.
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -297,8 +298,15 @@ def _surface_style(result: RunResult):
     return color, None, handles
 
 
-def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float, float]:
-    """Lanes, shoulders, lane lines and RSA patches between stations x_min..x_max (scenario units)."""
+MAX_LANE_LINES = 200  # lane lines drawn at most; more within the view would be a grey smear anyway
+NEAR_LANES = 4  # lanes shown beyond the outermost path on either side (the rest of a wide road is not drawn)
+
+
+def _draw_road(ax, result: RunResult, x_min: float, x_max: float,
+               shown: tuple[float, float]) -> tuple[float, float]:
+    """Lanes, shoulders, lane lines and RSA patches between stations x_min..x_max and lateral positions
+    shown[0]..shown[1] (scenario units): what lies beyond is not drawn, so the cost does not grow with lanes
+    nothing uses."""
     road, units = result.road, result.units
     width = from_si(road.lane_width, units)
     left, right = from_si(road.left_edge, units), from_si(road.right_edge, units)
@@ -313,40 +321,57 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float) -> tuple[float
     for section in result.surfaces:
         start = from_si(section.start, units)
         end = x_max + span if section.end is None else from_si(section.end, units)
-        if end < x_min or start > x_max or section.lane not in road.valid_lanes:  # a lane the road lacks
+        if end < x_min or start > x_max or not road.has_lane(section.lane):  # a lane the road lacks
+            continue
+        low = from_si(road.lane_center(section.lane), units) - width / 2
+        if low > shown[1] or low + width < shown[0]:
             continue
         start, end = max(start, x_min - span), min(end, x_max + span)
-        low = from_si(road.lane_center(section.lane), units) - width / 2
         boxes.append(((start, low), (start, low + width), (end, low + width), (end, low)))
         colors.append(color(section.value))
     if boxes:
         ax.add_collection(PolyCollection(boxes, facecolors=colors, alpha=0.6, lw=0, zorder=1), autolim=False)
 
     line = dict(zorder=2, solid_capstyle="butt")
+    low, high = shown
     for edge in (left, right):
-        ax.axhline(edge, color="black", lw=1.3, **line)
+        if low <= edge <= high:
+            ax.axhline(edge, color="black", lw=1.3, **line)
     for edge in (left - width, right + width):
-        ax.axhline(edge, color="gray", lw=0.6, **line)
-    for k in range(1, road.lanes_right):
-        ax.axhline(k * width, color="dimgray", lw=1.0, ls=(0, (6, 6)), **line)
-    for k in range(1, road.lanes_left):
-        ax.axhline(-k * width, color="dimgray", lw=1.0, ls=(0, (6, 6)), **line)
-    if road.lanes_left and road.lanes_right:  # double yellow: a wide yellow line split by a lane-coloured one
+        if low <= edge <= high:
+            ax.axhline(edge, color="gray", lw=0.6, **line)
+    # the lane lines k * width inside the view only: k from the first line above `low` to the last below `high`
+    first_k = max(-road.lanes_left + 1, math.ceil(low / width))
+    last_k = min(road.lanes_right - 1, math.floor(high / width))
+    if last_k - first_k + 1 <= MAX_LANE_LINES:
+        lines = [k * width for k in range(first_k, last_k + 1) if k != 0]
+        if lines:
+            ax.hlines(lines, x_min - span, x_max + span, colors="dimgray", lw=1.0, linestyles=(0, (6, 6)), zorder=2)
+    if road.lanes_left and road.lanes_right and low <= 0.0 <= high:  # double yellow: a wide yellow line split by a lane-coloured one
         ax.axhline(0.0, color="#e6b800", lw=4.0, **line)
         ax.axhline(0.0, color=LANE_FILL, lw=1.2, **line)
     return left - width, right + width
 
 
-def _lateral_limits(result: RunResult, outer_left: float, outer_right: float) -> tuple[float, float]:
-    """Lateral range shown: the road with shoulders, widened for any path that leaves it."""
-    lows, highs = [outer_left], [outer_right]
+def _lateral_limits(result: RunResult) -> tuple[float, float]:
+    """Lateral range shown: the road with shoulders as far as it lies within NEAR_LANES lanes of the ego's and
+    the vehicles' paths, widened for any path that leaves it."""
+    road, units = result.road, result.units
+    width = from_si(road.lane_width, units)
+    outer_left = from_si(road.left_edge, units) - width
+    outer_right = from_si(road.right_edge, units) + width
+    lows, highs = [], []
     for series in [result.columns["lateral"]] + [track.lateral for track in result.vehicles]:
-        values = from_si(np.asarray(series, dtype=float), result.units)
+        values = from_si(np.asarray(series, dtype=float), units)
         if np.isfinite(values).any():
             lows.append(float(np.nanmin(values)))
             highs.append(float(np.nanmax(values)))
-    pad = 0.04 * (max(highs) - min(lows))
-    return min(lows) - pad, max(highs) + pad
+    if not lows:
+        lows, highs = [outer_left], [outer_right]
+    low = min(max(outer_left, min(lows) - NEAR_LANES * width), min(lows))
+    high = max(min(outer_right, max(highs) + NEAR_LANES * width), max(highs))
+    pad = 0.04 * (high - low) if high > low else width
+    return low - pad, high + pad
 
 
 def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, annotate: bool) -> list:
@@ -450,7 +475,15 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
 
 
 def plot_run(result: RunResult, path: Path) -> None:
-    """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above."""
+    """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above.
+    Values at the format's extremes (km-wide views of a lane) make matplotlib's arithmetic overflow harmlessly:
+    its RuntimeWarnings are not the user's concern, so they are not printed."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        _plot_run(result, path)
+
+
+def _plot_run(result: RunResult, path: Path) -> None:
     units = result.units
     length = length_label(units)
     time = np.asarray(result.columns["time"], dtype=float)
@@ -479,13 +512,13 @@ def plot_run(result: RunResult, path: Path) -> None:
     xs = [station] + [from_si(np.asarray(track.station, dtype=float), units) for track in result.vehicles]
     finite = np.concatenate([x[np.isfinite(x)] for x in xs] + [np.zeros(1)])
     x_min, x_max = float(finite.min()), float(finite.max())
-    road_width = from_si(result.road.right_edge - result.road.left_edge + 2 * result.road.lane_width, units)
+    low, high = _lateral_limits(result)
+    road_width = high - low
     pad = max(0.01 * (x_max - x_min), 2.0 * road_width - 0.5 * (x_max - x_min))  # short runs: show some road
     x_min, x_max = x_min - pad, x_max + pad
-    outer = _draw_road(road_ax, result, x_min, x_max)
+    _draw_road(road_ax, result, x_min, x_max, (low, high))
     handles = _draw_paths(road_ax, result, brk_runs, x_min, x_max, annotate=True)
     _, mappable, surface_handles = _surface_style(result)
-    low, high = _lateral_limits(result, *outer)
     road_ax.set_xlim(x_min, x_max)
     road_ax.set_ylim(high, low)  # + right drawn downward: seen from above, driving left to right
     road_ax.set_ylabel(f"lateral [{length}]\n(+ right, drawn down)")
@@ -499,9 +532,9 @@ def plot_run(result: RunResult, path: Path) -> None:
         index, what = focus
         centre = from_si(float(result.columns["station"][index]), units)
         speed = from_si(abs(float(result.columns["v"][index])), units)
-        half = max(4.0 * (outer[1] - outer[0]), 4.0 * speed)
+        half = max(4.0 * (high - low), 4.0 * speed)
         z_min, z_max = centre - half, centre + half
-        _draw_road(zoom_ax, result, z_min, z_max)
+        _draw_road(zoom_ax, result, z_min, z_max, (low, high))
         _draw_paths(zoom_ax, result, brk_runs, z_min, z_max, annotate=True)
         _draw_footprints(zoom_ax, result, index)
         zoom_ax.set_xlim(z_min, z_max)

@@ -64,7 +64,7 @@ CASES += [_case(argv, 2, needle) for argv, needle in [
     (["run", "{good}", "--out"], "--out"), (["run", "{good}", "--param"], "--param"),
     (["run", "{good}", "--fmu"], "--fmu"), (["run", "{good}", "--tires"], "--tires"),
     (["run", "{good}", "extra"], "extra"), (["check"], "scenario"), (["check", "{good}", "{good}"], "unrecognized"),
-    (["check", "{good}", "--dynamics", "simple"], "--dynamics"), (["verify", "--fmu"], "--fmu"),
+    (["check", "{good}", "--dynamics", "turbo"], "--dynamics"), (["verify", "--fmu"], "--fmu"),
     (["verify", "extra"], "extra"), (["build", "--fmi-version", "4"], "--fmi-version"),
     (["build", "--fmi-version", "x"], "--fmi-version"), (["build", "--dynamics", "x"], "--dynamics"),
     (["build", "--out"], "--out"), (["run", "{good}", "--tires", "{ws}/tires/attributes.txt", "--fmu", "{fmu}"],
@@ -94,6 +94,10 @@ BAD_LINES = [
     "0,A,20,100,-6,*1~99", "0,A,20,100,-6,1,0,-6,20,1", "0,A,20,100,-6,1,5,-6,20,-1", "0,A,20,100,*,1",
     "0,A,20,*100,-6,1", "10,ROAD,12,2,1", "0,ROAD,0,2,1", "0,ROAD,12,0,0", "0,ROAD,12,2,3", "0,ROAD,12,2",
     "10,ES,1", "Metric units", "just words", "10",
+    # issue 21: format limits, ASCII digits, and what real STISIM files hold (errors without --skip-unsupported)
+    "10,BRK,\uff15\uff10,0,1", "3280840,ES", "10,RSA,1,1001", "0,ROAD,12,1001,1", "0,ROAD,329,2,1",
+    "10,BRK,50,0," + "9" * 40, "0,A,20,100,-6,*1~" + "9" * 33, "10,Signal Light,2000,1", "10,Pedestrian#5,1",
+    "@10,BRK,50,0,1", "Config_Start_Y = 0{0}", "0,A#3,20,100,-6,1", "10,BRK,100{1},0,3",
 ]
 for index, line in enumerate(BAD_LINES):
     name = f"bad{index:02d}.sdl"
@@ -103,9 +107,9 @@ for index, line in enumerate(BAD_LINES):
 # a scenario that is only wrong for advanced dynamics: a fractional surface attribute
 BAD_FILES["fraction.sdl"] = b"100,RSA,1,2.5\n"
 CASES.append(_case(["run", "{ws}/fraction.sdl", "--dynamics", "advanced"], 1, "{ws}/fraction.sdl:1: "))
-# several problems: one line each (line 3 has a decreasing distance and an unsupported code)
-BAD_FILES["three.sdl"] = b"100,BRK,50,9,1\n50,ES\n60,XYZ\n"
-CASES.append(_case(["run", "{ws}/three.sdl"], 1, "{ws}/three.sdl:", lines=4))
+# several problems: one line each (a bad threshold, an unsupported code, an event beyond ES)
+BAD_FILES["three.sdl"] = b"100,BRK,50,9,1\n50,ES\n60,XYZ\n70,RSA,1,4\n"
+CASES.append(_case(["run", "{ws}/three.sdl"], 1, "{ws}/three.sdl:", lines=3))
 
 # --- FMU files that are not (usable) FMUs ---------------------------------------------------------------
 FMU_CASES = ["missing.fmu", "text.fmu", "empty.fmu", "folder", "/dev/zero", "nomd.fmu", "badxml.fmu",

@@ -232,7 +232,6 @@ ERRORS = [
     ("-5,ES", 1, "distance", "'-5' must be >= 0"),
     ("1e999,ES", 1, "distance", "too large"),
     ("nan,ES", 1, "distance", "'nan' is not a number"),
-    ("100,BRK,50,0,1\n\n90,BRK,50,0,1", 3, "distance", "90 is less than 100 on line 1"),
     # ROAD
     ("10,ROAD,12,2,1", 1, "distance", "ROAD must be at distance 0"),
     ("0,ROAD,12,2,1\n0,ROAD,12,4,2", 2, "event code", "a second ROAD (the first is on line 1)"),
@@ -244,7 +243,8 @@ ERRORS = [
     ("0,ROAD,12,2,0", 1, "ROAD parameter 3 (lanes right of the dividing line)", "the ego starts in lane 1"),
     # ES
     ("10,ES\n20,ES", 2, "event code", "a second ES (the first is on line 1)"),
-    ("10,ES\n20,BRK,50,0,1", 2, "event code", "BRK after ES on line 1; ES must be the last event"),
+    ("10,ES\n20,BRK,50,0,1", 2, "distance", "BRK at 20 is at or beyond the ES on line 1: it would never fire"),
+    ("10,BRK,50,0,1\n10,ES\n10,RSA,1,4", 3, "distance", "RSA at 10 is at or beyond the ES on line 2"),
     ("10,ES,5", 1, "ES parameters", "ES takes no parameters; got 1"),
     # BRK
     ("10,BRK,50,0", 1, "BRK parameters", "BRK takes 3 parameters"),

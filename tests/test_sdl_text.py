@@ -61,7 +61,7 @@ def test_undecodable_text_is_one_error_on_its_line(tmp_path, data, line, reason)
 
 
 def test_every_error_position_is_a_line_number(tmp_path):
-    lines = ["Metric", "// comment", "10,BRK,50,9,1", "", "20,XYZ", "30,RSA,1", "5,ES"]
+    lines = ["Metric", "// comment", "10,BRK,50,9,1", "", "20,XYZ", "30,RSA,1", "5,ES,1"]
     for encoding in ("utf-8", "utf-16", "cp1252"):
         text = "\r\n".join(lines) + "\r\n// caf\u00e9\r\n"
         with pytest.raises(ScenarioError) as caught:

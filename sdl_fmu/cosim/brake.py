@@ -34,17 +34,18 @@ class BrakeHold:
         return None
 
     def earliest_release(self, state: EgoState, acceleration: float) -> float:
-        """A lower bound on the instant the brakes could come off, with |dv/dt| <= acceleration; the time
-        threshold is that instant exactly (the master steps to it)."""
+        """A lower bound on the instant the brakes could come off, with |dv/dt| <= acceleration: the earlier of
+        the threshold's bound and the stop's (the seed: a car braked to a complete stop is released, whatever
+        the threshold; a threshold beyond the stop, such as a drop larger than the onset speed, never binds).
+        The time threshold is that instant exactly (the master steps to it)."""
         threshold, magnitude = self.event.threshold, self.event.magnitude
         stop = state.time + state.v / acceleration
         if threshold == "time":
-            return min(self.time_on + magnitude, stop)
-        if threshold == "distance":
-            margin = self.distance_on + magnitude - state.s
-            return min(state.time + reach_time_scalar(margin, state.v, acceleration), stop)
-        if threshold == "velocity":
-            return state.time + max(state.v - magnitude, 0.0) / acceleration
-        if threshold == "relative_velocity":
-            return state.time + max(state.v - (self.speed_on - magnitude), 0.0) / acceleration
-        return stop
+            reach = self.time_on + magnitude
+        elif threshold == "distance":
+            reach = state.time + reach_time_scalar(self.distance_on + magnitude - state.s, state.v, acceleration)
+        elif threshold == "velocity":
+            reach = state.time + max(state.v - magnitude, 0.0) / acceleration
+        else:  # relative_velocity: the speed must fall to speed_on - magnitude, which may be below 0
+            reach = state.time + max(state.v - (self.speed_on - magnitude), 0.0) / acceleration
+        return min(reach, stop)

@@ -111,6 +111,11 @@ class Road:
     def lanes_left(self) -> int:
         return self.lanes - self.lanes_right
 
+    def has_lane(self, lane: int) -> bool:
+        """Whether an event may name this lane (arithmetic: no list of the road's lanes is built)."""
+        return 1 <= lane <= self.lanes_right or 1 <= -lane <= self.lanes_left or lane in (RIGHT_SHOULDER,
+                                                                                          LEFT_SHOULDER)
+
     @property
     def valid_lanes(self) -> tuple[int, ...]:
         """Every lane number an event may name: right lanes, left lanes, then both shoulders."""
@@ -128,8 +133,9 @@ class Road:
 
     def lane_center(self, lane: int) -> float:
         """Lateral position of a lane's centre; a shoulder is taken as one lane width beyond the edge."""
-        if lane not in self.valid_lanes:
-            raise ValueError(f"lane {lane} is not on this road (lanes {self.valid_lanes})")
+        if not self.has_lane(lane):
+            raise ValueError(f"lane {lane} is not on this road ({self.lanes_right} right, {self.lanes_left} left and "
+                             "the shoulders)")
         if lane == RIGHT_SHOULDER:
             return self.right_edge + self.lane_width / 2
         if lane == LEFT_SHOULDER:
@@ -164,7 +170,8 @@ DEFAULT_ROAD = Road(line=0, distance=0.0, lane_width=to_si(12.0, ENGLISH), lanes
 
 @dataclass(frozen=True, slots=True)
 class Scenario:
-    """A parsed scenario file: its units, road layout and events in file order (ROAD excluded)."""
+    """A parsed scenario file: its units, road layout and events in the order they take effect: by distance,
+    file order breaking ties (ROAD excluded)."""
 
     path: str
     units: str

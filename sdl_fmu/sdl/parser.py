@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import io
 import math
 import os
 import re
@@ -59,17 +60,56 @@ class _Invalid(Exception):
 
 Report = Callable[[str, str], None]
 
+# Only ASCII digits are digits: [0-9], never \d (which also matches '１', '٣', ...).
 _CODE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
-_NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
-_WHOLE = re.compile(r"[+-]?\d+")
+# What real STISIM files also hold, read so that --skip-unsupported can skip it: long-form event names
+# ('Crash Settings'), labels ('Pedestrian#5'), and settings lines ('Config_Start_Y = 0{0}').
+_LONG_CODE = re.compile(r"([A-Za-z][A-Za-z0-9_]*(?:[ \t]+[A-Za-z0-9_]+)*)(?:#([0-9]+))?")
+_SETTING = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\s*=(?!=)")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_WHOLE = re.compile(r"[+-]?[0-9]+")
 _CLOSURE = re.compile(rf"({_NUMBER.pattern})\s*([FfBb]?)")
-_MODEL_RANGE = re.compile(r"\*\s*([+-]?\d+)\s*~\s*([+-]?\d+)")
+_MODEL_RANGE = re.compile(r"\*\s*([+-]?[0-9]+)\s*~\s*([+-]?[0-9]+)")
 _UNITS_HEADERS = {"english": ENGLISH, "metric": METRIC}
 
 _A_FIELDS = ("speed", "gap", "lateral position", "model")
 _ACTION_FIELDS = ("closure time", "lateral position", "speed", "transition time")
 _BRK_FIELDS = ("pedal %", "threshold type", "magnitude")
 _ROAD_FIELDS = ("lane width", "lanes", "lanes right of the dividing line")
+
+
+# --- limits of the format (README, Scenarios): checked on the text, before anything grows with it ----
+
+MAX_NUMBER_CHARS = 32  # characters of one number (sign, digits, point and exponent): 17 digits make a double
+MAX_SHOWN_CHARS = 40  # a field longer than this is shown shortened in an error
+MAX_LENGTH = 1.0e6  # m: every distance, gap, lateral position and BRK distance (the longest run is 540 km)
+MAX_SPEED = 1.0e3  # m/s: every speed (A speeds, *-offsets, the BRK speed thresholds)
+MAX_DURATION = 1.0e6  # s: closure and transition times, the BRK time threshold (a run lasts at most 3600 s)
+MAX_LANE_WIDTH = 100.0  # m
+MAX_LANES_PER_SIDE = RIGHT_SHOULDER - 1  # lanes 1..100 and -1..-100: the numbers +-101 are the shoulders
+MAX_LANES = 2 * MAX_LANES_PER_SIDE  # ROAD lanes, both sides together
+MAX_SURFACE_VALUE = 1000.0  # RSA value: 10 x mu (Simple) or a surface attribute number (Advanced)
+_LIMITS = {"length": MAX_LENGTH, "speed": MAX_SPEED, "time": MAX_DURATION}
+
+
+def _shown(text: str) -> str:
+    """A field's text quoted for an error line, shortened when long (a 1 MB field is not echoed whole)."""
+    if len(text) <= MAX_SHOWN_CHARS:
+        return f"'{text}'"
+    return f"'{text[:MAX_SHOWN_CHARS - 8]}...{text[-5:]}' ({len(text)} characters)"
+
+
+def _short_enough(text: str) -> None:
+    if len(text) > MAX_NUMBER_CHARS:
+        raise _Invalid(f"{_shown(text)} is longer than {MAX_NUMBER_CHARS} characters, the longest number this "
+                       "format reads")
+
+
+def _limit_text(kind: str, units: str) -> str:
+    if kind == "time":
+        return f"{MAX_DURATION:g} s"
+    label = length_label(units) if kind == "length" else speed_label(units)
+    return f"{from_si(_LIMITS[kind], units):.7g} {label}"
 
 
 # --- field parsers: text -> value, or _Invalid(reason) -------------------------------------------
@@ -88,34 +128,51 @@ def _number(text: str) -> float:
     """A plain decimal number (no '*')."""
     if text == "":
         raise _Invalid("empty; expected a number")
+    _short_enough(text)
     if text.startswith("*"):
-        raise _Invalid(f"'{text}': '*' (relative to the ego) is not allowed here; expected a plain number")
+        raise _Invalid(f"{_shown(text)}: '*' (relative to the ego) is not allowed here; expected a plain number")
     if not _NUMBER.fullmatch(text):
-        raise _Invalid(f"'{text}' is not a number")
+        raise _Invalid(f"{_shown(text)} is not a number")
     value = float(text)
     if not math.isfinite(value):
-        raise _Invalid(f"'{text}' is too large")
+        raise _Invalid(f"{_shown(text)} is too large")
     return value
 
 
 def _whole(text: str) -> int:
-    """A whole number written without a decimal point."""
+    """A whole number written without a decimal point (at most MAX_NUMBER_CHARS characters)."""
+    _short_enough(text)
     if not _WHOLE.fullmatch(text):
         _number(text)  # the more specific reason when it is not a number at all
-        raise _Invalid(f"'{text}' is not a whole number")
+        raise _Invalid(f"{_shown(text)} is not a whole number")
     return int(text)
 
 
+def _within(value: float, kind: str, units: str, text: str) -> float:
+    """value (SI) if its magnitude is within the format's limit for its kind, else _Invalid."""
+    if abs(value) > _LIMITS[kind]:
+        raise _Invalid(f"{_shown(text)} is beyond the format's limit of {_limit_text(kind, units)} in magnitude")
+    return value
+
+
 @_shared
-def _relative(text: str, units: str) -> Relative:
+def _quantity(text: str, units: str, kind: str) -> float:
+    """A plain number that is a length, speed (converted to SI) or time, within the format's limit."""
+    value = _number(text)
+    return _within(value if kind == "time" else to_si(value, units), kind, units, text)
+
+
+@_shared
+def _relative(text: str, units: str, kind: str) -> Relative:
     """A distance or speed, '*' meaning the ego's current value plus this one."""
     if text == "":
         raise _Invalid("empty; expected a number or '*number'")
+    _short_enough(text)
     relative = text.startswith("*")
     body = text[1:].strip() if relative else text
     if not _NUMBER.fullmatch(body):
-        raise _Invalid(f"'{text}' is not a number or '*number' (relative to the ego)")
-    return Relative(to_si(_number(body), units), relative)
+        raise _Invalid(f"{_shown(text)} is not a number or '*number' (relative to the ego)")
+    return Relative(_within(to_si(_number(body), units), kind, units, text), relative)
 
 
 @_shared
@@ -124,12 +181,14 @@ def _model_choice(text: str) -> ModelChoice:
     if text.startswith("*"):
         match = _MODEL_RANGE.fullmatch(text)
         if not match:
-            raise _Invalid(f"'{text}': expected a model number or a random range '*low~high' such as '*1~8'")
+            raise _Invalid(f"{_shown(text)}: expected a model number or a random range '*low~high' such as '*1~8'")
+        _short_enough(match[1])
+        _short_enough(match[2])
         low, high = int(match[1]), int(match[2])
         if low < 1:
-            raise _Invalid(f"'{text}': model numbers start at 1, low end is {low}")
+            raise _Invalid(f"{_shown(text)}: model numbers start at 1, low end is {low}")
         if low > high:
-            raise _Invalid(f"'{text}': low end {low} is above high end {high}")
+            raise _Invalid(f"{_shown(text)}: low end {low} is above high end {high}")
         return ModelChoice(low, high)
     try:
         model = _whole(text)
@@ -143,22 +202,17 @@ def _model_choice(text: str) -> ModelChoice:
 @_shared
 def _closure_trigger(text: str) -> ClosureTrigger:
     """Closure time in s, optionally suffixed F (vehicle in front only) or B (behind only)."""
+    _short_enough(text)
     match = _CLOSURE.fullmatch(text)
     if not match:
         if text == "" or text.startswith("*"):
             _number(text)  # the reason for an empty or relative field
-        raise _Invalid(f"'{text}': expected seconds with an optional F or B suffix, such as 10, -5 or 10F")
-    seconds = _number(match[1])
+        raise _Invalid(f"{_shown(text)}: expected seconds with an optional F or B suffix, such as 10, -5 or 10F")
+    seconds = _within(_number(match[1]), "time", ENGLISH, text)
     # A zero closure time could never be met by a finite gap, so the action would never fire.
     if seconds == 0:
-        raise _Invalid(f"'{text}': closure time 0 can never fire; use > 0 (closing) or < 0 (separating)")
+        raise _Invalid(f"{_shown(text)}: closure time 0 can never fire; use > 0 (closing) or < 0 (separating)")
     return ClosureTrigger(seconds, match[2].upper() or None)
-
-
-@_shared
-def _length_si(text: str, units: str) -> float:
-    """A plain number that is a length, in m."""
-    return to_si(_number(text), units)
 
 
 @_shared
@@ -181,7 +235,17 @@ def _at_least(value: float | None, low: float, report: Report, field: str, text:
     if value is None:
         return None
     if value < low or (strict and value == low):
-        report(field, f"'{text}' must be {'>' if strict else '>='} {low:g}")
+        report(field, f"{_shown(text)} must be {'>' if strict else '>='} {low:g}")
+        return None
+    return value
+
+
+def _at_most(value: float | None, high: float, report: Report, field: str, text: str, shown_high: str):
+    """Check a parsed value against the format's upper bound; None when it fails (or was already bad)."""
+    if value is None:
+        return None
+    if value > high:
+        report(field, f"{_shown(text)} is beyond the format's limit of {shown_high}")
         return None
     return value
 
@@ -202,13 +266,13 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: s
         report("A parameters", "A takes 4 parameters plus 0 to 5 action sets of 4 (4, 8, 12, 16, 20 or 24 "
                f"parameters); got {len(params)}")
         return None
-    speed = _checked(report, _a_field(1), _relative, params[0], units)
-    gap = _checked(report, _a_field(2), _length_si, params[1], units)
+    speed = _checked(report, _a_field(1), _relative, params[0], units, "speed")
+    gap = _checked(report, _a_field(2), _quantity, params[1], units, "length")
     # A zero gap would put the vehicle on top of the ego; negative means behind it.
     if gap == 0:
-        report(_a_field(2), f"'{params[1]}': the vehicle cannot appear at gap 0; use > 0 ahead or < 0 behind")
+        report(_a_field(2), f"{_shown(params[1])}: the vehicle cannot appear at gap 0; use > 0 ahead or < 0 behind")
         gap = None
-    lateral = _checked(report, _a_field(3), _relative, params[2], units)
+    lateral = _checked(report, _a_field(3), _relative, params[2], units, "length")
     model = _checked(report, _a_field(4), _model_choice, params[3])
     actions = []
     for first in range(5, len(params) + 1, 4):
@@ -216,9 +280,9 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: s
         trigger = _checked(report, _a_field(first), _closure_trigger, trigger_text)
         # The seed calls this a move relative to the vehicle's own position, but its worked example
         # (*0 = into the driver's lane, -6 = back into its own lane) only works as a roadway position.
-        action_lateral = _checked(report, _a_field(first + 1), _relative, lateral_text, units)
-        action_speed = _checked(report, _a_field(first + 2), _relative, speed_text, units)
-        duration = _checked(report, _a_field(first + 3), _number, duration_text)
+        action_lateral = _checked(report, _a_field(first + 1), _relative, lateral_text, units, "length")
+        action_speed = _checked(report, _a_field(first + 2), _relative, speed_text, units, "speed")
+        duration = _checked(report, _a_field(first + 3), _quantity, duration_text, units, "time")
         duration = _at_least(duration, 0, report, _a_field(first + 3), duration_text)
         actions.append((trigger, action_lateral, action_speed, duration))
     fields = [speed, gap, lateral, model, *(part for action in actions for part in action)]
@@ -238,19 +302,19 @@ def _brake(line: int, distance: float, params: list[str], units: str, report: Re
     field = [f"BRK parameter {n} ({name})" for n, name in enumerate(_BRK_FIELDS, start=1)]
     pedal = _checked(report, field[0], _number, params[0])
     if pedal is not None and not 0 <= pedal <= 100:
-        report(field[0], f"'{params[0]}' must be a percentage from 0 to 100")
+        report(field[0], f"{_shown(params[0])} must be a percentage from 0 to 100")
         pedal = None
     threshold = _checked(report, field[1], _whole, params[1])
     if threshold is not None and not 0 <= threshold < len(BRAKE_THRESHOLDS):
-        report(field[1], f"'{params[1]}' must be 0 (time), 1 (distance), 2 (velocity) or 3 (relative velocity)")
+        report(field[1], f"{_shown(params[1])} must be 0 (time), 1 (distance), 2 (velocity) or 3 (relative velocity)")
         threshold = None
-    magnitude = _checked(report, field[2], _number, params[2])
+    name = BRAKE_THRESHOLDS[threshold] if threshold is not None else "time"
+    kind = {"time": "time", "distance": "length"}.get(name, "speed")
+    magnitude = _checked(report, field[2], _quantity, params[2], units, kind)
     magnitude = _at_least(magnitude, 0, report, field[2], params[2], strict=True)
     if pedal is None or threshold is None or magnitude is None:
         return None
-    name = BRAKE_THRESHOLDS[threshold]
-    magnitude_si = magnitude if name == "time" else to_si(magnitude, units)
-    return Brake(line=line, distance=distance, pedal=pedal / 100, threshold=name, magnitude=magnitude_si)
+    return Brake(line=line, distance=distance, pedal=pedal / 100, threshold=name, magnitude=magnitude)
 
 
 def _surface_attribute(line: int, distance: float, params: list[str], units: str, report: Report):
@@ -258,16 +322,18 @@ def _surface_attribute(line: int, distance: float, params: list[str], units: str
     if not params or len(params) % 2:
         report("RSA parameters", f"RSA takes pairs of (lane, value), at least one pair; got {len(params)} parameters")
         return None
-    settings, ok = [], True
+    settings, lanes, ok = [], set(), True
     for first in range(1, len(params), 2):
         lane_field, value_field = f"RSA parameter {first} (lane)", f"RSA parameter {first + 1} (value)"
         lane = _checked(report, lane_field, _whole, params[first - 1])
-        if lane is not None and lane in (pair[0] for pair in settings):
+        if lane is not None and lane in lanes:
             # Two values for one lane in one event would be ambiguous, so it is an error.
             report(lane_field, f"lane {lane} is set twice in this event")
             lane = None
+        lanes.add(lane)
         value = _checked(report, value_field, _number, params[first])
         value = _at_least(value, 0, report, value_field, params[first])
+        value = _at_most(value, MAX_SURFACE_VALUE, report, value_field, params[first], f"{MAX_SURFACE_VALUE:g}")
         ok = ok and lane is not None and value is not None
         settings.append((lane, value))
     return SurfaceAttribute(line=line, distance=distance, settings=_settings(tuple(params), tuple(settings))) if ok \
@@ -283,12 +349,21 @@ def _road(line: int, distance: float, params: list[str], units: str, report: Rep
     field = [f"ROAD parameter {n} ({name})" for n, name in enumerate(_ROAD_FIELDS, start=1)]
     width = _checked(report, field[0], _number, params[0])
     width = _at_least(width, 0, report, field[0], params[0], strict=True)
+    width = _at_most(width, from_si(MAX_LANE_WIDTH, units), report, field[0], params[0],
+                     f"{from_si(MAX_LANE_WIDTH, units):.7g} {length_label(units)}")
     lanes = _checked(report, field[1], _whole, params[1])
     lanes = _at_least(lanes, 1, report, field[1], params[1])
+    lanes = _at_most(lanes, MAX_LANES, report, field[1], params[1], f"{MAX_LANES} lanes")
     lanes_right = _checked(report, field[2], _whole, params[2])
     # The ego starts in the centre of lane 1, so lane 1 must exist.
     if lanes_right is not None and lanes is not None and not 1 <= lanes_right <= lanes:
-        report(field[2], f"'{params[2]}' must be from 1 to the number of lanes ({lanes}): the ego starts in lane 1")
+        report(field[2], f"{_shown(params[2])} must be from 1 to the number of lanes ({lanes}): the ego starts in "
+               "lane 1")
+        lanes_right = None
+    # Lane 101 would be the right shoulder's number, -101 the left's: at most 100 lanes on either side.
+    if lanes_right is not None and lanes is not None and max(lanes_right, lanes - lanes_right) > MAX_LANES_PER_SIDE:
+        report(field[2], f"{_shown(params[2])} leaves {max(lanes_right, lanes - lanes_right)} lanes on one side; at "
+               f"most {MAX_LANES_PER_SIDE} (lane numbers {RIGHT_SHOULDER} and {LEFT_SHOULDER} are the shoulders)")
         lanes_right = None
     if width is None or lanes is None or lanes_right is None:
         return None
@@ -317,119 +392,179 @@ assert tuple(_EVENT_PARSERS) == SUPPORTED_CODES
 
 
 def _content_lines(text: str):
-    """(line number, text without comment) for every line that has content."""
-    text = text.removeprefix("\ufeff")
-    for number, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), start=1):
+    """(line number, text without comment) for every line that has content, read lazily."""
+    text = text.removeprefix("\ufeff").replace("\r\n", "\n").replace("\r", "\n")
+    for number, raw in enumerate(io.StringIO(text, newline="\n"), start=1):
         content = raw.split("//", 1)[0].strip()
         if content:
             yield number, content
 
 
+def _lanes_text(road: Road) -> str:
+    """The road's lane numbers in a few characters however many lanes it has: '1, 2, -1' or '1..5, -1..-5'."""
+    parts = []
+    for count, sign in ((road.lanes_right, 1), (road.lanes_left, -1)):
+        if count:
+            parts.append(", ".join(str(sign * k) for k in range(1, count + 1)) if count <= 3
+                         else f"{sign}..{sign * count}")
+    return ", ".join(parts)
+
+
 def _lane_warnings(event: SurfaceAttribute, road: Road) -> list[str]:
     """RSA lanes that the road layout does not have: kept, but they never apply (SPEC section 3)."""
-    lanes = ", ".join(str(n) for n in road.valid_lanes if abs(n) != RIGHT_SHOULDER)
     return [f"line {event.line}: RSA parameter {2 * index + 1} (lane): lane {lane} is not on the road (it has lanes "
-            f"{lanes} and the shoulders {RIGHT_SHOULDER}, {LEFT_SHOULDER}): this setting never applies"
-            for index, (lane, _value) in enumerate(event.settings) if lane not in road.valid_lanes]
+            f"{_lanes_text(road)} and the shoulders {RIGHT_SHOULDER}, {LEFT_SHOULDER}): this setting never applies"
+            for index, (lane, _value) in enumerate(event.settings) if not road.has_lane(lane)]
+
+
+MAX_PARAMETERS = 2 * (MAX_LANES + 2)  # per event line: an RSA may set every lane and both shoulders
+MAX_ERRORS = 100  # problems reported per file; reading stops after that many
+
+
+class _TooManyErrors(Exception):
+    pass
 
 
 def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) -> Scenario:
-    """Parse a whole SDL file's text; raises ScenarioError listing every problem, not only the first.
+    """Parse a whole SDL file's text; raises ScenarioError listing every problem (up to MAX_ERRORS).
 
-    skip_unsupported: event codes sdl-fmu does not simulate are skipped with one warning per code
-    instead of being errors."""
+    Events may appear in any order: they are returned in the order they take effect, by distance, file
+    order breaking ties. skip_unsupported: every line sdl-fmu does not simulate (codes outside the supported
+    set, long-form names such as 'Crash Settings', labelled events such as 'Pedestrian#5', events triggered
+    by '@', 'Config_... = ...' settings) is skipped with one warning per code instead of being an error."""
     errors: list[SdlError] = []
     warnings: list[str] = []
-    skipped: dict[str, list[int]] = {}  # unsupported code -> lines
+    skipped: dict[str, tuple[str, list[int]]] = {}  # key -> (what is skipped, its lines)
     units, seen_content = ENGLISH, False
-    events: list[Event] = []
+    placed: list[tuple[Event, str]] = []  # each event and its distance as written
     road: Road | None = None
     road_line: int | None = None  # line of the first ROAD, even a bad one
     road_failed = False
     end: EndOfScenario | None = None
     end_line: int | None = None
-    previous: tuple[float, str, int] | None = None  # last good distance: value, text, line
+    supported = ", ".join(SUPPORTED_CODES)
 
-    for number, content in _content_lines(text):
-        first, seen_content = not seen_content, True
+    def skip(key: str, what: str, line: int) -> None:
+        skipped.setdefault(key, (what, []))[1].append(line)
 
-        def report(field: str, reason: str) -> None:
-            errors.append(SdlError(path, number, field, reason))
+    try:
+        for number, content in _content_lines(text):
+            first, seen_content = not seen_content, True
 
-        if "," not in content:
-            if content.lower() in _UNITS_HEADERS:
-                if first:
-                    units = _UNITS_HEADERS[content.lower()]
+            def report(field: str, reason: str) -> None:
+                errors.append(SdlError(path, number, field, reason))
+                if len(errors) >= MAX_ERRORS:
+                    raise _TooManyErrors
+
+            setting = _SETTING.match(content)  # 'Name = value' (the value may hold commas): never an event
+            if setting:
+                if skip_unsupported:
+                    skip(f"={setting[1]}", f"settings line '{_shown(setting[1])[1:-1]} = ...'", number)
                 else:
-                    report("units header", f"'{content}' must be the first line that is not blank or a comment")
-            elif first and not _NUMBER.fullmatch(content):
-                report("units header", f"'{content}' is not a units header; expected English or Metric, "
-                       "or an event line '<distance>,<CODE>,<parameters>'")
-            else:
-                report("event code", f"'{content}' has no event code; expected '<distance>,<CODE>,<parameters>'")
-            continue
+                    report("settings line", f"'{_shown(setting[1])[1:-1]} = ...' (a STISIM configuration "
+                           "setting) is not simulated; --skip-unsupported runs the file without it")
+                continue
+            if "," not in content:
+                if content.lower() in _UNITS_HEADERS:
+                    if first:
+                        units = _UNITS_HEADERS[content.lower()]
+                    else:
+                        report("units header", f"{_shown(content)} must be the first line that is not blank or a "
+                               "comment")
+                elif first and not _NUMBER.fullmatch(content):
+                    report("units header", f"{_shown(content)} is not a units header; expected English or Metric, "
+                           "or an event line '<distance>,<CODE>,<parameters>'")
+                else:
+                    report("event code", f"{_shown(content)} has no event code; expected "
+                           "'<distance>,<CODE>,<parameters>'")
+                continue
 
-        distance_text, code_text, *params = (field.strip() for field in content.split(","))
-        code = code_text.upper()
+            head = content.split(",", 2)
+            distance_text, code_text = head[0].strip(), head[1].strip()
+            rest = head[2] if len(head) > 2 else None
+            code = code_text.upper()
+            parser = _EVENT_PARSERS.get(code)
+            triggered = distance_text.startswith("@")
 
-        distance = _checked(report, "distance", _number, distance_text)
-        distance = _at_least(distance, 0, report, "distance", distance_text)
-        if distance is not None:
-            if previous is not None and distance < previous[0]:
-                report("distance", f"{distance_text} is less than {previous[1]} on line {previous[2]}; "
-                       "event distances must not decrease down the file")
-            else:
-                previous = (distance, distance_text, number)
+            if parser is None or triggered:
+                long_form = _LONG_CODE.fullmatch(code_text)
+                if long_form is None:
+                    shown = _shown(code_text) if code_text else "empty"
+                    report("event code", f"unsupported event code {shown} (supported: {supported})")
+                    continue
+                name, label = " ".join(long_form[1].split()), long_form[2]
+                if label is not None and name.upper() in _EVENT_PARSERS:
+                    report("event code", f"{_shown(code_text)}: a label ('#k') on {name.upper()} is not read; "
+                           f"write {name.upper()} without it")
+                    continue
+                if triggered:
+                    if skip_unsupported:
+                        skip(f"@{name.upper()}", f"event '{name}' triggered by '@'", number)
+                    else:
+                        report("distance", f"{_shown(distance_text)}: events triggered by '@' are not simulated "
+                               "(sdl-fmu fires events at a distance); --skip-unsupported runs the file without them")
+                    continue
+                if skip_unsupported:  # a long-form name is shown as first written, a code in capitals
+                    skip(name.upper(), f"event code '{name if ' ' in name else name.upper()}'", number)
+                else:
+                    report("event code", f"unsupported event code {_shown(code_text)} (supported: {supported}); "
+                           "--skip-unsupported runs the file without it")
+                continue
 
-        parser = _EVENT_PARSERS.get(code)
-        if parser is None:
-            if not _CODE.fullmatch(code_text):
-                shown = f"'{code_text}'" if code_text else "empty"
-                report("event code", f"unsupported event code {shown} (supported: {', '.join(SUPPORTED_CODES)})")
-            elif skip_unsupported:
-                skipped.setdefault(code, []).append(number)
-            else:
-                report("event code", f"unsupported event code '{code_text}' (supported: {', '.join(SUPPORTED_CODES)}); "
-                       "--skip-unsupported runs the file without it")
-            continue
+            if rest is not None and rest.count(",") >= MAX_PARAMETERS:
+                report(f"{code} parameters", f"{rest.count(',') + 1} parameters; the format allows at most "
+                       f"{MAX_PARAMETERS} on one line")
+                continue
+            params = [field.strip() for field in rest.split(",")] if rest is not None else []
 
-        if end_line is not None:
-            if code == "ES":
+            distance = _checked(report, "distance", _quantity, distance_text, units, "length")
+            distance = _at_least(distance, 0, report, "distance", distance_text)
+
+            if code == "ES" and end_line is not None:
                 report("event code", f"a second ES (the first is on line {end_line}); at most one ES is allowed")
-            else:
-                report("event code", f"{code} after ES on line {end_line}; ES must be the last event")
-        if code == "ROAD":
-            if road_line is not None:
-                report("event code", f"a second ROAD (the first is on line {road_line}); "
-                       "the road layout is fixed for the whole road, so at most one ROAD is allowed")
-            # The layout is fixed for the whole road, so it must be set where the road begins.
-            if distance is not None and distance != 0:
-                report("distance", f"ROAD must be at distance 0 (the layout is fixed for the whole road); got {distance_text}")
+            if code == "ROAD":
+                if road_line is not None:
+                    report("event code", f"a second ROAD (the first is on line {road_line}); "
+                           "the road layout is fixed for the whole road, so at most one ROAD is allowed")
+                # The layout is fixed for the whole road, so it must be set where the road begins.
+                if distance is not None and distance != 0:
+                    report("distance", f"ROAD must be at distance 0 (the layout is fixed for the whole road); got "
+                           f"{_shown(distance_text)[1:-1]}")
 
-        event = parser(number, _length_si(distance_text, units) if distance is not None else 0.0, params, units, report)
-        if code == "ROAD":
-            if road_line is None:
-                road_line, road, road_failed = number, event, event is None
-            continue
-        if code == "ES" and end_line is None:
-            end_line, end = number, event
-        if event is not None and distance is not None:
-            events.append(event)
+            event = parser(number, distance if distance is not None else 0.0, params, units, report)
+            if code == "ROAD":
+                if road_line is None:
+                    road_line, road, road_failed = number, event, event is None
+                continue
+            if code == "ES" and end_line is None:
+                end_line, end = number, event
+            if event is not None and distance is not None:
+                placed.append((event, distance_text))
+    except _TooManyErrors:
+        errors.append(SdlError(path, errors[-1].line, "file", f"stopped reading after {MAX_ERRORS} problems"))
 
+    # The run ends at ES: an event beyond it (or at its distance but after it in the file) would never fire.
+    if end is not None:
+        for event, distance_text in placed:
+            if event is not end and (event.distance, event.line) > (end.distance, end.line):
+                errors.append(SdlError(path, event.line, "distance",
+                                       f"{event.code} at {_shown(distance_text)[1:-1]} is at or beyond the ES on line "
+                                       f"{end_line}: it would never fire; ES must be the last event by distance"))
     road = road or DEFAULT_ROAD
     if not road_failed:
-        for event in events:
+        for event, _ in placed:
             if isinstance(event, SurfaceAttribute):
                 warnings.extend(_lane_warnings(event, road))
     if errors:
         errors.sort(key=lambda error: error.line)
         raise ScenarioError(errors)
-    for code, lines in skipped.items():
+    for what, lines in skipped.values():
         shown = ", ".join(map(str, lines[:10])) + (f" and {len(lines) - 10} more" if len(lines) > 10 else "")
-        warnings.append(f"line {lines[0]}: event code '{code}' is not simulated: skipped (line{'s' * (len(lines) > 1)} "
-                        f"{shown})")
+        warnings.append(f"line {lines[0]}: {what} is not simulated: skipped (line{'s' * (len(lines) > 1)} {shown})")
+    # Events take effect in order of distance, file order breaking ties (a stable sort keeps it).
+    events = tuple(event for event, _ in sorted(placed, key=lambda item: item[0].distance))
     return Scenario(
-        path=path, units=units, road=road, events=tuple(events),
+        path=path, units=units, road=road, events=events,
         end_distance=end.distance if end is not None else None, warnings=tuple(warnings),
     )
 

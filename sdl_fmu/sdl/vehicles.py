@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import bisect
 import csv
 import math
+import re
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,7 +62,7 @@ def load_vehicle_table(path: str | os.PathLike) -> dict[int, VehicleModel]:
             continue
         number_text, model_name, length_text, width_text = cells
         row_errors = []
-        number = int(number_text) if number_text.isdigit() else 0
+        number = int(number_text) if re.fullmatch(r"[0-9]{1,18}", number_text) else 0  # ASCII digits only
         if number < 1:
             row_errors.append(f"{name}:{line}: model: '{number_text}' must be a whole number >= 1")
         elif number in table:
@@ -85,29 +87,48 @@ def load_vehicle_table(path: str | os.PathLike) -> dict[int, VehicleModel]:
 
 def _ranges(numbers: list[int]) -> str:
     """Sorted numbers as compact ranges, e.g. '1-8, 10'."""
-    parts, start = [], None
-    for index, number in enumerate(numbers):
-        if start is None:
-            start = number
-        if index + 1 == len(numbers) or numbers[index + 1] != number + 1:
-            parts.append(str(start) if start == number else f"{start}-{number}")
-            start = None
-    return ", ".join(parts)
+    return ", ".join(str(low) if low == high else f"{low}-{high}" for low, high in _runs(numbers))
+
+
+def _runs(numbers: list[int]) -> list[tuple[int, int]]:
+    """Sorted numbers as (first, last) of each run of consecutive ones."""
+    runs: list[tuple[int, int]] = []
+    for number in numbers:
+        if runs and runs[-1][1] + 1 == number:
+            runs[-1] = (runs[-1][0], number)
+        else:
+            runs.append((number, number))
+    return runs
+
+
+def missing_models(low: int, high: int, known: list[int]) -> list[tuple[int, int]]:
+    """The (first, last) stretches of low..high that are not in `known` (sorted model numbers): arithmetic on
+    the table's runs, never a list of the range, so '*1~99999999999999999999' costs what '*1~8' does."""
+    gaps, position = [], low
+    for first, last in _runs(known[bisect.bisect_left(known, low):bisect.bisect_right(known, high)]):
+        if first > position:
+            gaps.append((position, first - 1))
+        position = last + 1
+    if position <= high:
+        gaps.append((position, high))
+    return gaps
 
 
 def check_models(scenario: Scenario, table: dict[int, VehicleModel]) -> list[SdlError]:
     """Every model an A event could use (fixed, or anywhere in its random range) must be in the table."""
     errors = []
-    known = f"the vehicle table has models {_ranges(sorted(table))}"
+    numbers = sorted(table)
+    known = f"the vehicle table has models {_ranges(numbers)}"
     for event in scenario.events:
         if not isinstance(event, ApproachingVehicle):
             continue
         model = event.model
-        missing = [n for n in range(model.low, model.high + 1) if n not in table]
+        missing = missing_models(model.low, model.high, numbers)
         if not missing:
             continue
         if model.is_random:
-            reason = f"'*{model.low}~{model.high}': models {_ranges(missing)} are not in the table; {known}"
+            shown = ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in missing)
+            reason = f"'*{model.low}~{model.high}': models {shown} are not in the table; {known}"
         else:
             reason = f"model {model.low} is not in the table; {known}"
         errors.append(SdlError(scenario.path, event.line, "A parameter 4 (model)", reason))

@@ -133,10 +133,14 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamic
     problems = check_models(loaded, _vehicle_table())
     if problems:
         raise ScenarioError(problems)
-    if dynamics is not None and dynamics not in MODELS:
-        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(MODELS)}")
-    if dynamics == "advanced":
-        _whole_attributes(loaded)
+    if dynamics is not None:
+        from .vehicle import SHIPPED, load_vehicle_map, shipped_map_path
+
+        if dynamics not in SHIPPED:
+            raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
+        friction = load_vehicle_map(shipped_map_path(dynamics)).friction
+        if friction is not None and friction.meaning == "attribute":
+            _whole_attributes(loaded)
     return loaded
 
 

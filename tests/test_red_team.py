@@ -173,7 +173,7 @@ def test_check_with_advanced_dynamics_applies_the_advanced_rules(tmp_path):
     assert sdl_fmu(["check", path], tmp_path).returncode == 0
     result = sdl_fmu(["check", path, "--dynamics", "advanced"], tmp_path)
     assert result.returncode == 1 and result.stderr.splitlines() == [
-        f"{path}:2: RSA parameter 2 (value): 2.7: with advanced dynamics the value is a surface attribute number "
+        f"{path}:2: RSA parameter 2 (value): 2.7: for this vehicle the value is a surface attribute number "
         "and must be whole"]
 
 

@@ -27,12 +27,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .fmu.package import MODELS
 from .results import RunResult, summary, timeseries_table, write_results
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
-           "ego_fmu", "LIMITS"]
+           "ego_fmu", "ego_model", "LIMITS"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -46,8 +45,22 @@ LIMITS = {
     "until_distance": (0.0, MAX_SPEED * MAX_TIME),  # m, > 0
     "seed": (0, 2**63 - 1),
 }
-EGO_VARIABLES = ("throttle", "brake", "steer", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate",
-                 "stopped", "length", "width", "mass", "v0", "x0", "y0", "psi0")
+
+
+def _shipped_variables() -> tuple[str, ...]:
+    """The FMU variables both shipped vehicle maps name (SPEC §2's common interface)."""
+    from .vehicle import SHIPPED, load_vehicle_map, shipped_map_path
+
+    named = []
+    for name in SHIPPED:
+        vehicle_map = load_vehicle_map(shipped_map_path(name))
+        channels = [*vehicle_map.inputs.values(), *vehicle_map.outputs.values(), *vehicle_map.start.values()]
+        named.append([c.variable for c in channels]
+                     + [v for v in vehicle_map.vehicle.values() if isinstance(v, str)])
+    return tuple(v for v in named[0] if all(v in other for other in named[1:]))
+
+
+EGO_VARIABLES = _shipped_variables()
 MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
 
 
@@ -163,39 +176,41 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0]
 
 
-@functools.lru_cache(maxsize=16)
-def _read_model_description(path: str, stamp: tuple):
-    """fmpy's modelDescription of an FMU file, read once per file version (stamp: size, mtime)."""
-    from fmpy import read_model_description
+def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+              vehicle: str | os.PathLike | None = None):
+    """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
+    the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use).
+    Raises InputError naming the map file and key, or the FMU."""
+    from .vehicle import SHIPPED, EgoModel, VehicleMapError, shipped_map_path
 
-    return read_model_description(path, validate=False)
-
-
-def _description(fmu: Path):
-    stat = fmu.stat()
-    return _read_model_description(str(fmu.resolve()), (stat.st_size, stat.st_mtime_ns))
-
-
-def _model_description(fmu: Path, dynamics: str):
-    """The FMU's modelDescription, checked to be a co-simulation FMI 2.0 ego FMU for these dynamics."""
+    if vehicle is not None and dynamics is not None:
+        raise _option_error("dynamics", dynamics, "give --dynamics (a shipped model) or --vehicle (a vehicle map), "
+                            "not both")
+    dynamics = "simple" if dynamics is None else dynamics
+    if dynamics not in SHIPPED:
+        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
     try:
-        description = _description(fmu)
-    except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
-        raise _option_error("fmu", fmu, f"is not a readable FMU ({_first_line(error)})") from None
-    if not str(description.fmiVersion).startswith("2.") or description.coSimulation is None:
-        raise _option_error("fmu", fmu, f"is FMI {description.fmiVersion} without FMI 2.0 co-simulation; "
-                            "sdl-fmu runs FMI 2.0 co-simulation FMUs")
-    names = {v.name for v in description.modelVariables}
-    wheels = [f"{'mu' if dynamics == 'simple' else 'surface'}_{w}" for w in ("fl", "fr", "rl", "rr")]
-    missing = [n for n in (*EGO_VARIABLES, *wheels) if n not in names]
-    if missing:
-        raise _option_error("fmu", fmu, f"lacks the {dynamics} ego variables {', '.join(missing[:6])}"
-                            f"{' ...' if len(missing) > 6 else ''} (see --dynamics)")
-    return description
+        if vehicle is not None:
+            return EgoModel.open(fmu, _regular_file("vehicle", vehicle))
+        if fmu is not None:
+            return EgoModel.open(_regular_file("fmu", fmu), shipped_map_path(dynamics))
+    except VehicleMapError as error:
+        text = str(error)
+        if vehicle is None and not text.startswith("--fmu"):  # the FMU does not fit the shipped map
+            text = f"--fmu {fmu}: does not fit --dynamics {dynamics}: {text}"
+        raise InputError("fmu" if vehicle is None or text.startswith("--fmu") else "vehicle", text) from None
+    from .fmu.cache import cached_fmu
+
+    path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
+                                                            f"{path.parent.parent} (first use)", file=sys.stderr))
+    return EgoModel.open(path, shipped_map_path(dynamics))
 
 
-def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]:
+def _parameters(params: dict | None, model) -> dict[str, float]:
     """--param values checked against the FMU: an existing Real parameter, finite, within its min/max."""
+    from .vehicle.model import REAL_TYPES
+
+    description, fmu = model.description, model.fmu_path
     checked = {}
     variables = {v.name: v for v in description.modelVariables}
     for name, value in (params or {}).items():
@@ -206,7 +221,7 @@ def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]
                               if v.causality == "parameter" and not v.name.startswith("tire"))
             raise _option_error("param", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
                                 "tire<slot>_<KEY>)")
-        if variable.type != "Real":
+        if variable.type not in REAL_TYPES:
             raise _option_error("param", shown, f"{name} is {variable.type}; only Real parameters can be set")
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise _option_error("param", shown, "the value must be a number (SI units)")
@@ -224,31 +239,19 @@ def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]
     return checked
 
 
-def ego_fmu(dynamics: str = "simple", fmu: str | os.PathLike | None = None) -> Path:
-    """The ego FMU: `fmu` if given (checked), else the cached build for these dynamics (built on first use)."""
-    if fmu is not None:
-        import zipfile
-
-        import fmpy
-
-        path = _regular_file("fmu", fmu)
-        description = _model_description(path, dynamics)
-        binary = (f"binaries/{fmpy.platform}/{description.coSimulation.modelIdentifier}"
-                  f"{fmpy.sharedLibraryExtension}")
-        with zipfile.ZipFile(path) as archive:  # readable: _model_description read it
-            if binary not in archive.namelist():
-                raise _option_error("fmu", path, f"has no binary for this platform ({binary})")
-        return path
-    from .fmu.cache import cached_fmu
-
-    return cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache {path.parent.parent}"
-                                                            " (first use)", file=sys.stderr))
+def ego_fmu(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+            vehicle: str | os.PathLike | None = None) -> Path:
+    """The ego FMU's path: `fmu` if given (checked against the vehicle map, or the shipped map of `dynamics`), else
+    the map's own FMU or the cached build for `dynamics` (built on first use)."""
+    return ego_model(dynamics, fmu, vehicle).fmu_path
 
 
-def _tire_starts(tires, dynamics: str):
-    if dynamics != "advanced":
+def _tire_starts(tires, model):
+    """The tire slots' start values from a Tire Attribute File, for a vehicle whose map declares tire slots."""
+    if model.friction is None or model.friction.tire_slots is None:
         if tires is not None:
-            raise _option_error("tires", tires, "applies to --dynamics advanced only")
+            raise _option_error("tires", tires, f"applies to --dynamics advanced only (a vehicle map with "
+                                                f"friction tire_slots; {model.name}'s has none)")
         return {}, None, []
     from .dynamics.tires import TireFileError, default_attribute_file, slot_parameters
 
@@ -260,14 +263,15 @@ def _tire_starts(tires, dynamics: str):
 
 
 def _whole_attributes(scenario: Scenario) -> None:
-    """With advanced dynamics an RSA value is an attribute number: a fraction is an error naming the line."""
+    """For a vehicle whose friction input means an attribute (the Advanced FMU), an RSA value is an attribute
+    number: a fraction is an error naming the line."""
     errors = []
     for event in scenario.events:
         if isinstance(event, SurfaceAttribute):
             for index, (_lane, value) in enumerate(event.settings):
                 if value != int(value):
                     errors.append(SdlError(scenario.path, event.line, f"RSA parameter {2 * index + 2} (value)",
-                                           f"{value:g}: with advanced dynamics the value is a surface attribute "
+                                           f"{value:g}: for this vehicle the value is a surface attribute "
                                            "number and must be whole"))
     if errors:
         raise ScenarioError(errors)
@@ -396,7 +400,8 @@ def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
     return check
 
 
-def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu: str | os.PathLike | None = None,
+def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+        vehicle: str | os.PathLike | None = None,
         speed: float | None = None, seed: int = 1, step: float | None = None,
         driver_period: float | None = None, until_distance: float | None = None,
         until_time: float | None = None, params: dict[str, float] | None = None,
@@ -407,8 +412,9 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
     step is the longest communication step (default 1 s; results do not depend on it), driver_period the
     driver model's sampling period (default 0.05 s),
-    params are FMU start values (SI) within each parameter's declared min/max. fmu defaults to the cached
-    build for `dynamics`. tires: Tire Attribute File (advanced only). progress: a bar on stderr (None: only
+    params are FMU start values (SI) within each parameter's declared min/max. vehicle: a vehicle map (TOML,
+    SPEC §6) driving `fmu` (or the map's own `fmu`); without it `dynamics` (default simple) names a shipped map
+    and fmu defaults to its cached build. tires: Tire Attribute File (vehicles with tire slots: advanced). progress: a bar on stderr (None: only
     when stderr is a terminal). out: also write the results folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
     Raises InputError or ScenarioError for user mistakes."""
@@ -416,8 +422,6 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
     from .cosim.master import RunOptions, run_scenario
     from .results_folder import ResultsFolderError, check_results_folder
 
-    if dynamics not in MODELS:
-        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(MODELS)}")
     seed = _seed(seed)
     from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
 
@@ -429,17 +433,18 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
     units = scenario.units
     speed = _number("speed", speed, units)
     until_distance = _number("until_distance", until_distance, units, low_open=True)
-    if dynamics == "advanced":
+    model = ego_model(dynamics, fmu, vehicle)
+    if model.surface_meaning == "attribute":
         _whole_attributes(scenario)
-    tire_starts, known_attributes, tire_warnings = _tire_starts(tires, dynamics)
+    tire_starts, known_attributes, tire_warnings = _tire_starts(tires, model)
     if out is not None:
         try:
             check_results_folder(out)
         except ResultsFolderError as error:
             raise InputError("out", f"--out {error}") from None
-    fmu_path = ego_fmu(dynamics, fmu)
-    parameters = _parameters(params, _description(fmu_path), fmu_path)
-    options = RunOptions(dynamics=dynamics, speed=speed, seed=seed, step=step, driver_period=driver_period,
+    fmu_path = model.fmu_path
+    parameters = _parameters(params, model)
+    options = RunOptions(speed=speed, seed=seed, step=step, driver_period=driver_period,
                          until_distance=until_distance,
                          until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
                          known_attributes=None if known_attributes is None else set(known_attributes))
@@ -447,7 +452,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
     try:
-        raw = run_scenario(scenario, fmu_path, options, _vehicle_table())
+        raw = run_scenario(scenario, model, options, _vehicle_table())
     except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
     raw.warnings[:0] = [*scenario.warnings, *tire_warnings]

@@ -73,12 +73,13 @@ def _run(args) -> int:
 
     scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported)
     out = Path(args.out) if args.out is not None else Path("runs") / Path(scenario.path).stem
-    result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, speed=args.speed, seed=args.seed,
+    result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
+                     seed=args.seed,
                      step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out)
     units, final = scenario.units, result.final
-    print(f"{Path(scenario.path).name}: {args.dynamics} dynamics, {result.collisions} collision(s), "
+    print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
           f"ended at {final['time_s']:.2f} s, distance {final['distance']:.1f} {length_label(units)}, "
           f"speed {final['speed']:.1f} {speed_label(units)}")
     for warning in result.warnings:
@@ -93,9 +94,11 @@ def _sweep(args) -> int:
     from . import sweep as sweeping
 
     varied = sweeping.parse_vary(args.vary, args.sample_seed)
-    fixed = {"dynamics": args.dynamics}
+    fixed = {"dynamics": args.dynamics} if args.dynamics else {}
     if args.fmu:
         fixed["fmu"] = args.fmu
+    if args.vehicle:
+        fixed["vehicle"] = args.vehicle
     if args.param:
         fixed["params"] = _parse_parameters(args.param)
     if args.skip_unsupported:
@@ -125,7 +128,7 @@ def _verify(args) -> int:
 
     from .cosim.ego import FmuError
 
-    fmu = api.ego_fmu("simple", args.fmu)
+    fmu = api.ego_fmu(args.dynamics, args.fmu, args.vehicle)
     try:
         results = verify(fmu)
     except (FmuError, OSError) as error:
@@ -161,8 +164,9 @@ def parser() -> argparse.ArgumentParser:
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
     run.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    run.add_argument("--dynamics", choices=DYNAMICS, default="simple")
+    run.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
     run.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics, built on first use)")
+    run.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     run.add_argument("--speed", type=_number, help="driver's start and target speed, scenario units (default 88 ft/s)")
     run.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
     run.add_argument("--step", type=_number, help="longest communication step, s (default 1); triggers are "
@@ -188,8 +192,9 @@ def parser() -> argparse.ArgumentParser:
     where = sweep.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
-    sweep.add_argument("--dynamics", choices=DYNAMICS, default="simple")
+    sweep.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
     sweep.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics)")
+    sweep.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     sweep.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="FMU start value for every run, SI (repeatable)")
     sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
@@ -201,7 +206,9 @@ def parser() -> argparse.ArgumentParser:
     sweep.set_defaults(handler=_sweep)
 
     verify = commands.add_parser("verify", help="simulated braking distances against the closed forms")
+    verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
     verify.add_argument("--fmu", help="Simple FMU to verify (default: the cached build)")
+    verify.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu")
     verify.set_defaults(handler=_verify)
     return main
 

@@ -21,6 +21,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
 from .units import from_si, length_label, speed_label
+from .vehicle.model import WHEELS
 
 if TYPE_CHECKING:
     from .results import RunResult
@@ -32,7 +33,6 @@ MAX_LABEL_ROWS = 6
 MAX_LABELLED_VEHICLES = 12  # vehicles named in the legend and on the road; the rest summarised
 MAX_LINE_POINTS = 4000  # lines are decimated to this many points: the figure is ~1800 px wide anyway
 NOMINAL_MU = 0.8
-WHEELS = ("fl", "fr", "rl", "rr")
 WHEEL_STYLES = {"fl": "-", "fr": "--", "rl": "-.", "rr": ":"}
 TRAFFIC_COLORS = ("tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan",
                   "tab:gray")
@@ -282,7 +282,7 @@ def _plot_yaw_panel(result: RunResult, ax, time: np.ndarray, brk_runs) -> None:
 def _surface_style(result: RunResult):
     """(colour of a section value, colorbar mappable or None, legend handles) for the RSA patches."""
     values = [section.value for section in result.surfaces]
-    if result.dynamics == "simple":
+    if result.friction_meaning != "attribute":
         top = max([NOMINAL_MU * 1.5] + [value / 10 for value in values])
         norm = TwoSlopeNorm(vmin=0.0, vcenter=NOMINAL_MU, vmax=top)
         cmap = colormaps["RdBu"]

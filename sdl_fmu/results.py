@@ -15,6 +15,7 @@ from .lazy_sequence import LazySequence
 from .results_folder import write_results_folder
 from .sdl.events import Road
 from .units import from_si, length_label, speed_label
+from .vehicle.model import WHEELS
 
 
 @dataclass
@@ -83,12 +84,12 @@ class RunResult:
 
     scenario_path: str
     units: str  # "English" or "Metric"
-    dynamics: str  # "simple" or "advanced"
+    dynamics: str  # the vehicle's name: "simple" or "advanced" for the shipped maps, else its map's or FMU's
     seed: int
     road: Road
     # ego time series, SI, one entry per sample: time, x, y, psi, s, v, vx, vy, ax, ay, yaw_rate, stopped,
     # station, lateral, throttle, brake, steer, brk (1 while a BRK event holds the pedals), and per wheel
-    # mu_fl.. (simple) or surface_fl.. (advanced)
+    # mu_fl.. (friction meaning "mu") or surface_fl.. ("attribute"), none for a vehicle without friction input
     columns: dict[str, np.ndarray]
     vehicles: Sequence[VehicleTrack]  # a list, or VehicleTracks (made on demand) from the master
     events: Sequence[dict]  # summary.json entries, already in the scenario's units (a list, or the master's
@@ -99,9 +100,10 @@ class RunResult:
     warnings: list[str] = field(default_factory=list)
     final: dict = field(default_factory=dict)  # summary "final", scenario units
     timing: dict = field(default_factory=dict)  # summary "timing": wall_s, real_time_factor, steps, samples
+    friction_meaning: str | None = "mu"  # what an RSA value means for the vehicle: "mu", "attribute" or None
+    vehicle: dict = field(default_factory=dict)  # summary "vehicle": the EgoModel's summary and the bounds used
 
 
-WHEELS = ("fl", "fr", "rl", "rr")
 
 TIME_FORMAT = "%.6f"
 LENGTH_FORMAT = "%.4f"  # distances, positions and speeds in ft, ft/s or m, m/s
@@ -297,6 +299,7 @@ def _summary_fields(result: RunResult, events) -> dict:
         "events": events,
         "warnings": list(result.warnings),
         "timing": result.timing,
+        **({"vehicle": result.vehicle} if result.vehicle else {}),
     }
 
 

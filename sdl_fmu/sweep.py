@@ -296,7 +296,9 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     if not timeout > 0:
         raise SweepError(f"--timeout {timeout}: must be > 0")
     fixed = dict(fixed)
-    fixed["fmu"] = str(api.ego_fmu(fixed.get("dynamics", "simple"), fixed.get("fmu")))  # built once, here
+    fixed["fmu"] = str(api.ego_fmu(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle")))  # built once, here
+    if fixed.get("vehicle") is not None:
+        fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied,
             "fixed": json.loads(json.dumps(fixed, default=str))}

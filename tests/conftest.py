@@ -47,6 +47,22 @@ def defaults_simple(simple_fmu):
             if v.causality == "parameter"}
 
 
+def rewritten_fmu(source: Path, target: Path, edit_description=None, drop=lambda name: False) -> Path:
+    """A copy of an FMU with its modelDescription.xml passed through edit_description(text) -> text and the
+    archive members for which drop(name) is true left out (an FMU that lacks a capability or a binary)."""
+    import zipfile
+
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as copy:
+        for item in original.infolist():
+            if drop(item.filename):
+                continue
+            data = original.read(item)
+            if item.filename == "modelDescription.xml" and edit_description is not None:
+                data = edit_description(data.decode("utf-8")).encode("utf-8")
+            copy.writestr(item, data)
+    return target
+
+
 def windows_tools_required() -> bool:
     """CI (.ci/run) installs mingw-w64 and wine and sets this: there a missing tool is a failure, not a skip."""
     return os.environ.get("SDL_FMU_REQUIRE_WINDOWS") == "1"

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from math import atan, atan2, sin, tan
 
 from ..units import STANDARD_GRAVITY
-from .ego import EgoState
+from ..vehicle import EgoState
 
 SPEED_GAIN = 1.0  # 1/s: speed error to acceleration demand
 SPEED_INTEGRAL_GAIN = 0.2  # 1/s2
@@ -79,19 +79,16 @@ class Driver:
         self.integral = 0.0
 
 
-def make_driver(target_speed: float, target_lateral: float, parameters: dict[str, float]) -> Driver:
-    mass = parameters["mass"]
-    wheelbase = parameters.get("wheelbase") or parameters["cg_to_front_axle"] + parameters["cg_to_rear_axle"]
+def make_driver(target_speed: float, target_lateral: float, model) -> Driver:
+    """From the EgoModel's properties (SI)."""
     return Driver(
         target_speed=target_speed,
         target_lateral=target_lateral,
-        wheelbase=wheelbase,
-        mass=mass,
-        # the Advanced FMU states its drive as a wheel torque: a = T / (m R)
-        drive_accel_max=parameters["drive_accel_max"] if "drive_accel_max" in parameters
-        else parameters["drive_torque_max"] / (mass * parameters["wheel_radius"]),
-        drive_power_max=parameters.get("drive_power_max", 1e5),
-        brake_decel_max=parameters["brake_decel_max"],
-        rolling_resistance=parameters["rolling_resistance"],
-        drag_factor=parameters["air_density"] * parameters["drag_area"] / (2 * mass),
+        wheelbase=model.wheelbase,
+        mass=model.mass,
+        drive_accel_max=model.drive_accel_max,
+        drive_power_max=model.drive_power_max,
+        brake_decel_max=model.brake_decel_max,
+        rolling_resistance=model.rolling_resistance,
+        drag_factor=model.drag_factor,
     )

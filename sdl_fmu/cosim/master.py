@@ -32,11 +32,12 @@ from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
 from .driver import MAX_STEER, make_driver
-from .ego import EgoFMU, EgoState, parameter_defaults, step_until_time
+from ..vehicle import EgoModel, EgoState, shipped_map_path
+from .ego import step_until_time
 from .recorder import ChunkedTable, EventLog, release_pages
-from .road import WHEELS, surface_map, surface_sections, wheel_geometry, wheel_surfaces
+from .road import surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
-from .triggers import (ADVANCED_MU_MAX, EgoKinematics, ego_bounds, reach_time_scalar, vehicle_condition,
+from .triggers import (EgoKinematics, ego_bounds, reach_time_scalar, vehicle_condition,
                        vehicle_conditions, vehicle_horizon, vehicle_horizons, vehicle_triggered)
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
@@ -44,7 +45,8 @@ RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until
 MAX_TIME = 3600.0  # s, a run never goes beyond
 TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
 # s: closer than this to a possible trigger the master steps this far from a saved state and bisects;
-# a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly)
+# a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
+# An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 # up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
@@ -54,15 +56,14 @@ DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 RELEASE_ROWS = 20_000  # sample rows read from a disk-backed table between releases of its pages (~3.5 MB)
 
-EGO_COLUMNS = ("time", "x", "y", "psi", "s", "v", "vx", "vy", "ax", "ay", "yaw_rate", "stopped", "station",
-               "lateral", "throttle", "brake", "steer", "brk")
+# record() copies the state's fields in their order, then these, then the model's wheel columns
+EGO_COLUMNS = (*EgoState._fields, "station", "lateral", "throttle", "brake", "steer", "brk")
 STOPPED = EgoState._fields.index("stopped")
-assert EGO_COLUMNS[:STOPPED + 1] == EgoState._fields  # record() copies the state's fields in their order
 
 
 @dataclass
 class RunOptions:
-    dynamics: str = "simple"
+    dynamics: str = "simple"  # the shipped map run_scenario drives an FMU given as a path with
     speed: float | None = None  # m/s
     seed: int = 1
     step: float = DEFAULT_STEP  # s, longest communication step; results do not depend on it
@@ -76,9 +77,11 @@ class RunOptions:
 
 
 class Cosimulation:
-    """One run of a scenario against one ego FMU."""
+    """One run of a scenario against one ego vehicle (an EgoModel, or an FMU driven through the shipped map
+    of options.dynamics)."""
 
-    def __init__(self, scenario: Scenario, fmu: Path, options: RunOptions, vehicle_table: dict[int, VehicleModel]):
+    def __init__(self, scenario: Scenario, model: EgoModel | Path, options: RunOptions,
+                 vehicle_table: dict[int, VehicleModel]):
         if not options.step > 0 or not options.driver_period > 0:
             raise ValueError("the communication step and the driver period must be > 0")
         self.scenario = scenario
@@ -86,7 +89,12 @@ class Cosimulation:
         self.road = scenario.road
         self.vehicle_table = vehicle_table
         self.rng = random.Random(options.seed)
-        self.surfaces = surface_map(scenario, options.dynamics)
+        if not isinstance(model, EgoModel):
+            model = EgoModel.open(model, shipped_map_path(options.dynamics))
+        self.model = model = model.with_parameters({**options.tire_parameters, **options.parameters})
+        self.exact = model.can_roll_back  # triggers bisected to TIME_TOLERANCE, else located within MIN_LOOKAHEAD
+        self.time_uncertainty = 0.0  # s, how exactly the instant of what fires now is known
+        self.surfaces = surface_map(scenario, model.default_surface)
         self.surface_changes = _surface_changes(self.surfaces)
         self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
         self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
@@ -95,28 +103,13 @@ class Cosimulation:
         self._edges: dict[tuple[int, int], list] = {}  # see _lane_edges
         self.speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
-        start = {"v0": self.speed, "x0": 0.0, "y0": -start_lateral, "psi0": 0.0,
-                 **options.tire_parameters, **options.parameters}
-        self.ego = EgoFMU(fmu, start)
-        parameters = {**parameter_defaults(self.ego.model_description), **start}
-        self.geometry = wheel_geometry(parameters)
-        self.ego_size = (parameters["length"], parameters["width"])
-        self.driver = make_driver(self.speed, start_lateral, parameters)
-        self.simple = options.dynamics == "simple"
-        self.wheel_inputs = [f"mu_{w}" if self.simple else f"surface_{w}" for w in WHEELS]
-        self.input_names = ("throttle", "brake", "steer") + (tuple(self.wheel_inputs)
-                                                             if options.dynamics == "simple" else ())
-        self.send_inputs = self.ego.real_setter(self.input_names)
-        if options.dynamics == "simple":
-            mu_max = max([self.surfaces.default, *(v for values in self.surfaces.values.values() for v in values)]) / 10
-        else:  # the tire slots' peak friction at zero load (Magic Formula: mu = (PDX1 + PDX2 dfz) LMUX, dfz >= -1)
-            mu_max = max([(abs(parameters[f"tire{k}_PD{axis}1"]) + abs(parameters.get(f"tire{k}_PD{axis}2", 0.0)))
-                          * parameters.get(f"tire{k}_LMU{axis}", 1.0)
-                          for k in range(16) for axis in "XY" if f"tire{k}_PD{axis}1" in parameters],
-                         default=ADVANCED_MU_MAX)
-        g = self.geometry
-        wheel_arm = max(math.hypot(g.front, g.half_track_front), math.hypot(g.rear, g.half_track_rear))
-        self.bounds = ego_bounds(parameters, mu_max, self.speed, wheel_arm, MAX_STEER)
+        self.ego = model.instantiate(start={"speed": self.speed, "x": 0.0, "y": -start_lateral, "yaw": 0.0})
+        self.geometry = wheel_geometry(model)
+        self.driver = make_driver(self.speed, start_lateral, model)
+        self.wheel_columns = model.wheel_columns
+        mu_max = model.peak_friction([v for values in self.surfaces.values.values() for v in values])
+        wheel_arm = max(math.hypot(x, y) for x, y in model.wheels)
+        self.bounds = ego_bounds(model, mu_max, self.speed, wheel_arm, MAX_STEER)
         self.events_in_order = scenario.events
         self.next_event = 0  # index of the first event not yet fired
         self.traffic = Traffic()
@@ -125,13 +118,21 @@ class Cosimulation:
         self.applied_surfaces: tuple[float, ...] | None = None
         self.wheel_values: tuple[float, ...] = ()  # the FMU's wheel inputs for the applied surfaces
         self.controls = (0.0, 0.0, 0.0)
-        self.sent_inputs: tuple | None = None
+        self.sent_controls: tuple | None = None
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
-        self.warnings: list[str] = []
+        self.warnings: list[str] = list(self.ego.warnings)
+        if not self.exact:
+            self.warnings.append(f"the FMU {model.fmu_path.name} cannot get and set its state: each trigger is located "
+                                 f"within a communication step of at most {MIN_LOOKAHEAD:g} s, not bisected to "
+                                 f"{TIME_TOLERANCE:g} s (time_uncertainty_s on each event)")
+        if model.friction is None:
+            self.warnings += [f"line {event.line}: RSA has no effect: the vehicle map of {model.name} has no friction "
+                              "input, so the road surface cannot act on the vehicle"
+                              for event in scenario.events if isinstance(event, SurfaceAttribute)]
         self.bounds_exceeded = False  # whether the ego ever left the bounds of the trigger prediction
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
-        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(self.wheel_inputs))
+        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(self.wheel_columns))
         # per vehicle, its first sample and the sample it left at (-1 while on the road); compact arrays
         self.spawn_sample = array("q")
         self.leave_sample = array("q")
@@ -146,9 +147,11 @@ class Cosimulation:
         return from_si(value, self.scenario.units)
 
     def log(self, code: str, action: str, state: EgoState, **extra) -> None:
-        self.events.append({"code": code, "action": action, "time_s": state.time,
-                            "distance": self._scenario_units(state.s), "speed": self._scenario_units(state.v),
-                            "lateral": self._scenario_units(-state.y), **extra})
+        entry = {"code": code, "action": action, "time_s": state.time, "distance": self._scenario_units(state.s),
+                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y), **extra}
+        if not self.exact:
+            entry["time_uncertainty_s"] = self.time_uncertainty
+        self.events.append(entry)
 
     def _end_distance(self) -> tuple[float, str]:
         """Where the run ends by distance, and why: ES, --until-distance, or a runout past the last event."""
@@ -373,7 +376,7 @@ class Cosimulation:
             self.leave_sample.append(-1)
             self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
-            if self.options.dynamics != "simple":
+            if not self.model.brk_acts:
                 self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics "
                                      "(seed text)")
             elif self.brake_hold is not None:
@@ -432,13 +435,14 @@ class Cosimulation:
             surfaces = self.surfaces_under_wheels(state)
             if surfaces != self.applied_surfaces:
                 self.applied_surfaces = surfaces
-                self.wheel_values = tuple(value / 10 if self.simple else int(value) for value in surfaces)
-                if not self.simple:
-                    self.ego.set(**dict(zip(self.wheel_inputs, self.wheel_values)))
-        inputs = self.controls + self.wheel_values if self.simple else self.controls
-        if inputs != self.sent_inputs:
-            self.send_inputs(inputs)
-            self.sent_inputs = inputs
+                values = self.model.wheel_values(surfaces)
+                if values != self.wheel_values:
+                    self.ego.set_friction(values)
+                    self.wheel_values = values
+        controls = self.controls
+        if controls != self.sent_controls:
+            self.ego.set_controls(*controls)
+            self.sent_controls = controls
 
     def record(self, state: EgoState) -> None:
         bounds = self.bounds
@@ -487,16 +491,23 @@ class Cosimulation:
                     horizons = self.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
-                    # nothing can become true before `end`; something may be true exactly at it
+                    # nothing can become true before `end`; something may be true exactly at it (then at no
+                    # other instant: its instant is known exactly)
                     end = min(limit, earliest)
                     ego.step_to(end)
                     state = ego.read()
                     fired = earliest <= end and self.triggered(
                         state, [kind for kind, instant in horizons.items() if instant <= end])
+                    self.time_uncertainty = 0.0
                 else:
                     end = min(t + MIN_LOOKAHEAD, limit)
                     kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    fired = step_until_time(ego, end, lambda probe: self.triggered(probe, kinds), TIME_TOLERANCE)
+                    if self.exact:
+                        fired = step_until_time(ego, end, lambda probe: self.triggered(probe, kinds), TIME_TOLERANCE)
+                    else:  # what became true did so somewhere in (t, end]
+                        ego.step_to(end)
+                        fired = self.triggered(ego.read(), kinds)
+                        self.time_uncertainty = end - t
                     state = ego.read()
                 self.steps += 1
                 driver_sample = state.time >= next_sample
@@ -522,15 +533,20 @@ class Cosimulation:
             self.ego.close()
 
     def result(self, state: EgoState, wall: float) -> RunResult:
-        names = [*EGO_COLUMNS, *self.wheel_inputs]
+        names = [*EGO_COLUMNS, *self.wheel_columns]
         table = self.ego_rows.finish()
         columns = {name: table[:, i] for i, name in enumerate(names)}
         final = {"time_s": state.time, "distance": self._scenario_units(state.s),
                  "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
                   "steps": self.steps, "samples": self.sample_count}
+        model, bounds = self.model, self.bounds
+        vehicle = {**model.summary(), "bounds": {
+            "acceleration_m/s2": bounds.acceleration, "yaw_rate_rad/s": bounds.yaw_rate, "source": model.bounds.source,
+            "defaults": model.defaulted if model.bounds.acceleration is None else []}}
         return RunResult(
-            scenario_path=self.scenario.path, units=self.scenario.units, dynamics=self.options.dynamics,
+            scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
+            friction_meaning=model.surface_meaning,
             seed=self.options.seed, road=self.road, columns=columns, vehicles=self.vehicle_tracks(columns["time"]),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
@@ -587,7 +603,7 @@ def _surface_changes(surfaces) -> dict[int, list[float]]:
     return changes
 
 
-def run_scenario(scenario: Scenario, fmu: Path, options: RunOptions,
+def run_scenario(scenario: Scenario, model: EgoModel | Path, options: RunOptions,
                  vehicle_table: dict[int, VehicleModel]) -> RunResult:
-    """Co-simulates a parsed scenario against an ego FMU and returns what happened (SI inside)."""
-    return Cosimulation(scenario, fmu, options, vehicle_table).run()
+    """Co-simulates a parsed scenario against an ego vehicle and returns what happened (SI inside)."""
+    return Cosimulation(scenario, model, options, vehicle_table).run()

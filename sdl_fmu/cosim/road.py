@@ -16,9 +16,6 @@ from ..lazy_sequence import LazySequence
 from ..results import SurfaceSection
 from ..sdl.events import Road, Scenario, SurfaceAttribute
 
-# surface value of a lane nobody set: simple dynamics 10 x mu (nominal mu 0.8), advanced attribute 0
-DEFAULT_SURFACE = {"simple": 8.0, "advanced": 0.0}
-WHEELS = ("fl", "fr", "rl", "rr")
 
 
 @dataclass(frozen=True)
@@ -37,7 +34,8 @@ class SurfaceMap:
         return self.values[lane][position] if position >= 0 else self.default
 
 
-def surface_map(scenario: Scenario, dynamics: str) -> SurfaceMap:
+def surface_map(scenario: Scenario, default: float) -> SurfaceMap:
+    """default: the value of a lane nobody set (EgoModel.default_surface)."""
     starts: dict[int, list[float]] = {}
     values: dict[int, list[float]] = {}
     for event in scenario.events:
@@ -45,7 +43,7 @@ def surface_map(scenario: Scenario, dynamics: str) -> SurfaceMap:
             for lane, value in event.settings:
                 starts.setdefault(lane, []).append(event.distance)
                 values.setdefault(lane, []).append(float(value))
-    return SurfaceMap(starts, values, DEFAULT_SURFACE[dynamics])
+    return SurfaceMap(starts, values, default)
 
 
 class SurfaceSections(LazySequence):
@@ -101,13 +99,10 @@ class WheelGeometry:
         return points
 
 
-def wheel_geometry(parameters: dict[str, float]) -> WheelGeometry:
-    """From the FMU's parameters. The Simple FMU has its CG midway between the axles and one track."""
-    if "cg_to_front_axle" in parameters:
-        return WheelGeometry(parameters["cg_to_front_axle"], parameters["cg_to_rear_axle"],
-                             parameters["track_front"] / 2, parameters["track_rear"] / 2)
-    return WheelGeometry(parameters["wheelbase"] / 2, parameters["wheelbase"] / 2, parameters["track"] / 2,
-                         parameters["track"] / 2)
+def wheel_geometry(model) -> WheelGeometry:
+    """From the EgoModel's contact points (fl, fr, rl, rr; x forward, y left of the CG)."""
+    (front, half_track_front), _, (rear, half_track_rear), _ = model.wheels
+    return WheelGeometry(front, -rear, half_track_front, half_track_rear)
 
 
 def wheel_surfaces(road: Road, surfaces: SurfaceMap, points: list[tuple[float, float]]) -> tuple[float, ...]:

@@ -24,13 +24,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..units import STANDARD_GRAVITY
-from .ego import EgoState
+from ..vehicle import EgoState
 from .traffic import Traffic
 
 ACCELERATION_MARGIN = 1.25  # x the physical bound, + ACCELERATION_SLACK: model transients, round-off
 ACCELERATION_SLACK = 0.5  # m/s2
 YAW_RATE_MARGIN = 2.0
-ADVANCED_MU_MAX = 1.5  # peak friction bound for an Advanced FMU whose tire slots are not parameters
 REFERENCE_SPEED = 60.0  # m/s, drag is bounded at max(this, 2 x the start speed)
 
 
@@ -44,23 +43,22 @@ class EgoBounds:
     wheel_arm: float  # m, CG to the farthest contact point
 
 
-def ego_bounds(parameters: dict[str, float], mu_max: float, start_speed: float, wheel_arm: float,
-               max_steer: float) -> EgoBounds:
-    """A from the friction limit (the Simple FMU clamps each wheel to mu g; the Advanced FMU's tire forces
-    saturate at its peak friction), the drive and brake limits, rolling resistance and drag; r_max from the
-    lateral friction limit with the driver's steer limit (steady turning: r <= min(v tan(d)/L, mu g / v),
-    whose maximum over v is sqrt(mu g tan(d) / L))."""
+def ego_bounds(model, mu_max: float, start_speed: float, wheel_arm: float, max_steer: float) -> EgoBounds:
+    """The vehicle map's bounds where it gives them; else A from the friction limit (the Simple FMU clamps each
+    wheel to mu g; the Advanced FMU's tire forces saturate at its peak friction), the drive and brake limits,
+    rolling resistance and drag; r_max from the lateral friction limit with the driver's steer limit (steady
+    turning: r <= min(v tan(d)/L, mu g / v), whose maximum over v is sqrt(mu g tan(d) / L))."""
+    length, width = model.length, model.width
+    radius = math.hypot(length / 2, width / 2)
+    if model.bounds.acceleration is not None:
+        return EgoBounds(model.bounds.acceleration, model.bounds.yaw_rate, length, width, radius, wheel_arm)
     g = STANDARD_GRAVITY
-    mass = parameters["mass"]
-    drag = parameters.get("air_density", 1.225) * parameters.get("drag_area", 0.0) / (2 * mass)
     speed = max(REFERENCE_SPEED, 2 * start_speed)
-    tire = max(mu_max * g, parameters.get("brake_decel_max", 0.0), parameters.get("drive_accel_max", 0.0))
-    resist = parameters.get("rolling_resistance", 0.0) * g + drag * speed**2
+    tire = max(mu_max * g, model.brake_decel_max, model.drive_accel_max)
+    resist = model.rolling_resistance * g + model.drag_factor * speed**2
     acceleration = ACCELERATION_MARGIN * (math.sqrt(2) * tire + resist) + ACCELERATION_SLACK
-    wheelbase = parameters.get("wheelbase") or parameters["cg_to_front_axle"] + parameters["cg_to_rear_axle"]
-    yaw_rate = YAW_RATE_MARGIN * math.sqrt(mu_max * g * math.tan(max_steer) / wheelbase)
-    length, width = parameters["length"], parameters["width"]
-    return EgoBounds(acceleration, yaw_rate, length, width, math.hypot(length / 2, width / 2), wheel_arm)
+    yaw_rate = YAW_RATE_MARGIN * math.sqrt(mu_max * g * math.tan(max_steer) / model.wheelbase)
+    return EgoBounds(acceleration, yaw_rate, length, width, radius, wheel_arm)
 
 
 def reach_time(distance, rate, acceleration):

@@ -1,0 +1,227 @@
+"""The vehicle map (SPEC §6): a TOML file telling sdl-fmu how to drive a vehicle FMU, read with tomllib and
+checked for its shape here (against the FMU in model.py). Every mistake is one VehicleMapError line naming the
+file and the key."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+FrictionMeaning = Literal["mu", "attribute"]
+
+INPUTS = ("throttle", "brake", "steer")  # required; `friction` is optional
+OUTPUTS_REQUIRED = ("x", "y", "yaw", "speed")
+OUTPUTS_OPTIONAL = ("distance", "vx", "vy", "yaw_rate", "ax", "ay", "stopped")
+STARTS = ("speed", "x", "y", "yaw")
+# [vehicle]: SI numbers, or { parameter = "name" } for an FMU parameter's value in this run
+VEHICLE_GEOMETRY = ("length", "width", "wheelbase", "track", "cg_to_front_axle", "cg_to_rear_axle", "track_front",
+                    "track_rear")
+VEHICLE_NUMBERS = (*VEHICLE_GEOMETRY, "mass", "drive_accel_max", "drive_power_max", "drive_torque_max", "wheel_radius",
+                   "brake_decel_max", "rolling_resistance", "drag_area", "air_density", "peak_friction",
+                   "max_acceleration", "max_yaw_rate")
+VEHICLE_FLAGS = ("brk_acts",)
+TOP_LEVEL = ("name", "fmu", "inputs", "outputs", "start", "parameters", "vehicle")
+SHIPPED = ("simple", "advanced")  # the shipped maps, scenarios/vehicles/<name>.toml
+
+
+class VehicleMapError(ValueError):
+    """A vehicle map (or the FMU it names) that cannot drive a run: one line naming the file and the key."""
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One map entry: an FMU variable and the linear map between sdl-fmu's quantity and it."""
+
+    key: str  # e.g. "inputs.steer"
+    variable: str
+    scale: float = 1.0
+    offset: float = 0.0
+    unit: str | None = None
+
+
+@dataclass(frozen=True)
+class FrictionEntry:
+    key: str
+    variables: tuple[str, ...]
+    meaning: FrictionMeaning
+    scale: float = 1.0
+    offset: float = 0.0
+    tire_slots: str | None = None  # e.g. "tire{slot}_": the FMU takes Magic Formula tire slots (--tires fills them)
+
+
+@dataclass(frozen=True)
+class VehicleMap:
+    path: Path | None  # None: built in memory
+    name: str | None
+    fmu: Path | None  # resolved against the map's folder
+    inputs: dict[str, Channel]
+    friction: FrictionEntry | None
+    outputs: dict[str, Channel]
+    start: dict[str, Channel]
+    parameters: dict[str, float]
+    vehicle: dict[str, float | str]  # a number (SI), or the name of an FMU parameter
+    flags: dict[str, bool] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        return str(self.path) if self.path is not None else "<vehicle map>"
+
+
+def shipped_map_path(name: str) -> Path:
+    """The shipped map of the shipped model `name` ("simple" or "advanced")."""
+    if name not in SHIPPED:
+        raise VehicleMapError(f"--dynamics {name}: must be one of {', '.join(SHIPPED)}")
+    return Path(str(resources.files("sdl_fmu") / "scenarios" / "vehicles" / f"{name}.toml"))
+
+
+def load_vehicle_map(path: str | Path) -> VehicleMap:
+    """Reads and checks a vehicle map's shape (not yet against an FMU)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise VehicleMapError(f"--vehicle {path}: no such file") from None
+    except IsADirectoryError:
+        raise VehicleMapError(f"--vehicle {path}: is a folder, not a file") from None
+    except UnicodeDecodeError:
+        raise VehicleMapError(f"{path}: not TOML (not UTF-8 text)") from None
+    except tomllib.TOMLDecodeError as error:
+        raise VehicleMapError(f"{path}: not TOML: {error}") from None
+    except OSError as error:
+        raise VehicleMapError(f"--vehicle {path}: cannot be read ({error.strerror})") from None
+    return parse_vehicle_map(data, path)
+
+
+def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = True) -> VehicleMap:
+    """complete=False: a map without wheel geometry (an FMU stepped on its own, not driven through a scenario)."""
+    label = str(path) if path is not None else "<vehicle map>"
+
+    def fail(key: str, reason: str):
+        raise VehicleMapError(f"{label}: {key}: {reason}")
+
+    for key in data:
+        if key not in TOP_LEVEL:
+            fail(key, f"unknown key (a vehicle map has {', '.join(TOP_LEVEL)})")
+
+    def table(key: str, required: bool) -> dict:
+        value = data.get(key)
+        if value is None:
+            if required:
+                fail(f"[{key}]", "missing")
+            return {}
+        if not isinstance(value, dict):
+            fail(key, "must be a table")
+        return value
+
+    def number(key: str, value) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            fail(key, f"{value!r} must be a finite number")
+        return float(value)
+
+    def text(key: str, value) -> str:
+        if not isinstance(value, str) or not value:
+            fail(key, f"{value!r} must be a non-empty string")
+        return value
+
+    def channel(section: str, name: str, entry, allowed=("variable", "scale", "offset", "unit")) -> Channel:
+        key = f"{section}.{name}"
+        if not isinstance(entry, dict):
+            fail(key, 'must be a table such as { variable = "name" }')
+        for field_name in entry:
+            if field_name not in allowed:
+                fail(f"{key}.{field_name}", f"unknown key (allowed: {', '.join(allowed)})")
+        if "variable" not in entry:
+            fail(f"{key}.variable", "missing")
+        return Channel(key, text(f"{key}.variable", entry["variable"]),
+                       number(f"{key}.scale", entry.get("scale", 1.0)), number(f"{key}.offset", entry.get("offset", 0.0)),
+                       None if entry.get("unit") is None else text(f"{key}.unit", entry["unit"]))
+
+    name = None if data.get("name") is None else text("name", data["name"])
+    fmu = None
+    if data.get("fmu") is not None:
+        fmu = Path(text("fmu", data["fmu"]))
+        if not fmu.is_absolute() and path is not None:
+            fmu = path.parent / fmu
+
+    inputs_table = table("inputs", True)
+    inputs, friction = {}, None
+    for key in inputs_table:
+        if key not in (*INPUTS, "friction"):
+            fail(f"inputs.{key}", f"unknown input (inputs: {', '.join(INPUTS)}, friction)")
+    for key in INPUTS:
+        if key not in inputs_table:
+            fail(f"inputs.{key}", "missing (throttle, brake and steer are required)")
+        inputs[key] = channel("inputs", key, inputs_table[key])
+    if "friction" in inputs_table:
+        entry = inputs_table["friction"]
+        key = "inputs.friction"
+        if not isinstance(entry, dict):
+            fail(key, 'must be a table such as { variables = ["mu_fl", ...], meaning = "mu" }')
+        allowed = ("variables", "variable", "meaning", "scale", "offset", "tire_slots")
+        for field_name in entry:
+            if field_name not in allowed:
+                fail(f"{key}.{field_name}", f"unknown key (allowed: {', '.join(allowed)})")
+        if ("variables" in entry) == ("variable" in entry):
+            fail(f"{key}.variables", "give variables = [...] (1, 2 or 4 names) or variable = \"name\"")
+        names = entry["variables"] if "variables" in entry else [entry["variable"]]
+        if not isinstance(names, list) or len(names) not in (1, 2, 4):
+            fail(f"{key}.variables", "must list 1 (the car), 2 (front, rear axle) or 4 (fl, fr, rl, rr) variables")
+        names = tuple(text(f"{key}.variables", n) for n in names)
+        meaning = entry.get("meaning")
+        if meaning not in ("mu", "attribute"):
+            fail(f"{key}.meaning", f"{meaning!r} must be \"mu\" (RSA value / 10) or \"attribute\" (attribute number)")
+        slots = entry.get("tire_slots")
+        friction = FrictionEntry(key, names, meaning, number(f"{key}.scale", entry.get("scale", 1.0)),
+                                 number(f"{key}.offset", entry.get("offset", 0.0)),
+                                 None if slots is None else text(f"{key}.tire_slots", slots))
+        if friction.tire_slots is not None and "{slot}" not in friction.tire_slots:
+            fail(f"{key}.tire_slots", "must contain {slot}, e.g. \"tire{slot}_\"")
+
+    outputs_table = table("outputs", True)
+    outputs = {}
+    for key, entry in outputs_table.items():
+        if key not in (*OUTPUTS_REQUIRED, *OUTPUTS_OPTIONAL):
+            fail(f"outputs.{key}", f"unknown output (outputs: {', '.join((*OUTPUTS_REQUIRED, *OUTPUTS_OPTIONAL))})")
+        outputs[key] = channel("outputs", key, entry)
+    for key in OUTPUTS_REQUIRED:
+        if key not in outputs:
+            fail(f"outputs.{key}", "missing (x, y, yaw and speed are required)")
+
+    start = {}
+    for key, entry in table("start", False).items():
+        if key not in STARTS:
+            fail(f"start.{key}", f"unknown start quantity (start: {', '.join(STARTS)})")
+        start[key] = channel("start", key, entry)
+
+    parameters = {str(k): number(f"parameters.{k}", v) for k, v in table("parameters", False).items()}
+
+    vehicle, flags = {}, {}
+    for key, value in table("vehicle", False).items():
+        if key in VEHICLE_FLAGS:
+            if not isinstance(value, bool):
+                fail(f"vehicle.{key}", f"{value!r} must be true or false")
+            flags[key] = value
+        elif key in VEHICLE_NUMBERS:
+            if isinstance(value, dict):
+                if set(value) != {"parameter"}:
+                    fail(f"vehicle.{key}", 'must be a number (SI) or { parameter = "name" }')
+                vehicle[key] = text(f"vehicle.{key}.parameter", value["parameter"])
+            else:
+                vehicle[key] = number(f"vehicle.{key}", value)
+        else:
+            fail(f"vehicle.{key}", f"unknown key (vehicle: {', '.join((*VEHICLE_NUMBERS, *VEHICLE_FLAGS))})")
+    for key in ("length", "width"):
+        if key not in vehicle:
+            fail(f"vehicle.{key}", "missing (the footprint: length and width, m)")
+    if complete and "wheelbase" not in vehicle and not {"cg_to_front_axle", "cg_to_rear_axle"} <= set(vehicle):
+        fail("vehicle.wheelbase", "missing (or give cg_to_front_axle and cg_to_rear_axle)")
+    if complete and "track" not in vehicle and not {"track_front", "track_rear"} <= set(vehicle):
+        fail("vehicle.track", "missing (or give track_front and track_rear)")
+    if ("max_acceleration" in vehicle) != ("max_yaw_rate" in vehicle):
+        fail("vehicle.max_yaw_rate" if "max_acceleration" in vehicle else "vehicle.max_acceleration",
+             "give both bounds (max_acceleration, m/s2, and max_yaw_rate, rad/s) or neither")
+    return VehicleMap(path, name, fmu, inputs, friction, outputs, start, parameters, vehicle, flags)

@@ -5,6 +5,7 @@ started once."""
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -61,6 +62,106 @@ def rewritten_fmu(source: Path, target: Path, edit_description=None, drop=lambda
                 data = edit_description(data.decode("utf-8")).encode("utf-8")
             copy.writestr(item, data)
     return target
+
+
+VEHICLES = Path(__file__).parent / "vehicles"
+FOREIGN_CAR_MAP = VEHICLES / "foreign_car.toml"
+# the weak variant: at most 9 kW of drive power, so its top speed (84.7 km/h, test_foreign_vehicle.py) stays below
+# 100 km/h; for "cannot reach the entry speed"
+WEAK_PARAMETERS = {"max_engine_power": 9000.0}
+
+
+def build_foreign_car(folder: Path, fmi_version: int = 3) -> Path:
+    """Packages the foreign car (tests/vehicles) into folder with another tool, in a subprocess through its
+    command line: pythonfmu3 for FMI 3.0, PythonFMU for FMI 2.0. Returns the FMU's path."""
+    script, tool, name = {3: ("foreign_car.py", "pythonfmu3", "ForeignCar"),
+                          2: ("foreign_car_fmi2.py", "pythonfmu", "ForeignCarFmi2")}[fmi_version]
+    built = subprocess.run([sys.executable, "-m", tool, "build", "-f", str(VEHICLES / script), "-d", str(folder),
+                            str(VEHICLES / "foreign_car_dynamics.py")], capture_output=True, text=True)
+    if built.returncode != 0:
+        pytest.fail(f"{tool} could not build {script}:\n{built.stdout}{built.stderr}")
+    return folder / f"{name}.fmu"
+
+
+def foreign_vehicle_map(folder: Path, weak: bool = False) -> Path:
+    """The foreign car's vehicle map; weak: a copy in folder whose [parameters] (the map's last table) cap the
+    drive power (WEAK_PARAMETERS)."""
+    if not weak:
+        return FOREIGN_CAR_MAP
+    text = FOREIGN_CAR_MAP.read_text()
+    assert text.rstrip().endswith("[parameters]"), "foreign_car.toml must end with its [parameters] table"
+    path = folder / "foreign_car_weak.toml"
+    path.write_text(text + "".join(f"{name} = {value!r}\n" for name, value in WEAK_PARAMETERS.items()))
+    return path
+
+
+@pytest.fixture(scope="session")
+def foreign_vehicle(tmp_path_factory):
+    """A function (fmi_version=3, weak=False) -> (fmu_path, map_path): the foreign car, built once per session
+    and FMI version by PythonFMU / pythonfmu3, and its vehicle map (weak: the drive-power-capped variant)."""
+    folder = tmp_path_factory.mktemp("foreign-car")
+    built = {}
+
+    def vehicle(fmi_version: int = 3, weak: bool = False) -> tuple[Path, Path]:
+        if fmi_version not in built:
+            built[fmi_version] = build_foreign_car(folder, fmi_version)
+        return built[fmi_version], foreign_vehicle_map(folder, weak)
+
+    return vehicle
+
+
+def foreign_parameters(fmu: Path) -> dict[str, float]:
+    """The foreign car's parameter start values, in its own units."""
+    from fmpy import read_model_description
+
+    return {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
+            if v.causality == "parameter"}
+
+
+class FmpyCar:
+    """A co-simulation FMU (FMI 2.0 or 3.0) opened directly through fmpy, driven by variable name:
+    car = FmpyCar(fmu, {"v_init": 100.0}); car.set(brake_pressure=60.0); car.step(0.05); car.get("veh_speed")."""
+
+    def __init__(self, fmu: Path, start: dict[str, float]):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
+
+        self.description = read_model_description(str(fmu))
+        self.refs = {v.name: v.valueReference for v in self.description.modelVariables}
+        self.fmi3 = self.description.fmiVersion.startswith("3")
+        self._folder = extract(str(fmu))
+        common = dict(unzipDirectory=self._folder, modelIdentifier=self.description.coSimulation.modelIdentifier,
+                      instanceName="car")
+        if self.fmi3:
+            self.fmu = FMU3Slave(guid=self.description.guid, **common)
+            self.fmu.instantiate()
+            self.fmu.enterInitializationMode(startTime=0.0)
+        else:
+            self.fmu = FMU2Slave(guid=self.description.guid, **common)
+            self.fmu.instantiate()
+            self.fmu.setupExperiment(startTime=0.0)
+            self.fmu.enterInitializationMode()
+        self.set(**start)
+        self.fmu.exitInitializationMode()
+        self.time = 0.0
+
+    def set(self, **values: float) -> None:
+        setter = self.fmu.setFloat64 if self.fmi3 else self.fmu.setReal
+        setter([self.refs[name] for name in values], [float(value) for value in values.values()])
+
+    def get(self, *names: str) -> list[float]:
+        getter = self.fmu.getFloat64 if self.fmi3 else self.fmu.getReal
+        return list(getter([self.refs[name] for name in names]))
+
+    def step(self, h: float) -> None:
+        self.fmu.doStep(currentCommunicationPoint=self.time, communicationStepSize=h)
+        self.time += h
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+        shutil.rmtree(self._folder, ignore_errors=True)
 
 
 def windows_tools_required() -> bool:

@@ -508,7 +508,8 @@ def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
         braking.metrics.update(closed_form_cases=len(cases), closed_form_max_relative_error=worst)
         braking.criteria.append(f"{len(cases)} SPEC section 2 closed-form stops, largest relative error "
                                 f"{worst:.1e} <= 1e-9: {'pass' if worst <= 1e-9 else 'FAIL'}")
-        braking.passed = bool(braking.passed) and worst <= 1e-9 if braking.passed is not None else braking.passed
+        if braking.passed is not None:
+            braking.passed = braking.passed and worst <= 1e-9
     folder = None
     if out is not None:
         try:

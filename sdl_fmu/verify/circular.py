@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..units import STANDARD_GRAVITY
-from .drive import ManoeuvreFailed, SpeedHold, drive
+from .drive import SAMPLE_PERIOD, ManoeuvreFailed, SpeedHold, drive
 from .driver import PathFollower
 from .outcome import Outcome
 
@@ -58,7 +58,7 @@ def run(model) -> Outcome:
     outcome.runs.append(("ramp", trace))
     after = trace["time_s"] >= 0
     ay, r, v, steer = (trace[c][after] for c in ("ay_mps2", "yaw_rate_radps", "speed_mps", "steer_rad"))
-    window = max(1, int(round(AVERAGE / 0.01)))
+    window = max(1, int(round(AVERAGE / SAMPLE_PERIOD)))
     smooth = np.convolve(ay, np.ones(window) / window, mode="valid")
     max_lateral = float(np.max(smooth)) if smooth.size else float("nan")
     linear = (ay >= LINEAR_RANGE[0]) & (ay <= LINEAR_RANGE[1])

@@ -110,6 +110,10 @@ def drive(model, entry_speed: float, law: Callable, duration: float, *, paramete
             t = origin - settle + k * SAMPLE_PERIOD
             ego.step_to(t)
             state = _checked(ego.read())
+        if steps and rows[-1][-3] >= 1.0 and state.v < rows[-1][5]:
+            # full throttle and still slowing down: the entry speed is beyond this vehicle's top speed
+            raise ManoeuvreFailed(f"cannot reach the entry speed {entry_speed / KILOMETRE_PER_HOUR:.0f} km/h "
+                                  f"(at full throttle it slows down at {state.v / KILOMETRE_PER_HOUR:.1f} km/h)")
         if abs(state.v - entry_speed) > ENTRY_SPEED_TOLERANCE:
             raise ManoeuvreFailed(f"cannot hold the entry speed {entry_speed / KILOMETRE_PER_HOUR:.0f} km/h "
                                   f"(at {state.v / KILOMETRE_PER_HOUR:.1f} km/h after {settle:g} s of speed "

@@ -37,7 +37,6 @@ RUN_IN = 30.0  # m of straight driving in the entry lane before the gate
 RUN_OUT = 20.0  # m after the exit gate
 BIAS = 0.6  # share of a lane's spare width the driver's path uses toward the next lane change
 OVERLAP = 0.0  # m: how far the transitions reach into the marked sections (tuned on the shipped models)
-WIDTH_OF: dict = {}
 
 
 @dataclass(frozen=True)
@@ -60,14 +59,14 @@ def track(width: float) -> list[Lane]:
             Lane(x[4], x[5], right1, right1 + exit_width)]
 
 
-def centre_path(lanes: list[Lane], length: float, spacing: float = 0.05):
+def centre_path(lanes: list[Lane], length: float, width: float, spacing: float = 0.05):
     """The driver's path: in each marked lane a line BIAS of the lane's spare width toward the next lane change,
     joined by cosine transitions that start when the body has left a lane and end when it enters the next
     (shifted by OVERLAP, as the driver's look-ahead starts the turn early)."""
     first, side, last = lanes
     targets = []
     for lane, toward in zip(lanes, (1.0, -1.0, 1.0)):
-        spare = (lane.left - lane.right - WIDTH_OF[id(lanes)]) / 2
+        spare = (lane.left - lane.right - width) / 2
         targets.append((lane.right + lane.left) / 2 + toward * BIAS * spare)
     x = np.arange(-RUN_IN, last.end + RUN_OUT, spacing)
     y = np.full_like(x, targets[0])
@@ -117,8 +116,8 @@ def cone_touch(trace, length: float, width: float, lanes: list[Lane]) -> str | N
     return None
 
 
-def lane_change_run(model, speed: float, lanes: list[Lane]):
-    path = centre_path(lanes, model.length)
+def lane_change_run(model, speed: float, lanes: list[Lane], width: float):
+    path = centre_path(lanes, model.length, width)
     follower = PathFollower(*path, model.wheelbase)
     end = lanes[-1].end + model.length
 
@@ -137,37 +136,44 @@ def lane_change_run(model, speed: float, lanes: list[Lane]):
 def run(model) -> Outcome:
     outcome = Outcome("double_lane_change", STANDARD)
     lanes = track(model.width)
-    WIDTH_OF[id(lanes)] = model.width
     tried = []
 
     def attempt(kmh: float):
-        trace = lane_change_run(model, kmh * KILOMETRE_PER_HOUR, lanes)
+        """(what went wrong or None for a clean run, the trace or None when the run could not be made)"""
+        try:
+            trace = lane_change_run(model, kmh * KILOMETRE_PER_HOUR, lanes, model.width)
+        except ManoeuvreFailed as failure:
+            if kmh <= LOW_SPEED_KMH:
+                raise
+            # above the lowest speed, a run the vehicle cannot make (e.g. beyond its top speed) bounds the search
+            tried.append({"entry_speed_kmh": kmh, "touched": None, "failed": str(failure)})
+            return str(failure), None
         touch = cone_touch(trace, model.length, model.width, lanes)
         tried.append({"entry_speed_kmh": kmh, "touched": touch})
-        outcome.runs.append((f"{kmh:.2f} km/h", trace))
         return touch, trace
 
-    touch, best = attempt(LOW_SPEED_KMH)
-    if touch is not None:
-        raise ManoeuvreFailed(f"touches a cone even at {LOW_SPEED_KMH:.0f} km/h ({touch})")
+    problem, best = attempt(LOW_SPEED_KMH)
+    if problem is not None:
+        raise ManoeuvreFailed(f"touches a cone even at {LOW_SPEED_KMH:.0f} km/h ({problem})")
     low, high = LOW_SPEED_KMH, HIGH_SPEED_KMH
-    touch_high, failed = attempt(high)
-    if touch_high is None:
-        low, best, failed = high, failed, None
-    while high - low > RESOLUTION_KMH and failed is not None:
+    high_problem, high_trace = attempt(high)
+    if high_problem is None:
+        low, best = high, high_trace
+    while high_problem is not None and high - low > RESOLUTION_KMH:
         middle = (low + high) / 2
-        touch, trace = attempt(middle)
-        if touch is None:
+        problem, trace = attempt(middle)
+        if problem is None:
             low, best = middle, trace
         else:
-            high, failed, touch_high = middle, trace, touch
+            high, high_problem, high_trace = middle, problem, trace
     outcome.runs = [(f"{low:.2f} km/h (fastest clean run)", best)]
-    if failed is not None:
-        outcome.runs.append((f"{high:.2f} km/h (touches: {touch_high})", failed))
-    outcome.metrics = {"max_entry_speed_kmh": low, "first_touch_kmh": high if failed is not None else None,
-                       "first_touch": touch_high if failed is not None else None, "runs": tried}
+    if high_trace is not None and high_problem is not None:
+        outcome.runs.append((f"{high:.2f} km/h (touches: {high_problem})", high_trace))
+    outcome.metrics = {"max_entry_speed_kmh": low,
+                       "first_touch_kmh": high if high_problem is not None else None,
+                       "first_touch": high_problem, "runs": tried}
     outcome.criteria = ["ISO 3888-2 sets no limit: reported"]
+    path_x, path_y = centre_path(lanes, model.length, model.width)
     outcome.plot = {"lanes": [lane.__dict__ for lane in lanes], "length": model.length, "width": model.width,
-                    "path": [list(map(float, centre_path(lanes, model.length)[0][::20])),
-                             list(map(float, centre_path(lanes, model.length)[1][::20]))]}
+                    "path": [path_x[::20].tolist(), path_y[::20].tolist()]}
     return outcome

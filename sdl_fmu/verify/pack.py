@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time as clock
-from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Iterable
 
 from . import braking, circular, lane_change, sine_with_dwell, split_mu, step_steer
@@ -32,16 +31,7 @@ def run_manoeuvre(model, name: str) -> Outcome:
     return outcome
 
 
-def _run_opened(opener: Callable, name: str) -> Outcome:
-    return run_manoeuvre(opener(), name)
-
-
-def run_pack(model, names: Iterable[str] | None = None, workers: int = 1,
-             opener: Callable | None = None) -> list[Outcome]:
-    """The outcomes of the named manoeuvres (default all, in the pack's order). With workers > 1 and an
-    `opener` (a picklable function returning the model) the manoeuvres run in parallel processes."""
-    chosen = [name for name in MANOEUVRES if names is None or name in set(names)]
-    if workers > 1 and opener is not None and len(chosen) > 1:
-        with ProcessPoolExecutor(max_workers=min(workers, len(chosen))) as pool:
-            return list(pool.map(_run_opened, [opener] * len(chosen), chosen))
-    return [run_manoeuvre(model, name) for name in chosen]
+def run_pack(model, names: Iterable[str] | None = None) -> list[Outcome]:
+    """The outcomes of the named manoeuvres (default all), in the pack's order, one after the other."""
+    chosen = set(MANOEUVRES) if names is None else set(names)
+    return [run_manoeuvre(model, name) for name in MANOEUVRES if name in chosen]

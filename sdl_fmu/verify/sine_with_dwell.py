@@ -28,6 +28,7 @@ SPEED_KMH = 80.0  # S7.6, S7.7: 80 +/- 2 km/h
 STEERING_RATIO = 16.0  # steering-wheel to road-wheel angle (a typical passenger car; sdl-fmu's assumption)
 SIS_RATE = math.radians(13.5) / STEERING_RATIO  # rad/s road wheel: S7.6, 13.5 deg/s of steering-wheel angle
 SIS_END_G = 0.5  # S7.6: until about 0.5 g
+SIS_MAX_STEER = math.radians(20.0)  # road wheel: the ramp gives up here (a car that never reaches 0.5 g)
 SIS_FIT_G = (0.1, 0.5)  # g: the range of the steer / a_y line (sdl-fmu's choice)
 A_LEVEL_G = 0.3  # S7.6: A is the steer giving 0.3 g
 FREQUENCY = 0.7  # Hz, S7.7
@@ -70,8 +71,7 @@ def slowly_increasing_steer(model, speed: float):
         return throttle, brake, SIS_RATE * time
 
     g = STANDARD_GRAVITY
-    limit = SIS_END_G * g / SIS_RATE * 0.2  # rad / (rad/s): a generous time limit (the slowest sensible car)
-    trace = drive(model, speed, law, max(limit, 20.0), stop=lambda time, state: state.ay >= SIS_END_G * g)
+    trace = drive(model, speed, law, SIS_MAX_STEER / SIS_RATE, stop=lambda time, state: state.ay >= SIS_END_G * g)
     after = trace["time_s"] >= 0
     ay, steer = trace["ay_mps2"][after], trace["steer_rad"][after]
     fit = (ay >= SIS_FIT_G[0] * g) & (ay <= SIS_FIT_G[1] * g)

@@ -4,7 +4,7 @@ From 100 km/h straight ahead, full brake, throttle released, the steering held s
 left wheels and MU_RIGHT under the right ones (ISO 14512's high / low pair). Metrics: yaw angle at the stop
 and 2 s after the brake application, lateral deviation of the centre of gravity at the stop, stopping
 distance. ISO 14512 sets no pass/fail limit: `passed` is null. A vehicle without a friction input cannot
-run it (not applicable, `passed` null).
+run it, nor can one whose friction input is not per wheel (not applicable, `passed` null).
 """
 
 from __future__ import annotations
@@ -37,6 +37,11 @@ def run(model) -> Outcome:
     outcome = Outcome("split_mu_braking", STANDARD)
     if model.friction is None:
         outcome.reason = "not applicable: the vehicle has no friction input"
+        outcome.criteria = ["not applicable"]
+        return outcome
+    if len(model.friction.variables) != 4:
+        outcome.reason = ("not applicable: the vehicle's friction input is not per wheel "
+                          f"({', '.join(model.friction.variables)}), so left and right cannot differ")
         outcome.criteria = ["not applicable"]
         return outcome
     speed = SPEED_KMH * KILOMETRE_PER_HOUR

@@ -491,6 +491,10 @@ def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
     if unknown or not names:
         raise _option_error("only", ",".join(names), f"must name manoeuvres among {', '.join(pack.MANOEUVRES)}")
     model = ego_model(dynamics, fmu, vehicle)
+    try:  # an FMU that cannot even be instantiated is a bad --fmu, not a manoeuvre's result
+        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+    except Exception as error:  # noqa: BLE001 - fmpy reports a binary that cannot be loaded as a plain Exception
+        raise InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {_first_line(error)}") from None
     if out is not None:
         try:
             check_results_folder(out)

@@ -16,11 +16,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from sdl_fmu.cosim.ego import EgoFMU
 from sdl_fmu.cosim.master import RunOptions, run_scenario
 from sdl_fmu.fmu.package import build_fmu
 from sdl_fmu.interface import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
+from sdl_fmu.vehicle import EgoInstance
 
 
 def options(dynamics: str, **extra) -> RunOptions:
@@ -41,10 +41,10 @@ def compare(run, reference) -> dict:
 
 def master_cost(scenario, fmu, run_options: RunOptions, table, repeat: int) -> dict:
     """The master's own time per communication step: the loop's wall time minus the wall time inside
-    EgoFMU.step_to (fmi2DoStep, the bisection's probes included), best of `repeat`. What remains is the
+    EgoInstance.step_to (fmi2DoStep, the bisection's probes included), best of `repeat`. What remains is the
     master's Python plus its other FMI calls (getting the outputs, which the FMU evaluates at the first get
     after a step; setting the inputs; the bisection's FMU-state snapshots)."""
-    original = EgoFMU.step_to
+    original = EgoInstance.step_to
     inside = [0.0]
 
     def timed(self, end):
@@ -53,7 +53,7 @@ def master_cost(scenario, fmu, run_options: RunOptions, table, repeat: int) -> d
         inside[0] += time.perf_counter() - began
 
     best = None
-    EgoFMU.step_to = timed
+    EgoInstance.step_to = timed
     try:
         for _ in range(repeat):
             inside[0] = 0.0
@@ -63,7 +63,7 @@ def master_cost(scenario, fmu, run_options: RunOptions, table, repeat: int) -> d
                 best = {"master_s": master, "do_step_s": inside[0], "steps": run.timing["steps"],
                         "master_us_per_step": master / run.timing["steps"] * 1e6}
     finally:
-        EgoFMU.step_to = original
+        EgoInstance.step_to = original
     return best
 
 

@@ -22,6 +22,8 @@ PACKAGE_DIRECTORY = Path(str(resources.files(__package__)))
 INTERFACE_DIRECTORY = PACKAGE_DIRECTORY / "interfaces"
 SCENARIO_DIRECTORY = PACKAGE_DIRECTORY / "scenarios"  # shipped examples, vehicle table, tire files
 
+WHEELS = ("fl", "fr", "rl", "rr")  # the wheels' order everywhere (FMU variables, contact points, results columns)
+
 # roles: where a variable lives in the model function arguments (x, d, u, p) or results (y)
 STATE, DISCRETE, INPUT, PARAMETER, OUTPUT = "state", "discrete", "input", "parameter", "output"
 

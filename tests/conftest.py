@@ -48,22 +48,6 @@ def defaults_simple(simple_fmu):
             if v.causality == "parameter"}
 
 
-def rewritten_fmu(source: Path, target: Path, edit_description=None, drop=lambda name: False) -> Path:
-    """A copy of an FMU with its modelDescription.xml passed through edit_description(text) -> text and the
-    archive members for which drop(name) is true left out (an FMU that lacks a capability or a binary)."""
-    import zipfile
-
-    with zipfile.ZipFile(source) as original, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as copy:
-        for item in original.infolist():
-            if drop(item.filename):
-                continue
-            data = original.read(item)
-            if item.filename == "modelDescription.xml" and edit_description is not None:
-                data = edit_description(data.decode("utf-8")).encode("utf-8")
-            copy.writestr(item, data)
-    return target
-
-
 VEHICLES = Path(__file__).parent / "vehicles"
 FOREIGN_CAR_MAP = VEHICLES / "foreign_car.toml"
 # the weak variant: at most 9 kW of drive power, so its top speed (84.7 km/h, test_foreign_vehicle.py) stays below
@@ -162,6 +146,22 @@ class FmpyCar:
         self.fmu.terminate()
         self.fmu.freeInstance()
         shutil.rmtree(self._folder, ignore_errors=True)
+
+
+def rewritten_fmu(source: Path, target: Path, edit_description=None, drop=lambda name: False) -> Path:
+    """A copy of an FMU with its modelDescription.xml passed through edit_description(text) -> text and the
+    archive members for which drop(name) is true left out (an FMU that lacks a capability or a binary)."""
+    import zipfile
+
+    with zipfile.ZipFile(source) as original, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as copy:
+        for item in original.infolist():
+            if drop(item.filename):
+                continue
+            data = original.read(item)
+            if item.filename == "modelDescription.xml" and edit_description is not None:
+                data = edit_description(data.decode("utf-8")).encode("utf-8")
+            copy.writestr(item, data)
+    return target
 
 
 def windows_tools_required() -> bool:

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import WEAK_PARAMETERS, FmpyCar, foreign_parameters
 
-G = 9.80665
+G = 9.80665  # the car's own g (foreign_car_dynamics.G), the standard value
 OUTPUTS = {"earth_x", "earth_y", "heading_angle", "veh_speed", "yaw_velocity", "long_accel"}
 # RK4 (2 ms sub-steps) on these smooth equations has a truncation error far below 1e-12 (h^4 = 1.6e-11 times
 # derivatives of order 1e-2 or less); what remains is rounding, about 1e-16 per operation over some 1e4 sub-steps

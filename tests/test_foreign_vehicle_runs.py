@@ -22,6 +22,7 @@ import pytest
 from conftest import foreign_parameters
 from sdl_fmu import api
 from sdl_fmu.units import FOOT, STANDARD_GRAVITY as G
+from sdl_fmu.vehicle import STOPPED_SPEED
 
 pytestmark = pytest.mark.slow  # builds the FMUs with PythonFMU / pythonfmu3 and runs whole scenarios
 
@@ -122,14 +123,19 @@ def check_distance_triggers(result, scenario):
     return checked
 
 
-def check_brake_hold(on, off, parameters, brake_scale, mu):
-    """One BRK hold against the car's closed forms, from the state its onset reports."""
+def check_brake_hold(on, off, parameters, brake_scale, mu, reason=None):
+    """One BRK hold against the car's closed forms, from the state its onset reports; reason: why it ends (its
+    threshold unless given; "stopped": when the speed falls below sdl-fmu's STOPPED_SPEED, the car having no
+    `stopped` output)."""
     # the brakes act from the reported onset on: pressure = the map's scale x pedal
     braking = Braking(parameters, brake_scale * on["pedal"] / 100, mu, on["speed"] * FOOT)
-    magnitude = on["magnitude"] * (1.0 if on["threshold"] == "time" else FOOT)
-    t_release, _ = braking.release(on["threshold"], magnitude)
+    if reason == "stopped":
+        t_release = braking.time_to(STOPPED_SPEED)
+    else:
+        magnitude = on["magnitude"] * (1.0 if on["threshold"] == "time" else FOOT)
+        t_release, _ = braking.release(on["threshold"], magnitude)
     t_off, u_off = off["time_s"] - on["time_s"], off["time_uncertainty_s"]
-    assert off["reason"] == on["threshold"]
+    assert off["reason"] == (reason or on["threshold"])
     # the release instant: at or after the closed form's, by at most its uncertainty (0 for the time threshold,
     # which the master steps to); the speed reported then on the closed-form curve
     assert -NUMERIC <= t_off - t_release <= u_off + NUMERIC
@@ -278,3 +284,58 @@ def test_bad_foreign_car_map_is_one_line_naming_file_and_key(foreign_vehicle, tm
     line, = completed.stderr.strip().splitlines()
     assert str(bad) in line and key in line and words in line
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad_map.toml"]
+
+
+def test_foreign_car_sweeps_on_dask(foreign_vehicle, tmp_path):
+    """A sweep drives the foreign car (its Python inside the FMU, one instance per Dask worker thread at once).
+    head_on at v = 70, 80, 90 ft/s: the driver holds v exactly (see the head-on test), so the run ends at ES, 1600 ft,
+    at the first communication point at or past 1600 / v seconds, at most MIN_LOOKAHEAD later; one collision each."""
+    distributed = pytest.importorskip("distributed")
+    from sdl_fmu import sweep as sweeping
+    from sdl_fmu.cosim.master import MIN_LOOKAHEAD
+
+    fmu, map_path = foreign_vehicle(3)
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0")
+    try:
+        with distributed.Client(cluster) as client:
+            rows = sweeping.sweep("head_on", {"speed": [70.0, 80.0, 90.0]}, tmp_path / "sweep", client=client,
+                                  progress=False, fmu=fmu, vehicle=map_path)
+    finally:
+        cluster.close()
+    assert [(row["speed"], row["status"], row["collisions"]) for row in rows] == [
+        (70.0, "ok", 1), (80.0, "ok", 1), (90.0, "ok", 1)]
+    for row in rows:
+        assert row["final_speed"] == pytest.approx(row["speed"], abs=1e-9)
+        assert -NUMERIC <= row["final_time_s"] - 1600.0 / row["speed"] <= MIN_LOOKAHEAD + NUMERIC
+
+
+@pytest.mark.parametrize("scenario, options", [("brake_examples", {"speed": 100.0}), ("demo", {}), ("head_on", {})])
+def test_foreign_car_fmi2_and_fmi3_builds_agree(runs, scenario, options):
+    """The same Python equations packaged twice: the FMI 3.0 build converts through its UnitDefinitions, the FMI 2.0
+    build (no units) through the map's units and pint. The two conversions agree to the last bits (km/h: 1/3.6
+    written to 16 digits or computed), so both runs fire the same events at the same communication points, their
+    numbers equal to rounding (1e-12 relative)."""
+    fmi3, fmi2 = runs(scenario, 3, **options), runs(scenario, 2, **options)
+    assert len(fmi3.events) == len(fmi2.events) and fmi3.collisions == fmi2.collisions
+    for a, b in zip(fmi3.events, fmi2.events):
+        assert a.keys() == b.keys()
+        for key in a:
+            if isinstance(a[key], float):
+                assert a[key] == pytest.approx(b[key], rel=1e-12, abs=1e-12)
+            else:
+                assert a[key] == b[key]
+
+
+def test_foreign_car_brake_hold_ends_when_it_stops(runs, foreign_vehicle, tmp_path):
+    """Full braking for 30 s from 88 ft/s: the car stops long before (t_stop = theta0 / sqrt(A K) = 3.34 s), so the
+    hold ends as `stopped`. The car has no `stopped` output: sdl-fmu takes it as stopped below STOPPED_SPEED, which
+    the closed form reaches at t(STOPPED_SPEED); the release comes at most its uncertainty later. Then the driver
+    model drives off again (the car does not creep backwards meanwhile: its speed never goes below 0)."""
+    scenario = tmp_path / "stop.sdl"
+    scenario.write_text("English\n500,BRK,100,0,30\n1000,ES\n")
+    fmu, map_path = foreign_vehicle(3)
+    result = runs(str(scenario), 3)
+    (on, off), = brake_holds(result.events)
+    check_brake_hold(on, off, foreign_parameters(fmu), brake_scale(map_path), 0.8, reason="stopped")
+    assert off["time_s"] - on["time_s"] < 30.0 and off["speed"] * FOOT < STOPPED_SPEED
+    assert result.arrays["speed_ft/s"].min() >= 0.0 and result.final["distance"] >= 1000.0

@@ -47,10 +47,10 @@ def write(tmp_path, text: str, name: str = "car.toml"):
     return path
 
 
-def no_state_fmu(simple_fmu, tmp_path):
-    """The Simple FMU whose model description says it cannot get and set its state."""
-    return rewritten_fmu(simple_fmu, tmp_path / "NoState.fmu",
-                         lambda text: text.replace('canGetAndSetFMUstate="true"', 'canGetAndSetFMUstate="false"'))
+def no_state_fmu(fmu, tmp_path):
+    """The FMU whose model description says it cannot get and set its state (FMI 2.0: ...FMUstate, 3.0: ...FMUState)."""
+    return rewritten_fmu(fmu, tmp_path / "NoState.fmu", lambda text: re.sub(
+        r'canGetAndSetFMUstate="true"', 'canGetAndSetFMUstate="false"', text, flags=re.I))
 
 
 # ---- errors: one line naming the map file and the key, before anything runs, nothing written ----------------
@@ -228,7 +228,8 @@ def test_a_vehicle_without_friction_input_warns_once_per_rsa_line(simple_fmu, tm
 
 # ---- exactness follows capability -------------------------------------------------------------------------------
 
-def test_an_fmu_without_state_get_set_locates_triggers_within_its_uncertainty(simple_fmu, tmp_path):
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_an_fmu_without_state_get_set_locates_triggers_within_its_uncertainty(simple_fmus, fmi_version, tmp_path):
     """BRK on at 100 m, off when the speed falls below 10 m/s. The exact run bisects both instants to 1e-6 s. The
     FMU that cannot roll back is stepped at most MIN_LOOKAHEAD near each possible trigger, so each instant is
     found at the end of the step in which it happened: the onset at most u_on late. Before the onset the ego
@@ -236,6 +237,7 @@ def test_an_fmu_without_state_get_set_locates_triggers_within_its_uncertainty(si
     onset's delay plus its own location error, at most u_on + u_off (+ the exact run's 1e-6 s)."""
     scenario = write(tmp_path, "Metric\n100,BRK,80,2,10\n300,ES\n", "brk.sdl")
     vehicle = write(tmp_path, shipped_map_path("simple").read_text())
+    simple_fmu = simple_fmus[fmi_version]
     exact = api.run(scenario, fmu=simple_fmu, vehicle=vehicle, step=0.5)
     stepped = api.run(scenario, fmu=no_state_fmu(simple_fmu, tmp_path), vehicle=vehicle, step=0.5)
     assert all("time_uncertainty_s" not in e for e in exact.events)
@@ -247,6 +249,7 @@ def test_an_fmu_without_state_get_set_locates_triggers_within_its_uncertainty(si
     assert -1e-6 <= on["time_s"] - on_exact["time_s"] <= on["time_uncertainty_s"] + 1e-6
     assert -1e-6 <= off["time_s"] - off_exact["time_s"] <= on["time_uncertainty_s"] + off["time_uncertainty_s"] + 1e-6
     assert stepped.summary["vehicle"]["can_roll_back"] is False
+    assert stepped.summary["vehicle"]["fmi_version"] == f"{fmi_version}.0"
 
 
 def test_bounds_used_are_in_the_summary(simple_fmu, tmp_path):
@@ -258,3 +261,31 @@ def test_bounds_used_are_in_the_summary(simple_fmu, tmp_path):
     bounds = summaries[1]["vehicle"]["bounds"]
     assert bounds["source"] == "vehicle properties" and "mass" in bounds["defaults"]
     json.dumps(summaries)
+
+
+# ---- sweep and verify take the map too ----------------------------------------------------------------------------
+
+def test_a_sweep_drives_a_vehicle_map(simple_fmu, tmp_path):
+    """Each run of the sweep is api.run with the map: the same final state as the run made directly."""
+    distributed = pytest.importorskip("distributed")
+    from sdl_fmu import sweep as sweeping
+
+    vehicle = write(tmp_path, BARE_MAP.replace("[inputs]", 'name = "bare"\n[inputs]'))
+    scenario = write(tmp_path, "English\n100,A,50,600,-6,1\n", "pass.sdl")
+    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    with distributed.Client(cluster) as client:
+        rows = sweeping.sweep(str(scenario), {"speed": [60.0, 80.0]}, tmp_path / "sweep", client=client, timeout=120,
+                              until_distance=400.0, progress=False, fmu=str(simple_fmu), vehicle=str(vehicle))
+    cluster.close()
+    assert [row["status"] for row in rows] == ["ok", "ok"]
+    for row in rows:
+        direct = api.run(scenario, fmu=simple_fmu, vehicle=vehicle, speed=row["speed"], until_distance=400.0)
+        assert row["final_time_s"] == direct.final["time_s"]
+
+
+def test_verify_takes_the_vehicle_option(simple_fmu, tmp_path):
+    vehicle = write(tmp_path, BARE_MAP.replace('variable = "steer"', 'variable = "steering_angle"'))
+    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "verify", "--fmu", str(simple_fmu),
+                                "--vehicle", str(vehicle)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert completed.returncode == 2 and "car.toml: inputs.steer" in completed.stderr
+    assert completed.stderr.count("\n") == 1

@@ -44,7 +44,9 @@ class EgoFMU(EgoInstance):
 
     def set(self, **values: float) -> None:
         """Sets inputs or (before initialization) parameters by name."""
-        self._set_by_reference({self.reference(name): value for name, value in values.items()})
+        for name in values:
+            self.reference(name)  # an unknown name is an FmuError naming it
+        self._set_by_name(values)
 
     def get(self, name: str) -> float:
         return self.slave.getFloat64([self.reference(name)])[0] if self.fmi3 else \

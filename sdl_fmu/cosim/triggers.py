@@ -50,8 +50,8 @@ def ego_bounds(model, mu_max: float, start_speed: float, wheel_arm: float, max_s
     turning: r <= min(v tan(d)/L, mu g / v), whose maximum over v is sqrt(mu g tan(d) / L))."""
     length, width = model.length, model.width
     radius = math.hypot(length / 2, width / 2)
-    if model.bounds.acceleration is not None:
-        return EgoBounds(model.bounds.acceleration, model.bounds.yaw_rate, length, width, radius, wheel_arm)
+    if model.bounds["acceleration"] is not None:
+        return EgoBounds(model.bounds["acceleration"], model.bounds["yaw_rate"], length, width, radius, wheel_arm)
     g = STANDARD_GRAVITY
     speed = max(REFERENCE_SPEED, 2 * start_speed)
     tire = max(mu_max * g, model.brake_decel_max, model.drive_accel_max)

@@ -60,14 +60,13 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..interface import DISCRETE, STATE, Interface, load_interface
+from ..interface import DISCRETE, STATE, WHEELS, Interface, load_interface
 from ..units import STANDARD_GRAVITY
 from .equations import Equations, make_symbols
 from .planar import body_derivatives
 from .tires import DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, slot_parameter_name, slot_parameters
 
 MODEL_NAME = "EgoVehicleAdvanced"
-WHEELS = ("fl", "fr", "rl", "rr")
 LEFT_SIDE = {"fl": 1, "fr": -1, "rl": 1, "rr": -1}  # +1 left wheel, -1 right wheel
 SLIP_SPEED_FLOOR = 0.1  # m/s, v_low of the slip definitions
 SPIN_SMOOTHING = 0.1  # rad/s, w_s of the rolling-resistance torque

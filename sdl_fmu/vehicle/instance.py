@@ -12,8 +12,6 @@ from typing import NamedTuple
 
 STANDSTILL_SPEED = 0.5  # m/s: a `stopped` output is read only below this speed (far above any model's hold speed)
 STOPPED_SPEED = 0.01  # m/s: an FMU without a `stopped` output is taken as stopped below this speed
-# the order the fast path reads an FMU's Real outputs in: EgoState's fields from x to yaw_rate
-STATE_OUTPUTS = ("x", "y", "yaw", "distance", "speed", "vx", "vy", "ax", "ay", "yaw_rate")
 
 
 class EgoState(NamedTuple):
@@ -34,6 +32,9 @@ class EgoState(NamedTuple):
     stopped: bool
 
 
+# the vehicle map's output names of EgoState's Real fields (x .. yaw_rate), in the order the fast path reads them
+MAP_NAMES = {"psi": "yaw", "s": "distance", "v": "speed"}
+STATE_OUTPUTS = tuple(MAP_NAMES.get(name, name) for name in EgoState._fields[1:-1])
 # EgoState._make without its Python-level length check (read() always passes all fields)
 _make_state = functools.partial(tuple.__new__, EgoState)
 SPEED = EgoState._fields.index("v") - 1  # index of v among the Real outputs
@@ -73,10 +74,8 @@ class EgoInstance:
             for quantity, value in start.items():
                 conversion = model.start_inputs.get(quantity)
                 if conversion is not None:
-                    values[conversion.reference] = conversion.factor * value + conversion.offset
-            for name, value in parameters.items():
-                values[model.variables[name].valueReference] = value
-            self._set_by_reference(values)
+                    values[conversion.variable] = conversion.factor * value + conversion.offset
+            self._set_by_name({**values, **parameters})
             if self.fmi3:
                 self.slave.enterInitializationMode(startTime=0.0)
             else:
@@ -157,12 +156,14 @@ class EgoInstance:
             self._get_state, self._set_state, self._free_state = (function(name) for name in names)
         self._prefix = prefix
 
-    def _set_by_reference(self, values: dict[int, float]) -> None:
-        """Start values by value reference, each with its type's setter (before initialization)."""
+    def _set_by_name(self, values: dict[str, float]) -> None:
+        """Values by variable name, each with its type's setter (FMI 2.0 value references are per type)."""
         by_type: dict[str, dict[int, float]] = {}
-        types = {v.valueReference: v.type for v in self.model.variables.values()}
-        for reference, value in values.items():
-            by_type.setdefault(types[reference], {})[reference] = value
+        for name, value in values.items():
+            variable = self.model.variables.get(name)
+            if variable is None:
+                raise FmuError(f"the FMU {self.model.fmu_path.name} has no variable {name!r}")
+            by_type.setdefault(variable.type, {})[variable.valueReference] = value
         for kind, group in by_type.items():
             self._typed_set(kind, list(group), list(group.values()))
 
@@ -180,7 +181,7 @@ class EgoInstance:
             else:
                 slave.setInteger(references, [int(v) for v in values])
         except Exception as error:
-            names = {v.valueReference: n for n, v in self.model.variables.items()}
+            names = {v.valueReference: n for n, v in self.model.variables.items() if v.type == kind}
             shown = {names.get(r, r): v for r, v in zip(references, values)}
             raise FmuError(f"the FMU refused the values {shown}: {error}") from None
 

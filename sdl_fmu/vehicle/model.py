@@ -4,7 +4,6 @@ no other module looks at the FMU's variable names or at which model it is."""
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 import zipfile
@@ -12,9 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+from ..interface import WHEELS
 from .vehicle_map import (Channel, FrictionMeaning, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path)
 
-WHEELS = ("fl", "fr", "rl", "rr")  # the contact points' order everywhere: front left, front right, rear left, rear right
 # surface value of a lane nobody set, per friction meaning: 10 x the nominal mu 0.8, or attribute 0
 DEFAULT_SURFACE = {"mu": 8.0, "attribute": 0.0, None: 8.0}
 # [vehicle] values a map may leave out, SI (the driver model's feed-forward and the trigger bounds use them)
@@ -35,6 +34,7 @@ UNIT_TOLERANCE = 1e-9  # relative: two declarations of one unit agree (km/h: 1/3
 class Conversion:
     """value_out = factor * value_in + offset (inputs: SI -> FMU; outputs: FMU -> SI)."""
 
+    variable: str
     reference: int
     type: str
     factor: float = 1.0
@@ -60,11 +60,7 @@ class FrictionInput:
         return all(t in REAL_TYPES for t in self.types)
 
 
-@dataclass(frozen=True)
-class Bounds:
-    acceleration: float | None  # m/s2; None: derived per run from the vehicle's properties
-    yaw_rate: float | None  # rad/s
-    source: Literal["vehicle map", "vehicle properties"]
+BoundsSource = Literal["vehicle map", "vehicle properties"]
 
 
 @functools.lru_cache(maxsize=None)
@@ -195,9 +191,9 @@ class EgoModel:
         if variable.type not in REAL_TYPES:
             self._fail(channel.key, f"{channel.variable!r} is {variable.type}; this entry needs a Real variable")
         if quantity in ("throttle", "brake"):
-            return Conversion(variable.valueReference, variable.type, channel.scale, channel.offset)
+            return Conversion(variable.name, variable.valueReference, variable.type, channel.scale, channel.offset)
         factor, offset = self._si(channel.key, variable, channel.unit, SI_UNITS[quantity])
-        return Conversion(variable.valueReference, variable.type, channel.scale / factor,
+        return Conversion(variable.name, variable.valueReference, variable.type, channel.scale / factor,
                           (channel.offset - offset) / factor)
 
     def _output(self, channel: Channel) -> Conversion:
@@ -207,11 +203,11 @@ class EgoModel:
         if quantity == "stopped":
             if variable.type != "Boolean":
                 self._fail(channel.key, f"{channel.variable!r} is {variable.type}; stopped needs a Boolean")
-            return Conversion(variable.valueReference, variable.type)
+            return Conversion(variable.name, variable.valueReference, variable.type)
         if variable.type not in REAL_TYPES:
             self._fail(channel.key, f"{channel.variable!r} is {variable.type}; this output needs a Real variable")
         factor, offset = self._si(channel.key, variable, channel.unit, SI_UNITS[quantity])
-        return Conversion(variable.valueReference, variable.type, channel.scale * factor,
+        return Conversion(variable.name, variable.valueReference, variable.type, channel.scale * factor,
                           channel.scale * offset + channel.offset)
 
     def _friction(self) -> FrictionInput | None:
@@ -271,10 +267,10 @@ class EgoModel:
         self.drag_factor = self.air_density * self.drag_area / (2 * self.mass)  # rho CdA / (2 m), 1/m
         self.peak_friction_given = values.get("peak_friction")
         self.brk_acts = self.map.flags.get("brk_acts", True)
-        if "max_acceleration" in values:
-            self.bounds = Bounds(values["max_acceleration"], values["max_yaw_rate"], "vehicle map")
-        else:
-            self.bounds = Bounds(None, None, "vehicle properties")
+        # the trigger prediction's bounds: the map's (m/s2, rad/s), else None: derived per run (cosim.triggers)
+        given = "max_acceleration" in values
+        self.bounds = {"acceleration": values.get("max_acceleration"), "yaw_rate": values.get("max_yaw_rate"),
+                       "source": "vehicle map" if given else "vehicle properties"}
 
     # ---- what the run asks ------------------------------------------------------------------------------------
 

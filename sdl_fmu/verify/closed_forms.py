@@ -10,9 +10,8 @@ from pathlib import Path
 from fmpy import read_model_description
 
 from ..cosim.ego import EgoFMU, parameter_defaults, step_until
+from ..interface import WHEELS
 from ..units import STANDARD_GRAVITY
-
-WHEELS = ("fl", "fr", "rl", "rr")
 
 
 @dataclass(frozen=True)

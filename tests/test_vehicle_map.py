@@ -201,6 +201,14 @@ def test_an_unmapped_start_position_moves_the_fmu_onto_sdl_fmus_start(simple_fmu
         assert state.y == pytest.approx(-1.8, abs=1e-12) and state.x > 5.0 + 9.0
 
 
+def test_a_map_without_start_speed_starts_at_the_fmus_own_speed_with_one_warning(simple_fmu, tmp_path):
+    model = EgoModel.open(simple_fmu, write(tmp_path, BARE_MAP.replace('speed = { variable = "v0" }\n', "")))
+    own = model.parameters["v0"]
+    with model.instantiate(start={"speed": own + 5.0, "y": 0.0}) as ego:
+        assert ego.read().v == pytest.approx(own, abs=1e-9)
+        assert len(ego.warnings) == 1 and "no [start] speed" in ego.warnings[0]
+
+
 # ---- friction ----------------------------------------------------------------------------------------------------
 
 def test_friction_per_axle_and_for_the_car(simple_fmu, tmp_path):

@@ -92,9 +92,10 @@ def _agree(a: tuple[float, float], b: tuple[float, float]) -> bool:
 
 
 def parameter_defaults(description) -> dict[str, float]:
-    """Start values of the FMU's Real (Float) parameters, by name."""
+    """Start values of the FMU's scalar Real (Float) parameters, by name (FMI 3.0 arrays are left out)."""
     return {v.name: float(v.start) for v in description.modelVariables
-            if v.causality == "parameter" and v.type in REAL_TYPES and v.start is not None}
+            if v.causality == "parameter" and v.type in REAL_TYPES and v.start is not None
+            and not getattr(v, "dimensions", None)}
 
 
 class EgoModel:

@@ -168,3 +168,14 @@ def test_weak_vehicle_fails_what_it_cannot_reach_and_the_pack_goes_on(tmp_path, 
     assert entries["braking"]["reason"] in (out / "report.html").read_text()
     assert entries["step_steer"]["reason"] is None and entries["sine_with_dwell"]["reason"] is None
     assert braking.TEST_SPEED_KMH > 84.7 > entries["double_lane_change"]["max_entry_speed_kmh"]
+
+
+def test_an_fmu_error_fails_the_manoeuvre_with_one_line(simple_fmu):
+    """The real FMU refuses a steer outside its declared range (fmi2Error): the manoeuvre fails with one line."""
+    from sdl_fmu.vehicle import shipped_model
+    from sdl_fmu.verify.drive import ManoeuvreFailed, drive
+
+    with pytest.raises(ManoeuvreFailed) as failure:
+        drive(shipped_model("simple"), 20.0, lambda t, state: (0.0, 0.0, 2.0 if t >= 0.5 else 0.0), 2.0)
+    assert str(failure.value).startswith("the vehicle FMU failed at t = 0.50 s: ")
+    assert "\n" not in str(failure.value)

@@ -508,3 +508,64 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, 
     if out is not None:
         result.write(out, plot=plot)
     return result
+
+
+# --- the vehicle test pack ---------------------------------------------------------------------------------
+
+
+@dataclass
+class VerifyResult:
+    """The vehicle test pack's outcome: `outcomes` (verify.Outcome, one per manoeuvre), the vehicle's identity,
+    the printed pass/fail `table`, and the results folder (None without `out`)."""
+
+    vehicle: dict
+    outcomes: list
+    table: str
+    folder: Path | None
+
+
+def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+           vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
+           out: str | os.PathLike | None = None) -> VerifyResult:
+    """Runs the vehicle test pack (SPEC section 7) against one vehicle: a shipped model (`dynamics`), or `fmu`
+    driven through the vehicle map `vehicle`. A manoeuvre the vehicle cannot be driven through fails with its
+    reason; only user mistakes (options, FMU, map, results folder) raise InputError."""
+    from . import verify as pack
+    from .results_folder import ResultsFolderError, check_results_folder
+    from .verify import closed_forms
+
+    names = list(pack.MANOEUVRES) if only is None else list(only)
+    unknown = [name for name in names if name not in pack.MANOEUVRES]
+    if unknown or not names:
+        raise _option_error("only", ",".join(names), f"must name manoeuvres among {', '.join(pack.MANOEUVRES)}")
+    model = ego_model(dynamics, fmu, vehicle)
+    try:  # an FMU that cannot even be instantiated is a bad --fmu, not a manoeuvre's result
+        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+    except Exception as error:  # noqa: BLE001 - fmpy reports a binary that cannot be loaded as a plain Exception
+        raise InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {_first_line(error)}") from None
+    if out is not None:
+        try:
+            check_results_folder(out)
+        except ResultsFolderError as error:
+            raise InputError("out", f"--out {error}") from None
+    identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,
+                "map": None if model.map_path is None else str(model.map_path),
+                "friction": None if model.friction is None else model.friction.meaning}
+    outcomes = pack.run_pack(model, names)
+    braking = next((o for o in outcomes if o.name == "braking"), None)
+    if braking is not None and model.description.modelName == "EgoVehicleSimple" and model.fmi_version == "2.0":
+        # SPEC section 2's closed forms, held by the Simple FMU: the 60 straight-line cases beside the R13-H stop
+        cases = closed_forms.verify(model.fmu_path)
+        worst = max(max(abs(c.distance_error), abs(c.time_error)) for c in cases)
+        braking.metrics.update(closed_form_cases=len(cases), closed_form_max_relative_error=worst)
+        braking.criteria.append(f"{len(cases)} SPEC section 2 closed-form stops, largest relative error "
+                                f"{worst:.1e} <= 1e-9: {'pass' if worst <= 1e-9 else 'FAIL'}")
+        if braking.passed is not None:
+            braking.passed = braking.passed and worst <= 1e-9
+    folder = None
+    if out is not None:
+        try:
+            folder = pack.write(out, identity, outcomes)
+        except ResultsFolderError as error:
+            raise InputError("out", f"--out {error}") from None
+    return VerifyResult(identity, outcomes, pack.table(outcomes), folder)

@@ -135,17 +135,22 @@ def _sweep(args) -> int:
 
 def _verify(args) -> int:
     from . import api
-    from .verify import format_table, verify
 
-    from .cosim.ego import FmuError
-
-    fmu = api.ego_fmu(args.dynamics, args.fmu, args.vehicle)
-    try:
-        results = verify(fmu)
-    except (FmuError, OSError) as error:
-        raise api.InputError("fmu", f"--fmu {fmu}: {str(error).strip().splitlines()[0]}") from None
-    print(format_table(results))
+    only = None if args.only is None else [name.strip() for name in args.only.split(",") if name.strip()]
+    out = Path(args.out) if args.out is not None else Path("verify") / _verify_folder_name(args)
+    result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out)
+    print(f"{result.vehicle['name']} ({Path(result.vehicle['fmu']).name}, GUID {result.vehicle['guid']})")
+    print(result.table)
+    print(f"results: {result.folder / 'verify.json'}, {result.folder / 'report.html'}")
     return 0
+
+
+def _verify_folder_name(args) -> str:
+    if args.fmu is not None:
+        return Path(args.fmu).stem
+    if args.vehicle is not None:
+        return Path(args.vehicle).stem
+    return args.dynamics or "simple"
 
 
 def _number(text: str) -> float:
@@ -220,10 +225,15 @@ def parser() -> argparse.ArgumentParser:
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)
 
-    verify = commands.add_parser("verify", help="simulated braking distances against the closed forms")
+    verify = commands.add_parser("verify", help="the vehicle test pack: standard manoeuvres with their pass/fail "
+                                                "criteria, verify.json and report.html")
     verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
-    verify.add_argument("--fmu", help="Simple FMU to verify (default: the cached build)")
+    verify.add_argument("--fmu", help="vehicle FMU (default: the cached build of --dynamics)")
     verify.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu")
+    verify.add_argument("--only", metavar="NAME,...", help="run only these manoeuvres (braking, "
+                        "steady_state_circular, step_steer, sine_with_dwell, split_mu_braking, double_lane_change)")
+    verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
+                                      "(default: verify/<vehicle>)")
     verify.set_defaults(handler=_verify)
     return main
 

@@ -36,3 +36,5 @@ def length_label(units: str) -> str:
 
 def speed_label(units: str) -> str:
     return "ft/s" if units == ENGLISH else "m/s"
+
+KILOMETRE_PER_HOUR = 1 / 3.6  # m/s: the vehicle test pack's speeds are given in km/h by its standards

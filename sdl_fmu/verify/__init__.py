@@ -1,0 +1,13 @@
+"""`sdl-fmu verify`: the vehicle test pack (SPEC section 7) and the Simple FMU's closed-form braking cases.
+
+One module per job: drive (the sampled control loop), driver (path following), one module per manoeuvre
+(braking, circular, step_steer, sine_with_dwell, split_mu, lane_change), pack (runs them, failures contained),
+report (verify.json, CSVs, report.html, the table), closed_forms (SPEC section 2's braking distances).
+"""
+
+from .drive import ManoeuvreFailed
+from .outcome import Outcome
+from .pack import MANOEUVRES, run_manoeuvre, run_pack
+from .report import table, write
+
+__all__ = ["MANOEUVRES", "ManoeuvreFailed", "Outcome", "run_manoeuvre", "run_pack", "table", "write"]

@@ -1,0 +1,230 @@
+"""The vehicle test pack's results folder: verify.json, one CSV of time series per manoeuvre, report.html (self-
+contained: its plots are embedded PNGs), and the pass/fail table printed by the command."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon
+
+from ..results_folder import write_results_folder
+from .drive import COLUMNS
+from .outcome import Outcome
+
+JSON_NAME, HTML_NAME = "verify.json", "report.html"
+FORMAT = "sdl-fmu verify 1"
+HEADLINE = {  # the metrics shown in the table, per manoeuvre
+    "braking": ("stopping_distance_m", "mfdd_mps2"),
+    "steady_state_circular": ("understeer_gradient_deg_per_g", "max_lateral_acceleration_mps2"),
+    "step_steer": ("yaw_rate_response_time_s", "yaw_rate_overshoot_pct"),
+    "sine_with_dwell": ("yaw_rate_ratio_1_00s", "yaw_rate_ratio_1_75s", "lateral_displacement_1_07s_m"),
+    "split_mu_braking": ("yaw_angle_deg", "stopping_distance_m"),
+    "double_lane_change": ("max_entry_speed_kmh",),
+}
+
+
+def verdict(passed: bool | None, reason: str | None = None) -> str:
+    if passed is None:
+        return "n/a" if reason else "report"
+    return "pass" if passed else "FAIL"
+
+
+def _json_ready(value):
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def document(vehicle: dict, outcomes: list[Outcome]) -> dict:
+    return _json_ready({"format": FORMAT, "vehicle": vehicle,
+                        "manoeuvres": {o.name: o.to_json() for o in outcomes}})
+
+
+def table(outcomes: list[Outcome]) -> str:
+    lines = [f"{'manoeuvre':<22} {'result':<7} metrics", "-" * 78]
+    for o in outcomes:
+        shown = []
+        for key in HEADLINE.get(o.name, ()):
+            value = o.metrics.get(key)
+            if isinstance(value, float):
+                shown.append(f"{key} {value:.3g}")
+        text = ", ".join(shown) if shown else ""
+        if o.reason:
+            text = o.reason if not text else f"{text}; {o.reason}"
+        lines.append(f"{o.name:<22} {verdict(o.passed, o.reason):<7} {text}")
+    return "\n".join(lines)
+
+
+def write_csv(path: Path, outcome: Outcome) -> None:
+    with path.open("w", encoding="utf-8", newline="\n") as stream:
+        stream.write("run," + ",".join(COLUMNS) + "\n")
+        for label, trace in outcome.runs:
+            block = np.column_stack([trace[c] for c in COLUMNS])
+            name = label.replace(",", ";")
+            for row in block:
+                stream.write(name + "," + ",".join(f"{v:.9g}" for v in row) + "\n")
+
+
+# --- plots: each manoeuvre's standard plot ---------------------------------------------------------------
+
+
+def _braking(fig, o):
+    ax = fig.add_subplot()
+    for label, t in o.runs:
+        after = t["time_s"] >= 0
+        ax.plot(t["distance_m"][after] - t["distance_m"][after][0], t["speed_mps"][after] * 3.6, label=label)
+    if "stopping_distance_limit_m" in o.metrics:
+        ax.axvline(o.metrics["stopping_distance_limit_m"], color="tab:red", ls="--", label="R13-H limit")
+    ax.set(xlabel="distance since brake application (m)", ylabel="speed (km/h)", title="Type-0 stop")
+    ax.legend()
+
+
+def _circular(fig, o):
+    ax = fig.add_subplot()
+    t = o.runs[0][1]
+    after = t["time_s"] >= 0
+    wheelbase = o.plot.get("wheelbase", 0.0)
+    ay = t["ay_mps2"][after]
+    excess = np.degrees(t["steer_rad"][after] - wheelbase * t["yaw_rate_radps"][after] / np.maximum(
+        t["speed_mps"][after], 0.1))
+    ax.plot(ay, excess, lw=1, label="steer - Ackermann steer")
+    if "gradient" in o.plot:
+        grid = np.linspace(0, max(ay.max(), 1), 50)
+        ax.plot(grid, np.degrees(o.plot["gradient"] * grid + o.plot["offset"]), "--",
+                label=f"linear range fit: {o.metrics['understeer_gradient_deg_per_g']:.2f} deg/g")
+    ax.set(xlabel="lateral acceleration (m/s2)", ylabel="road-wheel angle (deg)",
+           title="constant radius 100 m: steer against lateral acceleration")
+    ax.legend()
+
+
+def _step(fig, o):
+    ax = fig.add_subplot()
+    t = o.runs[-1][1]
+    r_ss = o.metrics.get("steady_state_yaw_rate_radps") or 1.0
+    ay_ss = o.metrics.get("steady_state_lateral_acceleration_mps2") or 1.0
+    ax.plot(t["time_s"], t["steer_rad"] / max(o.metrics.get("steer_rad", 1.0), 1e-9), label="steer / final steer")
+    ax.plot(t["time_s"], t["yaw_rate_radps"] / r_ss, label="yaw rate / steady state")
+    ax.plot(t["time_s"], t["ay_mps2"] / ay_ss, label="a_y / steady state")
+    ax.axhline(0.9, color="gray", ls=":", label="90 %")
+    ax.set(xlim=(-0.2, t["time_s"][-1]), xlabel="time (s)", ylabel="normalised", title="step steer response")
+    ax.legend()
+
+
+def _sine(fig, o):
+    ax = fig.add_subplot()
+    runs = o.metrics.get("runs", [])
+    traces = [tr for label, tr in o.runs if label != "slowly increasing steer"]
+    for run, t in zip(runs, traces):
+        sign = -1.0 if run["direction"] == "left" else 1.0
+        ax.plot(t["time_s"], sign * t["yaw_rate_radps"] / run["peak_yaw_rate_radps"], lw=0.8,
+                color="tab:blue" if run["direction"] == "left" else "tab:orange")
+    cosi = o.plot.get("cosi", 0)
+    for delay, limit in zip(o.plot.get("after_cosi", ()), o.plot.get("limits", ())):
+        ax.axvline(cosi + delay, color="gray", ls=":")
+        ax.plot([cosi + delay - 0.15, cosi + delay + 0.15], [limit, limit], color="tab:red", lw=2)
+        ax.annotate(f"{delay:.2f} s after COSI: <= {limit}", (cosi + delay, limit), textcoords="offset points",
+                    xytext=(4, 6), fontsize=8)
+    ax.axvline(cosi, color="black", ls="--", lw=0.8)
+    ax.set(xlabel="time from beginning of steer (s)", ylabel="yaw rate / its peak",
+           title="sine with dwell: yaw rate (blue: left first, orange: right first)", ylim=(-1.5, 1.5))
+
+
+def _split(fig, o):
+    ax, path = fig.subplots(1, 2)
+    for label, t in o.runs:
+        after = t["time_s"] >= 0
+        ax.plot(t["time_s"][after], np.degrees(t["yaw_rad"][after]), label="yaw angle")
+        path.plot(t["x_m"][after], t["y_m"][after])
+    ax.set(xlabel="time since brake application (s)", ylabel="yaw angle (deg)", title="split-mu braking")
+    path.set(xlabel="x (m)", ylabel="y (m)", title="path (mu 0.8 left, 0.2 right)")
+
+
+def _lane_change(fig, o):
+    ax = fig.add_subplot()
+    for lane in o.plot.get("lanes", []):
+        for y in (lane["right"], lane["left"]):
+            ax.plot([lane["start"], lane["end"]], [y, y], color="tab:orange", marker="^", ms=6, lw=0.8)
+    if "path" in o.plot:
+        ax.plot(*o.plot["path"], color="gray", ls=":", lw=1, label="driver's path")
+    length, width = o.plot.get("length", 4.5), o.plot.get("width", 1.8)
+    for (label, t), color in zip(o.runs, ("tab:green", "tab:red")):
+        ax.plot(t["x_m"], t["y_m"], color=color, label=label)
+        for k in range(0, len(t["x_m"]), 25):
+            c, s = math.cos(t["yaw_rad"][k]), math.sin(t["yaw_rad"][k])
+            corners = [(t["x_m"][k] + lx * c - ly * s, t["y_m"][k] + lx * s + ly * c)
+                       for lx, ly in ((length / 2, width / 2), (length / 2, -width / 2),
+                                      (-length / 2, -width / 2), (-length / 2, width / 2))]
+            ax.add_patch(Polygon(corners, fill=False, edgecolor=color, lw=0.4))
+    ax.set(xlim=(-5, 70), xlabel="x (m)", ylabel="y (m)", title="ISO 3888-2 track: path between the cones")
+    ax.set_aspect("equal")
+    ax.legend(fontsize=8)
+
+
+PLOTS = {"braking": _braking, "steady_state_circular": _circular, "step_steer": _step, "sine_with_dwell": _sine,
+         "split_mu_braking": _split, "double_lane_change": _lane_change}
+
+
+def png(outcome: Outcome) -> bytes | None:
+    if not outcome.runs:
+        return None
+    fig = Figure(figsize=(9, 4.2), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    PLOTS[outcome.name](fig, outcome)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    return buffer.getvalue()
+
+
+def report_html(vehicle: dict, outcomes: list[Outcome]) -> str:
+    e = html.escape
+    rows = "".join(f"<tr><td>{e(o.name)}</td><td>{e(o.standard)}</td><td class='{verdict(o.passed, o.reason)}'>"
+                   f"{verdict(o.passed, o.reason)}</td><td>{'<br>'.join(e(c) for c in o.criteria)}</td></tr>"
+                   for o in outcomes)
+    identity = "".join(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in vehicle.items())
+    sections = []
+    for o in outcomes:
+        metrics = {k: v for k, v in o.metrics.items() if k != "runs"}
+        image = png(o)
+        figure = (f"<img alt='{e(o.name)} plot' src='data:image/png;base64,{base64.b64encode(image).decode()}'>"
+                  if image else "")
+        reason = f"<p class='reason'>{e(o.reason)}</p>" if o.reason else ""
+        sections.append(f"<h2>{e(o.name)}: {verdict(o.passed, o.reason)}</h2><p>{e(o.standard)}</p>{reason}"
+                        f"<pre>{e(json.dumps(_json_ready(metrics), indent=1))}</pre>{figure}")
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>sdl-fmu vehicle test pack: {e(str(vehicle.get('name')))}</title>
+<style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} td,th{{border:1px solid #ccc;padding:3px 6px;
+text-align:left;vertical-align:top}} table{{border-collapse:collapse}} .pass{{color:#070}} .FAIL{{color:#b00;
+font-weight:bold}} .reason{{color:#b00}} img{{max-width:100%}} pre{{background:#f6f6f6;padding:6px}}</style>
+</head><body><h1>Vehicle test pack</h1><table>{identity}</table>
+<h2>Results</h2><table><tr><th>manoeuvre</th><th>source</th><th>result</th><th>criteria</th></tr>{rows}</table>
+{''.join(sections)}</body></html>
+"""
+
+
+def write(out, vehicle: dict, outcomes: list[Outcome]) -> Path:
+    """Writes the results folder atomically (results_folder's rules); returns it."""
+
+    def contents(folder: Path) -> None:
+        (folder / JSON_NAME).write_text(json.dumps(document(vehicle, outcomes), indent=2) + "\n", encoding="utf-8")
+        for o in outcomes:
+            if o.runs:
+                write_csv(folder / f"{o.name}.csv", o)
+        (folder / HTML_NAME).write_text(report_html(vehicle, outcomes), encoding="utf-8")
+
+    return write_results_folder(out, contents)

@@ -1,0 +1,181 @@
+"""`sdl-fmu verify`: the vehicle test pack run on the shipped Simple and Advanced FMUs, on a foreign FMU built by the
+test suite, and on a vehicle that cannot reach the entry speed (issue 16, items 1, 3 and 5)."""
+
+import base64
+import csv
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sdl_fmu import api
+from sdl_fmu.verify import MANOEUVRES, braking
+
+SPEC_METRICS = {  # SPEC section 7 / issue 16's metric names per manoeuvre
+    "braking": {"stopping_distance_m", "mfdd_mps2"},
+    "steady_state_circular": {"understeer_gradient_deg_per_g", "max_lateral_acceleration_mps2"},
+    "step_steer": {"yaw_rate_response_time_s", "yaw_rate_peak_response_time_s", "yaw_rate_overshoot_pct",
+                   "lateral_acceleration_response_time_s"},
+    "sine_with_dwell": {"yaw_rate_ratio_1_00s", "yaw_rate_ratio_1_75s", "lateral_displacement_1_07s_m"},
+    "split_mu_braking": {"yaw_angle_deg", "yaw_angle_2s_deg", "lateral_deviation_m", "stopping_distance_m"},
+    "double_lane_change": {"max_entry_speed_kmh"},
+}
+
+
+def sdl_fmu(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=1800)
+
+
+def check_results_folder(folder: Path, names) -> dict:
+    """verify.json's shape, a CSV per manoeuvre that ran, and a self-contained report.html; returns verify.json."""
+    document = json.loads((folder / "verify.json").read_text())
+    assert list(document["manoeuvres"]) == list(names)
+    for name, entry in document["manoeuvres"].items():
+        assert entry["passed"] in (True, False, None)
+        if entry["reason"] is not None:  # could not be driven through (False) or does not apply (None)
+            assert entry["reason"] and "\n" not in entry["reason"]
+        else:
+            assert SPEC_METRICS[name] <= set(entry), name
+        if entry["reason"] is None:
+            with (folder / f"{name}.csv").open() as stream:
+                rows = list(csv.DictReader(stream))
+            assert rows and {"run", "time_s", "x_m", "y_m", "yaw_rate_radps", "steer_rad"} <= set(rows[0])
+    page = (folder / "report.html").read_text()
+    vehicle = document["vehicle"]
+    for shown in (vehicle["guid"], Path(vehicle["fmu"]).name, str(vehicle["map"])):
+        assert shown in page
+    images = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", page)
+    assert images and all(base64.b64decode(image).startswith(b"\x89PNG\r\n\x1a\n") for image in images)
+    assert not re.search(r"(src|href)=['\"]https?:", page)  # self-contained
+    return document
+
+
+def test_pack_on_the_simple_fmu(tmp_path, simple_fmu):
+    out = tmp_path / "simple"
+    result = api.verify(dynamics="simple", out=out)
+    document = check_results_folder(out, MANOEUVRES)
+    entries = document["manoeuvres"]
+    # R13-H's verdict recomputed from the CSV: stopping distance from brake application, limit 0.1 V + 0.006 V^2
+    rows = [row for row in csv.DictReader((out / "braking.csv").open()) if float(row["time_s"]) >= 0]
+    distance = float(rows[-1]["distance_m"]) - float(rows[0]["distance_m"])
+    assert entries["braking"]["stopping_distance_m"] == pytest.approx(distance, rel=1e-9)
+    assert entries["braking"]["passed"] is (distance <= 0.1 * 100 + 0.006 * 100**2
+                                           and entries["braking"]["mfdd_mps2"] >= 6.43)
+    assert entries["braking"]["closed_form_cases"] == 60
+    assert entries["braking"]["closed_form_max_relative_error"] <= 1e-9
+    # the criteria of FMVSS 126 decide its verdict, run by run
+    sine = entries["sine_with_dwell"]
+    assert len(sine["runs"]) == 22
+    assert sine["passed"] is all(run["passed"] for run in sine["runs"])
+    for run in sine["runs"]:
+        assert run["passed"] is (run["yaw_rate_ratio_1_00s"] <= 0.35 and run["yaw_rate_ratio_1_75s"] <= 0.20
+                                 and (run["amplitude_A"] < 5 or run["lateral_displacement_1_07s_m"] >= 1.83))
+    for name in ("steady_state_circular", "step_steer", "split_mu_braking", "double_lane_change"):
+        assert entries[name]["passed"] is None and entries[name]["reason"] is None  # report-only standards
+    assert entries["split_mu_braking"]["yaw_angle_2s_deg"] > 0  # toward the high-mu (left) side
+    assert result.table.splitlines()[0].startswith("manoeuvre")
+
+
+@pytest.mark.slow
+def test_pack_on_the_advanced_fmu(tmp_path, advanced_fmu):
+    out = tmp_path / "advanced"
+    api.verify(dynamics="advanced", out=out)
+    document = check_results_folder(out, MANOEUVRES)
+    entries = document["manoeuvres"]
+    assert document["vehicle"]["friction"] == "attribute"
+    assert entries["split_mu_braking"]["friction"] == {"meaning": "attribute", "left": 0, "right": 2}
+    assert all(entries[name]["reason"] is None for name in MANOEUVRES)  # driven through every manoeuvre
+
+
+def test_command_prints_the_table_and_writes_the_folder(tmp_path, simple_fmu):
+    out = tmp_path / "out"
+    completed = sdl_fmu("verify", "--only", "braking,split_mu_braking", "--out", out, cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    lines = completed.stdout.splitlines()
+    assert any(line.startswith("braking ") and " pass " in line for line in lines)
+    assert any(line.startswith("split_mu_braking ") and " report " in line for line in lines)
+    check_results_folder(out, ["braking", "split_mu_braking"])
+    # an earlier results folder is replaced; a file of the user's in it is kept
+    (out / "notes.txt").write_text("mine")
+    completed = sdl_fmu("verify", "--only", "braking", "--out", out, cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    assert (out / "notes.txt").read_text() == "mine" and not (out / "split_mu_braking.csv").exists()
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--only", "braking,nope"], "--only"), (["--only", ","], "--only"),
+    (["--dynamics", "advanced", "--vehicle", "x.toml"], "--dynamics"), (["--vehicle", "missing.toml"], "--vehicle"),
+])
+def test_user_mistakes_are_one_line(tmp_path, argv, needle):
+    completed = sdl_fmu("verify", *argv, "--out", tmp_path / "out", cwd=tmp_path)
+    assert completed.returncode == 2 and completed.stdout == ""
+    assert len(completed.stderr.strip().splitlines()) == 1 and needle in completed.stderr
+    assert "Traceback" not in completed.stderr and not (tmp_path / "out").exists()
+
+
+def test_folder_of_someone_else_is_refused_before_running(tmp_path, simple_fmu):
+    out = tmp_path / "theirs"
+    out.mkdir()
+    (out / "thesis.tex").write_text("keep")
+    completed = sdl_fmu("verify", "--out", out, cwd=tmp_path)
+    assert completed.returncode == 2 and "--out" in completed.stderr
+    assert [p.name for p in out.iterdir()] == ["thesis.tex"]
+
+
+@pytest.mark.slow
+def test_pack_on_a_foreign_fmu(tmp_path, foreign_vehicle):
+    fmu, vehicle_map = foreign_vehicle(3)
+    out = tmp_path / "foreign"
+    completed = sdl_fmu("verify", "--fmu", fmu, "--vehicle", vehicle_map, "--out", out, cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    document = check_results_folder(out, MANOEUVRES)
+    entries = document["manoeuvres"]
+    assert document["vehicle"]["map"] == str(vehicle_map)
+    assert entries["braking"]["passed"] is True  # 8.3 m/s2 of brake at full pedal, friction 0.8
+    # one friction value for the whole car: left and right cannot differ
+    assert entries["split_mu_braking"]["passed"] is None
+    assert entries["split_mu_braking"]["reason"].startswith("not applicable")
+    assert all(entries[name]["reason"] is None for name in MANOEUVRES if name != "split_mu_braking")
+
+
+def test_vehicle_without_friction_input_skips_split_mu(tmp_path, foreign_vehicle):
+    fmu, vehicle_map = foreign_vehicle(3)
+    text = Path(vehicle_map).read_text()
+    stripped = tmp_path / "no_friction.toml"
+    stripped.write_text("\n".join(line for line in text.splitlines() if not line.startswith("friction")))
+    result = api.verify(fmu=fmu, vehicle=stripped, only=["split_mu_braking"])
+    outcome = result.outcomes[0]
+    assert outcome.passed is None and outcome.reason == "not applicable: the vehicle has no friction input"
+
+
+@pytest.mark.slow
+def test_weak_vehicle_fails_what_it_cannot_reach_and_the_pack_goes_on(tmp_path, foreign_vehicle):
+    """The weak foreign car's top speed is 84.7 km/h: it cannot reach braking's or split-mu's 100 km/h; it can
+    still drive 80 km/h (step steer, sine with dwell) and the lane change below its top speed."""
+    fmu, vehicle_map = foreign_vehicle(3, weak=True)
+    out = tmp_path / "weak"
+    completed = sdl_fmu("verify", "--fmu", fmu, "--vehicle", vehicle_map, "--out", out, cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    assert "Traceback" not in completed.stderr
+    entries = check_results_folder(out, MANOEUVRES)["manoeuvres"]
+    assert entries["braking"]["passed"] is False
+    assert entries["braking"]["reason"].startswith("cannot reach the entry speed 100 km/h")
+    assert re.search(r"^braking +FAIL +cannot reach the entry speed 100 km/h", completed.stdout, re.M)
+    assert entries["braking"]["reason"] in (out / "report.html").read_text()
+    assert entries["step_steer"]["reason"] is None and entries["sine_with_dwell"]["reason"] is None
+    assert braking.TEST_SPEED_KMH > 84.7 > entries["double_lane_change"]["max_entry_speed_kmh"]
+
+
+def test_an_fmu_error_fails_the_manoeuvre_with_one_line(simple_fmu):
+    """The real FMU refuses a steer outside its declared range (fmi2Error): the manoeuvre fails with one line."""
+    from sdl_fmu.vehicle import shipped_model
+    from sdl_fmu.verify.drive import ManoeuvreFailed, drive
+
+    with pytest.raises(ManoeuvreFailed) as failure:
+        drive(shipped_model("simple"), 20.0, lambda t, state: (0.0, 0.0, 2.0 if t >= 0.5 else 0.0), 2.0)
+    assert str(failure.value).startswith("the vehicle FMU failed at t = 0.50 s: ")
+    assert "\n" not in str(failure.value)

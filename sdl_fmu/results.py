@@ -104,6 +104,7 @@ class RunResult:
     vehicle: dict = field(default_factory=dict)  # summary "vehicle": the EgoModel's summary and the bounds used
     # summary "criticality" (SPEC §5): run-wide and per-vehicle extremes, scenario units; None: not measured
     criticality: dict | None = None
+    ttc: np.ndarray | None = None  # s per sample, the smallest time to collision (nan: none defined), for the plot
 
 
 

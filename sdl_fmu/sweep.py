@@ -176,14 +176,25 @@ def _summarise(result) -> dict:
             row[f"brk{count}_distance"] = event["distance"] - on["distance"]
             if event.get("reason") == "stopped":
                 row[f"brk{count}_stop_distance"] = event["distance"] - on["distance"]
-    from .units import from_si
-
-    station = np.asarray(raw.columns["station"], dtype=float)
-    for track in raw.vehicles:
-        own = np.asarray(track.station, dtype=float)
-        gap = np.abs(own - station[track.first:track.first + len(own)])
-        row[f"A{track.vehicle}_min_gap"] = float(from_si(np.nanmin(gap), raw.units)) if len(gap) else None
+    row.update(criticality_columns(result.criticality, raw.units))
     return row
+
+
+def criticality_columns(criticality: dict | None, units: str) -> dict:
+    """The table's criticality columns from summary.json's `criticality` (SPEC §5): the run-wide measures,
+    then per vehicle N the same prefixed AN_, units in the names (ft or m; DRAC in ft_s2 or m_s2); None
+    where a measure never applied."""
+    if criticality is None:
+        return {}
+    length = "ft" if units == "English" else "m"
+    names = {"min_distance": f"min_distance_{length}", "min_distance_time_s": "min_distance_time_s",
+             "min_ttc_s": "min_ttc_s", "min_ttc_time_s": "min_ttc_time_s", "max_drac": f"max_drac_{length}_s2",
+             "max_drac_time_s": "max_drac_time_s", "min_pet_s": "min_pet_s", "min_headway_s": "min_headway_s",
+             "min_headway_time_s": "min_headway_time_s"}
+    columns = {column: criticality.get(key) for key, column in names.items()}
+    for vehicle in criticality.get("vehicles", []):
+        columns.update({f"A{vehicle['vehicle']}_{column}": vehicle.get(key) for key, column in names.items()})
+    return columns
 
 
 # ---- the table ------------------------------------------------------------------------------------
@@ -256,8 +267,7 @@ def plot_sweep(rows: list[dict], varied: list[str], path: Path) -> None:
     FigureCanvasAgg(figure)
     panels = [("collisions", lambda r: r.get("collisions")),
               ("first BRK: distance while on", lambda r: r.get("brk1_distance")),
-              ("smallest gap to a vehicle", lambda r: min((v for k, v in r.items() if k.endswith("_min_gap")
-                                                           and v is not None), default=None))]
+              ("smallest distance to a vehicle", lambda r: r.get("min_distance_ft", r.get("min_distance_m")))]
     colours = {"ok": "tab:blue", "failed": "tab:red", "timeout": "tab:orange"}
     for k, (title, value) in enumerate(panels):
         ax = figure.add_subplot(1, 3, k + 1)

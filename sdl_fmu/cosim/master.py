@@ -31,7 +31,7 @@ from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, Sur
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
-from .criticality import Extremes, band_times
+from .criticality import RANGE, Extremes, Footprint, band_times, distances, ttcs
 from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .ego import step_until_time
@@ -724,8 +724,39 @@ class Cosimulation:
             seed=self.options.seed, road=self.road, columns=columns, vehicles=self.vehicle_tracks(columns["time"]),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
-            criticality=self.criticality_summary(),
+            criticality=self.criticality_summary(), ttc=self.ttc_series(columns),
         )
+
+    def ttc_series(self, columns: dict) -> np.ndarray:
+        """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle
+        is on a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions
+        at the end of the run (not part of timeseries.csv)."""
+        times = np.asarray(columns["time"])
+        series = np.full(len(times), np.inf)
+        first = np.array(self.spawn_sample, dtype=np.int64)
+        last = np.array(self.leave_sample, dtype=np.int64)
+        last[last < 0] = self.sample_count
+        traffic = self.traffic
+        for i in range(len(first)):
+            rows = slice(first[i], last[i])
+            t = times[rows]
+            motions = traffic.history(i)
+            k = np.maximum(np.searchsorted(motions[:, 0], t, side="right") - 1, 0)
+            t0, _, lateral0, _, lateral1, _, duration = motions[k].T
+            moving = t - t0 < duration
+            lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
+            station, lateral, speed = traffic.track(i, t)
+            psi = np.asarray(columns["psi"][rows])
+            c, s = np.cos(psi), np.sin(psi)
+            vx, vy = np.asarray(columns["vx"][rows]), np.asarray(columns["vy"][rows])
+            ego = Footprint(self.bounds.length / 2, self.bounds.width / 2, c, s)
+            dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
+            length, width = float(traffic.length[i]), float(traffic.width[i])
+            value = ttcs(ego, dx, dy, -speed - (vx * c - vy * s), -lateral_rate - (vx * s + vy * c), length, width)
+            value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
+            series[rows] = np.minimum(series[rows], value)
+        series[~np.isfinite(series)] = np.nan
+        return series
 
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll

@@ -435,9 +435,8 @@ class Cosimulation:
     def criticality_due(self, t: float, limit: float) -> bool:
         """Whether an extreme could lie in a step from t to at most `limit`: a vehicle's look comes due (every
         step within criticality.RANGE), a vehicle's footprint leaves the ego's lane, or a PET is pending."""
-        return bool(len(self.traffic.active)) and (
-            self.earliest_look <= limit or any(t < leave <= limit for leave in self.leaves_lane.values())
-            or self.pet_pending)
+        return (self.earliest_look <= limit and bool(len(self.traffic.active))) or self.pet_pending \
+            or any(t < leave <= limit for leave in self.leaves_lane.values())
 
     def look(self, state: EgoState, everyone: bool = False) -> None:
         """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
@@ -464,17 +463,17 @@ class Cosimulation:
         without one, an FMU that cannot roll back, they are taken at this communication point, known within
         the step), then looks at the vehicles due (all of them: `everyone`, before something fires)."""
         t1 = state.time
-        if len(self.traffic.active):
-            if base is not None:
-                self._locate_in_step(base, t0, state)
-            elif not self.exact and (self._changes_in_step(t0, state) or self.pet_pending
-                                     or any(leave <= t1 for leave in self.leaves_lane.values())):
-                self.criticality_uncertainty = max(self.criticality_uncertainty, t1 - t0)
+        if base is not None:
+            self._locate_in_step(base, t0, state)
+        elif not self.exact and (self._changes_in_step(t0, state) or self.pet_pending
+                                 or any(leave <= t1 for leave in self.leaves_lane.values())):
+            self.criticality_uncertainty = max(self.criticality_uncertainty, t1 - t0)
+        if self.leaves_lane:
             for i, leave in list(self.leaves_lane.items()):
                 if leave <= t1:  # at this instant, or (no snapshot) within this step
                     self._lane_left(i, state)
-            if self.pet_pending:
-                self._reach(state)
+        if self.pet_pending:
+            self._reach(state)
         if base is not None:
             self.ego.discard(base)
         self.look(state, everyone)
@@ -537,11 +536,15 @@ class Cosimulation:
 
         for i, k in changes:
             if k is None:
-                on_course = math.isnan(self.look_rates[i][1])
-                look_at(i, *bisect_instant(t0, t1, lambda p, i=i, was=on_course:
-                                           math.isnan(extremes.rates(traffic, i, p)[1]) != was))
+                off_course = math.isnan(self.look_rates[i][1])
+                before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
+                                            math.isnan(extremes.rates(traffic, i, p)[1]) != was)
             else:
-                look_at(i, *bisect_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k] >= 0))
+                before, at = bisect_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k] >= 0)
+            # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
+            # instant before it is not offered, DRAC growing without bound toward a contact
+            contact = extremes.rates(traffic, i, at)[0] == 0.0 and math.isnan(extremes.rates(traffic, i, at)[1])
+            look_at(i, None if contact else before, at)
         for i, leave in leaving:
             self._lane_left(i, probe(leave))
         for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():

@@ -154,6 +154,8 @@ class Cosimulation:
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
         self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
+        self.pet_station = math.inf  # the nearest such area's station
+        self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
 
@@ -436,7 +438,7 @@ class Cosimulation:
         """Whether an extreme could lie in a step from t to at most `limit`: a vehicle's look comes due (every
         step within criticality.RANGE), a vehicle's footprint leaves the ego's lane, or a PET is pending."""
         return (self.earliest_look <= limit and bool(len(self.traffic.active))) or self.pet_pending \
-            or any(t < leave <= limit for leave in self.leaves_lane.values())
+            or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
 
     def look(self, state: EgoState, everyone: bool = False) -> None:
         """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
@@ -448,11 +450,12 @@ class Cosimulation:
         if len(self.next_look) < traffic.size:
             self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
         earliest = math.inf
+        evaluated, self.evaluated = self.evaluated, {}
         for i in traffic.active.tolist():
             instant = float(self.next_look[i])
             if everyone or instant <= t:
                 rates, horizon = self.extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
-                                                    bounds.radius)
+                                                    bounds.radius, evaluated.get(i))
                 self.look_rates[i] = rates
                 instant = self.next_look[i] = t + horizon
             earliest = min(earliest, instant)
@@ -472,7 +475,7 @@ class Cosimulation:
             for i, leave in list(self.leaves_lane.items()):
                 if leave <= t1:  # at this instant, or (no snapshot) within this step
                     self._lane_left(i, state)
-        if self.pet_pending:
+        if self.pet_pending and self._front(state) >= self.pet_station:
             self._reach(state)
         if base is not None:
             self.ego.discard(base)
@@ -490,7 +493,8 @@ class Cosimulation:
             previous = self.look_rates.get(i)
             if previous is None or self.next_look[i] > t1:
                 continue
-            now = self.extremes.rates(self.traffic, i, state)
+            evaluated = self.evaluated[i] = self.extremes.evaluate(self.traffic, i, state)
+            now = evaluated[1]
             changes += [(i, k) for k in range(4) if previous[k] < 0 <= now[k]]
             if math.isnan(previous[1]) != math.isnan(now[1]):
                 changes.append((i, None))
@@ -504,8 +508,7 @@ class Cosimulation:
         changes = self._changes_in_step(t0, state)
         leaving = [(i, leave) for i, leave in self.leaves_lane.items() if t0 < leave < t1]
         extremes = self.extremes
-        front = self._front(state)
-        reaching = self.pet_pending and bool((extremes.conflict[:extremes.size] <= front).any())
+        reaching = self.pet_pending and self._front(state) >= self.pet_station
         if not (changes or leaving or reaching):
             return
         ego, traffic, bounds = self.ego, self.traffic, self.bounds
@@ -543,10 +546,12 @@ class Cosimulation:
                 before, at = bisect_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k] >= 0)
             # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
             # instant before it is not offered, DRAC growing without bound toward a contact
-            contact = extremes.rates(traffic, i, at)[0] == 0.0 and math.isnan(extremes.rates(traffic, i, at)[1])
+            rates = extremes.rates(traffic, i, at)
+            contact = rates[0] == 0.0 and math.isnan(rates[1])
             look_at(i, None if contact else before, at)
         for i, leave in leaving:
             self._lane_left(i, probe(leave))
+        front = self._front(state)
         for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():
             station = float(extremes.conflict[i])
             start = max(t0, float(extremes.left_path[i]))
@@ -578,11 +583,16 @@ class Cosimulation:
         del self.leaves_lane[i]
         station, _, _ = self.traffic.at(i, state.time)
         self.extremes.path_left(i, state.time, station, float(self.traffic.length[i]), self._front(state))
-        self.pet_pending = bool(len(self.extremes.pending_stations()))
+        self._pending()
 
     def _reach(self, state: EgoState) -> None:
         self.extremes.reach(state)
-        self.pet_pending = bool(len(self.extremes.pending_stations()))
+        self._pending()
+
+    def _pending(self) -> None:
+        stations = self.extremes.pending_stations()
+        self.pet_pending = bool(len(stations))
+        self.pet_station = float(stations.min()) if len(stations) else math.inf
 
     # ---- inputs and records ---------------------------------------------------------------------
 

@@ -531,6 +531,36 @@ class Cosimulation:
                     low, low_state = middle, probed
             return low_state, high_state
 
+        def root_instant(low, high, value, low_value, high_value) -> tuple[EgoState, EgoState]:
+            """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
+            same bracket to CRITICALITY_TOLERANCE, with fewer probes where the rate is smooth (regula falsi,
+            Illinois variant; each estimate kept tolerance / 2 inside the bracket, so that once near the root
+            the next probe closes the bracket from the other side; bisection whenever a probe did not halve it)."""
+            low_state, high_state = None, state
+            side, halve = 0, False
+            while high - low > CRITICALITY_TOLERANCE:
+                width = high - low
+                slope = high_value - low_value
+                if halve or not (slope > 0.0 and math.isfinite(slope)):
+                    guess = 0.5 * (low + high)
+                else:
+                    guess = low - low_value * width / slope
+                guess = min(max(guess, low + 0.5 * CRITICALITY_TOLERANCE), high - 0.5 * CRITICALITY_TOLERANCE)
+                probed = probe(guess)
+                rate = value(probed)
+                if rate >= 0:
+                    high, high_state, high_value = guess, probed, rate
+                    if side > 0:
+                        low_value *= 0.5
+                    side = 1
+                else:
+                    low, low_state, low_value = guess, probed, rate
+                    if side < 0:
+                        high_value *= 0.5
+                    side = -1
+                halve = high - low > 0.5 * width
+            return low_state, high_state
+
         def look_at(i: int, *states) -> None:
             for probed in states:
                 if probed is not None:
@@ -543,7 +573,8 @@ class Cosimulation:
                 before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
                                             math.isnan(extremes.rates(traffic, i, p)[1]) != was)
             else:
-                before, at = bisect_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k] >= 0)
+                before, at = root_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k],
+                                          self.look_rates[i][k], self.evaluated[i][1][k])
             # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
             # instant before it is not offered, DRAC growing without bound toward a contact
             rates = extremes.rates(traffic, i, at)
@@ -695,7 +726,8 @@ class Cosimulation:
                     state = ego.read()
                 self.steps += 1
                 driver_sample = state.time >= next_sample
-                self.follow_criticality(base, t, state, everyone=fired)
+                if base is not None or fired or state.time >= self.earliest_look or not self.exact:
+                    self.follow_criticality(base, t, state, everyone=fired)
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
@@ -759,15 +791,23 @@ class Cosimulation:
             moving = t - t0 < duration
             lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
             station, lateral, speed = traffic.track(i, t)
-            psi = np.asarray(columns["psi"][rows])
-            c, s = np.cos(psi), np.sin(psi)
-            vx, vy = np.asarray(columns["vx"][rows]), np.asarray(columns["vy"][rows])
-            ego = Footprint(self.bounds.length / 2, self.bounds.width / 2, c, s)
             dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
             length, width = float(traffic.length[i]), float(traffic.width[i])
-            value = ttcs(ego, dx, dy, -speed - (vx * c - vy * s), -lateral_rate - (vx * s + vy * c), length, width)
+            # only where the centres are within RANGE plus both footprints' radii can the footprints be
+            near = np.flatnonzero(np.sqrt(dx * dx + dy * dy) <= RANGE + self.bounds.radius
+                                  + 0.5 * math.sqrt(length * length + width * width))
+            if not len(near):
+                continue
+            dx, dy = dx[near], dy[near]
+            psi = np.asarray(columns["psi"][rows])[near]
+            c, s = np.cos(psi), np.sin(psi)
+            vx, vy = np.asarray(columns["vx"][rows])[near], np.asarray(columns["vy"][rows])[near]
+            ego = Footprint(self.bounds.length / 2, self.bounds.width / 2, c, s)
+            value = ttcs(ego, dx, dy, -speed[near] - (vx * c - vy * s), -lateral_rate[near] - (vx * s + vy * c),
+                         length, width)
             value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
-            series[rows] = np.minimum(series[rows], value)
+            index = near + first[i]
+            series[index] = np.minimum(series[index], value)
         series[~np.isfinite(series)] = np.nan
         return series
 

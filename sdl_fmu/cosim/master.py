@@ -509,7 +509,8 @@ class Cosimulation:
         leaving = [(i, leave) for i, leave in self.leaves_lane.items() if t0 < leave < t1]
         extremes = self.extremes
         reaching = self.pet_pending and self._front(state) >= self.pet_station
-        if not (changes or leaving or reaching):
+        ending = self._transitions_ending(t0, t1) if t1 >= self.earliest_look else []
+        if not (changes or leaving or reaching or ending):
             return
         ego, traffic, bounds = self.ego, self.traffic, self.bounds
         end = ego.save()
@@ -580,6 +581,11 @@ class Cosimulation:
             rates = extremes.rates(traffic, i, at)
             contact = rates[0] == 0.0 and math.isnan(rates[1])
             look_at(i, None if contact else before, at)
+        for i, end_time in ending:
+            # the vehicle's velocity jumps at its transition's end (TTC, DRAC and headway with it): looked at
+            # with the motion just before (1e-9 s earlier for the vehicle: < 1e-7 m) and at the instant
+            at = state if end_time == t1 else probe(end_time)
+            look_at(i, at._replace(time=end_time - 1e-9), at)
         for i, leave in leaving:
             self._lane_left(i, probe(leave))
         front = self._front(state)
@@ -591,6 +597,18 @@ class Cosimulation:
             self.located += 1
         ego.restore(end)
         ego.discard(end)
+
+    def _transitions_ending(self, t0: float, t1: float) -> list[tuple[int, float]]:
+        """(vehicle, instant) of the lateral or speed transitions ending inside (t0, t1], for the vehicles
+        followed at every communication point (within criticality.RANGE)."""
+        traffic = self.traffic
+        ending = []
+        for i in self.traffic.active.tolist():
+            if self.next_look[i] <= t1 and traffic.duration[i] > 0.0:
+                end_time = float(traffic.t0[i] + traffic.duration[i])
+                if t0 < end_time <= t1:
+                    ending.append((i, end_time))
+        return ending
 
     def _front(self, state: EgoState) -> float:
         """Station of the front of the ego's footprint (criticality.Extremes.reach's)."""

@@ -230,3 +230,27 @@ def test_summary_json_api_and_plot_carry_the_criticality(simple_fmu, tmp_path):
     assert SPEC_KEYS <= written["vehicles"][0].keys()
     assert written["min_pet_s"] is None and written["min_distance"] == 0.0  # no lateral move; a collision
     assert (folder / "plot.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_an_fmu_that_cannot_roll_back_gives_the_extremes_within_a_step(simple_fmu, tmp_path):
+    # The Simple FMU rewritten to say it cannot get and set its state: no bisection; an extreme is taken at the
+    # communication point after it, and summary's criticality says how exactly (time_uncertainty_s, the
+    # longest step in which one was found, at most the driver's 0.05 s period). The adjacent-lane car of the
+    # first test: the clearance is flat over the overlap, so the value is exact and the instant is the first
+    # communication point in the overlap, within time_uncertainty_s after its start t*.
+    import re
+
+    from conftest import rewritten_fmu
+
+    no_state = rewritten_fmu(simple_fmu, tmp_path / "NoState.fmu", lambda text: re.sub(
+        r'canGetAndSetFMUstate="true"', 'canGetAndSetFMUstate="false"', text, flags=re.I))
+    cosim = Cosimulation(SCENARIOS["adjacent"](), no_state, RunOptions(), TABLE)
+    result = cosim.run()
+    assert not cosim.exact
+    summary = result.criticality
+    uncertainty = summary["time_uncertainty_s"]
+    assert 0 < uncertainty <= 0.05 + 1e-12
+    clearance = 12 * FOOT - (cosim.bounds.width + 1.75) / 2
+    start = event(result, "spawn")["time_s"] + (1000 * FOOT - (cosim.bounds.length + 4.2) / 2) / (108 * FOOT)
+    assert summary["min_distance"] == pytest.approx(clearance / FOOT, abs=1e-9)
+    assert 0 <= summary["min_distance_time_s"] - start <= uncertainty

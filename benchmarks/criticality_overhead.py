@@ -12,8 +12,6 @@ import argparse
 import statistics
 import time
 
-import numpy as np
-
 from sdl_fmu.cosim.master import Cosimulation, RunOptions
 from sdl_fmu.fmu.cache import cached_fmus
 from sdl_fmu.interface import SCENARIO_DIRECTORY
@@ -21,7 +19,8 @@ from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_
 
 
 class WithoutCriticality(Cosimulation):
-    """The master with its criticality hooks doing nothing: no looks, no snapshots, no located instants."""
+    """The master with its criticality hooks doing nothing: no looks, no snapshots, no located instants (the
+    TTC series for the plot is computed only when asked for, not in a run)."""
 
     def criticality_due(self, t, limit):
         return False
@@ -31,9 +30,6 @@ class WithoutCriticality(Cosimulation):
 
     def look(self, state, everyone=False):
         pass
-
-    def ttc_series(self, columns):
-        return np.full(len(columns["time"]), np.nan)
 
 
 def traffic_scenario(vehicles: int):

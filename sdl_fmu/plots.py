@@ -458,7 +458,7 @@ def _plot_criticality(result: RunResult, axes: dict, time: np.ndarray) -> None:
         axes["distance"].annotate(f"min distance {result.criticality['min_distance']:.4g} "
                                   f"{length_label(result.units)}", (instant, 0.02), xycoords=("data", "axes fraction"),
                                   fontsize=8, color="tab:red", ha="left")
-    ttc = result.ttc
+    ttc = result.ttc_series() if result.ttc_series is not None else None
     if ttc is not None and len(ttc) == len(time) and np.isfinite(ttc).any():
         twin = axes["distance"].twinx()
         twin.plot(time, ttc, color="tab:red", lw=1.0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -104,7 +104,8 @@ class RunResult:
     vehicle: dict = field(default_factory=dict)  # summary "vehicle": the EgoModel's summary and the bounds used
     # summary "criticality" (SPEC §5): run-wide and per-vehicle extremes, scenario units; None: not measured
     criticality: dict | None = None
-    ttc: np.ndarray | None = None  # s per sample, the smallest time to collision (nan: none defined), for the plot
+    # s per sample, the smallest time to collision (nan: none defined), computed when called (the plot)
+    ttc_series: Callable[[], np.ndarray] | None = None
 
 
 

@@ -93,7 +93,7 @@ def test_head_on_ttc_is_gap_over_closing_speed_and_drac_closing_squared_over_twi
     assert np.abs(column(result, "psi")[rows]).max() < 1e-12
     gap = np.asarray(track.station) - column(result, "x")[rows] - (cosim.bounds.length + 4.85) / 2
     closing = column(result, "v")[rows] + 40 * FOOT
-    ttc = result.ttc[rows]
+    ttc = result.ttc_series()[rows]
     near = (gap > 0) & (gap <= RANGE)
     assert near.sum() > 20 and np.isnan(ttc[gap > RANGE]).all()
     assert ttc[near] == pytest.approx(gap[near] / closing[near], rel=1e-9)

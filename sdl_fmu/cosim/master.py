@@ -21,6 +21,7 @@ import random
 import time as wall_clock
 from array import array
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Callable
 
@@ -722,7 +723,8 @@ class Cosimulation:
                     horizons = self.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
                 # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and self.criticality_due(t, limit) else None
+                base = ego.save() if self.exact and (self.earliest_look <= limit or self.pet_pending
+                                                     or self.leaves_lane) and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no
                     # other instant: its instant is known exactly)
@@ -787,47 +789,10 @@ class Cosimulation:
             seed=self.options.seed, road=self.road, columns=columns, vehicles=self.vehicle_tracks(columns["time"]),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
-            criticality=self.criticality_summary(), ttc=self.ttc_series(columns),
+            criticality=self.criticality_summary(),
+            ttc_series=partial(ttc_series, self.traffic, np.array(self.spawn_sample, dtype=np.int64),
+                               np.array(self.leave_sample, dtype=np.int64), self.bounds, columns),
         )
-
-    def ttc_series(self, columns: dict) -> np.ndarray:
-        """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle
-        is on a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions
-        at the end of the run (not part of timeseries.csv)."""
-        times = np.asarray(columns["time"])
-        series = np.full(len(times), np.inf)
-        first = np.array(self.spawn_sample, dtype=np.int64)
-        last = np.array(self.leave_sample, dtype=np.int64)
-        last[last < 0] = self.sample_count
-        traffic = self.traffic
-        for i in range(len(first)):
-            rows = slice(first[i], last[i])
-            t = times[rows]
-            motions = traffic.history(i)
-            k = np.maximum(np.searchsorted(motions[:, 0], t, side="right") - 1, 0)
-            t0, _, lateral0, _, lateral1, _, duration = motions[k].T
-            moving = t - t0 < duration
-            lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
-            station, lateral, speed = traffic.track(i, t)
-            dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
-            length, width = float(traffic.length[i]), float(traffic.width[i])
-            # only where the centres are within RANGE plus both footprints' radii can the footprints be
-            near = np.flatnonzero(np.sqrt(dx * dx + dy * dy) <= RANGE + self.bounds.radius
-                                  + 0.5 * math.sqrt(length * length + width * width))
-            if not len(near):
-                continue
-            dx, dy = dx[near], dy[near]
-            psi = np.asarray(columns["psi"][rows])[near]
-            c, s = np.cos(psi), np.sin(psi)
-            vx, vy = np.asarray(columns["vx"][rows])[near], np.asarray(columns["vy"][rows])[near]
-            ego = Footprint(self.bounds.length / 2, self.bounds.width / 2, c, s)
-            value = ttcs(ego, dx, dy, -speed[near] - (vx * c - vy * s), -lateral_rate[near] - (vx * s + vy * c),
-                         length, width)
-            value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
-            index = near + first[i]
-            series[index] = np.minimum(series[index], value)
-        series[~np.isfinite(series)] = np.nan
-        return series
 
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
@@ -856,6 +821,44 @@ class Cosimulation:
         offsets = np.concatenate([[0], np.cumsum(last - first)])
         return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), self.traffic.models,
                              first, offsets)
+
+
+def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds, columns: dict) -> np.ndarray:
+    """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle is on
+    a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions (each
+    vehicle from its first sample to the one it left at, -1: still on the road), computed when asked for
+    (RunResult.ttc_series), not during the run; not part of timeseries.csv."""
+    times = np.asarray(columns["time"])
+    series = np.full(len(times), np.inf)
+    last = np.where(last < 0, len(times), last)
+    for i in range(len(first)):
+        rows = slice(first[i], last[i])
+        t = times[rows]
+        motions = traffic.history(i)
+        k = np.maximum(np.searchsorted(motions[:, 0], t, side="right") - 1, 0)
+        t0, _, lateral0, _, lateral1, _, duration = motions[k].T
+        moving = t - t0 < duration
+        lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
+        station, lateral, speed = traffic.track(i, t)
+        dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
+        length, width = float(traffic.length[i]), float(traffic.width[i])
+        # only where the centres are within RANGE plus both footprints' radii can the footprints be
+        near = np.flatnonzero(np.sqrt(dx * dx + dy * dy) <= RANGE + bounds.radius
+                              + 0.5 * math.sqrt(length * length + width * width))
+        if not len(near):
+            continue
+        dx, dy = dx[near], dy[near]
+        psi = np.asarray(columns["psi"][rows])[near]
+        c, s = np.cos(psi), np.sin(psi)
+        vx, vy = np.asarray(columns["vx"][rows])[near], np.asarray(columns["vy"][rows])[near]
+        ego = Footprint(bounds.length / 2, bounds.width / 2, c, s)
+        value = ttcs(ego, dx, dy, -speed[near] - (vx * c - vy * s), -lateral_rate[near] - (vx * s + vy * c),
+                     length, width)
+        value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
+        index = near + first[i]
+        series[index] = np.minimum(series[index], value)
+    series[~np.isfinite(series)] = np.nan
+    return series
 
 
 def _differing_stretches(surfaces, lane: int, other: int) -> tuple[list[float], list[float]]:

@@ -346,6 +346,12 @@ class Result:
         return self.raw.final
 
     @property
+    def criticality(self) -> dict | None:
+        """summary.json's `criticality` (SPEC §5): min_distance (scenario units) and its instant, min_ttc_s,
+        max_drac (scenario units/s2), min_pet_s, min_headway_s, ..., run-wide and per vehicle (`vehicles`)."""
+        return self.raw.criticality
+
+    @property
     def summary(self) -> dict:
         """summary.json's content."""
         return summary(self.raw)

@@ -474,6 +474,23 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
     ax.plot(ego_x, ego_y, "D", color=EGO_COLOR, mec="black", ms=8, zorder=6)
 
 
+def _plot_criticality(result: RunResult, axes: dict, time: np.ndarray) -> None:
+    """The minimum-distance instant on the speed and distance panels; TTC over time where it is defined."""
+    instant = (result.criticality or {}).get("min_distance_time_s")
+    if instant is not None:
+        for name in ("speed", "distance"):
+            axes[name].axvline(instant, color="tab:red", ls=":", lw=1.3)
+        axes["distance"].annotate(f"min distance {result.criticality['min_distance']:.4g} "
+                                  f"{length_label(result.units)}", (instant, 0.02), xycoords=("data", "axes fraction"),
+                                  fontsize=8, color="tab:red", ha="left")
+    ttc = result.ttc_series() if result.ttc_series is not None else None
+    if ttc is not None and len(ttc) == len(time) and np.isfinite(ttc).any():
+        twin = axes["distance"].twinx()
+        twin.plot(time, ttc, color="tab:red", lw=1.0)
+        twin.set_ylim(0, min(float(np.nanmax(ttc)), 10.0) * 1.05 or 1.0)
+        twin.set_ylabel("time to collision [s] (red)", color="tab:red")
+
+
 def plot_run(result: RunResult, path: Path) -> None:
     """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above.
     Values at the format's extremes (km-wide views of a lane) make matplotlib's arithmetic overflow harmlessly:
@@ -505,6 +522,7 @@ def _plot_run(result: RunResult, path: Path) -> None:
     if len(time):
         _plot_time_panels(result, axes, time, brk_runs)
         _plot_yaw_panel(result, axes["yaw"], time, brk_runs)
+        _plot_criticality(result, axes, time)
         axes["speed"].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1)
 
     # bird's-eye view of the whole run

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -102,6 +102,10 @@ class RunResult:
     timing: dict = field(default_factory=dict)  # summary "timing": wall_s, real_time_factor, steps, samples
     friction_meaning: str | None = "mu"  # what an RSA value means for the vehicle: "mu", "attribute" or None
     vehicle: dict = field(default_factory=dict)  # summary "vehicle": the EgoModel's summary and the bounds used
+    # summary "criticality" (SPEC §5): run-wide and per-vehicle extremes, scenario units; None: not measured
+    criticality: dict | None = None
+    # s per sample, the smallest time to collision (nan: none defined), computed when called (the plot)
+    ttc_series: Callable[[], np.ndarray] | None = None
 
 
 
@@ -300,6 +304,7 @@ def _summary_fields(result: RunResult, events) -> dict:
         "warnings": list(result.warnings),
         "timing": result.timing,
         **({"vehicle": result.vehicle} if result.vehicle else {}),
+        **({"criticality": result.criticality} if result.criticality is not None else {}),
     }
 
 

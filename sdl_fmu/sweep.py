@@ -281,12 +281,7 @@ def _summarise(result) -> dict:
             row[f"brk{count}_distance_{length}"] = event["distance"] - on["distance"]
             if event.get("reason") == "stopped":
                 row[f"brk{count}_stop_distance_{length}"] = event["distance"] - on["distance"]
-
-    station = np.asarray(raw.columns["station"], dtype=float)
-    for track in raw.vehicles:
-        own = np.asarray(track.station, dtype=float)
-        gap = np.abs(own - station[track.first:track.first + len(own)])
-        row[f"A{track.vehicle}_min_gap_{length}"] = float(from_si(np.nanmin(gap), raw.units)) if len(gap) else None
+    row.update(criticality_columns(result.criticality, raw.units))
     return row
 
 
@@ -303,6 +298,25 @@ def column_names(varied: list[str], units: str, model=None) -> dict[str, str]:
         unit = units_of.get(name) if name in RUN_OPTIONS else (
             None if name.startswith("rsa.") else declared.get(name.removeprefix("param.")))
         columns[name] = f"{name}_{unit}" if unit else name
+    return columns
+
+
+def criticality_columns(criticality: dict | None, units: str) -> dict:
+    """The table's criticality columns from summary.json's `criticality` (SPEC §5): the run-wide measures,
+    then per vehicle N the same prefixed AN_, units in the names (ft or m; DRAC in ft/s2 or m/s2); None
+    where a measure never applied."""
+    if criticality is None:
+        return {}
+    from .units import length_label
+
+    length = length_label(units)
+    names = {"min_distance": f"min_distance_{length}", "min_distance_time_s": "min_distance_time_s",
+             "min_ttc_s": "min_ttc_s", "min_ttc_time_s": "min_ttc_time_s", "max_drac": f"max_drac_{length}/s2",
+             "max_drac_time_s": "max_drac_time_s", "min_pet_s": "min_pet_s", "min_headway_s": "min_headway_s",
+             "min_headway_time_s": "min_headway_time_s"}
+    columns = {column: criticality.get(key) for key, column in names.items()}
+    for vehicle in criticality.get("vehicles", []):
+        columns.update({f"A{vehicle['vehicle']}_{column}": vehicle.get(key) for key, column in names.items()})
     return columns
 
 
@@ -401,9 +415,8 @@ def plot_sweep(rows: list[dict], varied: list[str], units: str, path: Path) -> N
     FigureCanvasAgg(figure)
     panels = [("collisions", "collisions", lambda r: r.get("collisions")),
               ("first BRK: distance while on", f"distance ({length})", lambda r: r.get(f"brk1_distance_{length}")),
-              ("smallest gap to a vehicle", f"gap ({length})",
-               lambda r: min((v for k, v in r.items() if k.endswith(f"_min_gap_{length}") and v is not None),
-                             default=None))]
+              ("smallest footprint distance to a vehicle", f"distance ({length})",
+               lambda r: r.get(f"min_distance_{length}"))]
     colours = {"ok": "tab:blue", "failed": "tab:red", "timeout": "tab:orange"}
     for row_index, name in enumerate(quantities):
         for k, (title, ylabel, value) in enumerate(panels):

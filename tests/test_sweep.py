@@ -167,9 +167,11 @@ def test_interrupted_sweep_resumes_from_its_journal(client, scenario, tmp_path):
     first = sweeping.sweep(scenario, varied, out, client=client, timeout=120, progress=False)
     assert [r["status"] for r in first] == ["ok"] * 3
     # the vehicle (spawned 600 ft ahead at 100 ft, closing at the ego's speed + 50 ft/s) passes 12 ft to the
-    # side before 600 ft: the smallest sampled gap is at most half the closing in one 0.05 s driver sample
-    for row in first:
-        assert row["A1_min_gap_ft"] <= (row["speed_ft/s"] + 50) * 0.05 / 2 + 1e-6
+    # side before 600 ft: its smallest footprint distance is the lateral clearance between the footprints,
+    # the same whatever the speed (located, not sampled: within 1e-6 ft), and below the 12 ft offset
+    clearances = [row["A1_min_distance_ft"] for row in first]
+    assert 0 < clearances[0] < 12 and clearances == pytest.approx([clearances[0]] * 3, abs=1e-6)
+    assert all(row["min_distance_ft"] == row["A1_min_distance_ft"] for row in first)
     # interrupt: the last run's row never reached the journal, and the table was never written
     journal = out / sweeping.JOURNAL_NAME
     lines = journal.read_text().splitlines()

@@ -713,8 +713,13 @@ class Extremes:
         value there bounds the interval over which the extreme is taken)."""
         return self._evaluate(traffic, i, state)[1]
 
+    def evaluate(self, traffic, i: int, state):
+        """Vehicle i at the ego's state, nothing offered yet: for `look` (its `evaluated`), so that the master
+        reads the rates at a step's end (`rates`) and looks there with one evaluation."""
+        return self._evaluate(traffic, i, state)
+
     def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
-             radius: float) -> tuple[tuple[float, float, float, float], float]:
+             radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
         """The master's look at vehicle i at a communication point or a located instant: offers its values
         and returns its rates (`rates`) and a horizon: a lower bound (s from now) on when it next needs a
         look. 0 within RANGE (TTC, DRAC and headway are followed at every communication point there, their
@@ -727,7 +732,7 @@ class Extremes:
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
         values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left) = \
-            self._evaluate(traffic, i, state)
+            self._evaluate(traffic, i, state) if evaluated is None else evaluated
         t = state.time
         for name, value in values.items():
             self.offer(name, i, t, value)

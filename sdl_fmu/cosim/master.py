@@ -21,6 +21,7 @@ import random
 import time as wall_clock
 from array import array
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Callable
 
@@ -31,6 +32,7 @@ from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, Sur
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
+from .criticality import RANGE, Extremes, Footprint, band_times, distances, ttcs
 from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .ego import step_until_time
@@ -48,6 +50,10 @@ TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
+# s, how exactly a criticality extreme's instant is located (a bracket this wide holds the root, so that two
+# runs at different steps agree within TIME_TOLERANCE)
+CRITICALITY_TOLERANCE = TIME_TOLERANCE / 4
+NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 # up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
 # vehicles NumPy's per-operation overhead (about 1 µs on small arrays) costs more than the arithmetic
@@ -140,6 +146,19 @@ class Cosimulation:
         self.steps = 0
         self.finished = False
         self.end_distance, self.end_reason = self._end_distance()
+        # criticality (criticality.py): the record, per vehicle the instant it next needs a look and its rates
+        # at its last look, the instant its footprint will leave the ego's lane (PET), and how exactly the
+        # extremes' instants are known (0: bisected to CRITICALITY_TOLERANCE)
+        self.extremes = Extremes(self.bounds.length, self.bounds.width)
+        self.next_look = np.full(16, NO_LOOK)
+        self.earliest_look = NO_LOOK
+        self.look_rates: dict[int, tuple] = {}
+        self.leaves_lane: dict[int, float] = {}
+        self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
+        self.pet_station = math.inf  # the nearest such area's station
+        self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
+        self.criticality_uncertainty = 0.0
+        self.located = 0  # instants located inside steps (probed from a saved FMU state)
 
     # ---- scenario units at the results boundary -------------------------------------------------
 
@@ -350,6 +369,7 @@ class Cosimulation:
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
                     self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
+                    self.lane_leave_instant(int(i), state)
                     if not vehicle_condition(traffic, int(i), kinematics, self.bounds)[0]:
                         break
             _, overlap, away = self.vehicle_conditions(active, kinematics)
@@ -413,6 +433,217 @@ class Cosimulation:
         self.log("ES", "end", state, reason=reason)
         self.finished = True
 
+    # ---- criticality ------------------------------------------------------------------------------
+
+    def criticality_due(self, t: float, limit: float) -> bool:
+        """Whether an extreme could lie in a step from t to at most `limit`: a vehicle's look comes due (every
+        step within criticality.RANGE), a vehicle's footprint leaves the ego's lane, or a PET is pending."""
+        return (self.earliest_look <= limit and bool(len(self.traffic.active))) or self.pet_pending \
+            or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
+
+    def look(self, state: EgoState, everyone: bool = False) -> None:
+        """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
+        communication point, keeps their rates (the next step's start) and their next-look instants."""
+        t = state.time
+        if not everyone and t < self.earliest_look:
+            return
+        traffic, bounds = self.traffic, self.bounds
+        if len(self.next_look) < traffic.size:
+            self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
+        earliest = math.inf
+        evaluated, self.evaluated = self.evaluated, {}
+        for i in traffic.active.tolist():
+            instant = float(self.next_look[i])
+            if everyone or instant <= t:
+                rates, horizon = self.extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
+                                                    bounds.radius, evaluated.get(i))
+                self.look_rates[i] = rates
+                instant = self.next_look[i] = t + horizon
+            earliest = min(earliest, instant)
+        self.earliest_look = earliest
+
+    def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
+        """After a step from t0 to state.time: locates the extremes inside it (from the snapshot `base` at t0;
+        without one, an FMU that cannot roll back, they are taken at this communication point, known within
+        the step), then looks at the vehicles due (all of them: `everyone`, before something fires)."""
+        t1 = state.time
+        if base is not None:
+            self._locate_in_step(base, t0, state)
+        elif not self.exact and (self._changes_in_step(t0, state) or self.pet_pending
+                                 or any(leave <= t1 for leave in self.leaves_lane.values())):
+            self.criticality_uncertainty = max(self.criticality_uncertainty, t1 - t0)
+        if self.leaves_lane:
+            for i, leave in list(self.leaves_lane.items()):
+                if leave <= t1:  # at this instant, or (no snapshot) within this step
+                    self._lane_left(i, state)
+        if self.pet_pending and self._front(state) >= self.pet_station:
+            self._reach(state)
+        if base is not None:
+            self.ego.discard(base)
+        self.look(state, everyone)
+
+    def _changes_in_step(self, t0: float, state: EgoState) -> list:
+        """What changed inside the step for the vehicles looked at now: (vehicle, rate index) where that rate
+        turned from < 0 to >= 0 (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), and
+        (vehicle, None) where a collision course began or ended (TTC's rate turned nan or back)."""
+        t1 = state.time
+        changes = []
+        if t1 < self.earliest_look:
+            return changes
+        for i in self.traffic.active.tolist():
+            previous = self.look_rates.get(i)
+            if previous is None or self.next_look[i] > t1:
+                continue
+            evaluated = self.evaluated[i] = self.extremes.evaluate(self.traffic, i, state)
+            now = evaluated[1]
+            changes += [(i, k) for k in range(4) if previous[k] < 0 <= now[k]]
+            if math.isnan(previous[1]) != math.isnan(now[1]):
+                changes.append((i, None))
+        return changes
+
+    def _locate_in_step(self, base, t0: float, state: EgoState) -> None:
+        """Each extreme inside the step bisected from the snapshot at t0 (the FMU's state at t1 saved and
+        restored after: the run goes on exactly as without the probes), and the vehicle looked at on both
+        sides of the located instant (the first instant an extreme is reached is kept)."""
+        t1 = state.time
+        changes = self._changes_in_step(t0, state)
+        leaving = [(i, leave) for i, leave in self.leaves_lane.items() if t0 < leave < t1]
+        extremes = self.extremes
+        reaching = self.pet_pending and self._front(state) >= self.pet_station
+        ending = self._transitions_ending(t0, t1) if t1 >= self.earliest_look else []
+        if not (changes or leaving or reaching or ending):
+            return
+        ego, traffic, bounds = self.ego, self.traffic, self.bounds
+        end = ego.save()
+
+        def probe(t: float) -> EgoState:
+            ego.restore(base)
+            ego.step_to(t)
+            return ego.read()
+
+        def bisect_instant(low, high, condition) -> tuple[EgoState, EgoState]:
+            """(state before, state at) the instant condition turns true in (low, high], true at high."""
+            low_state, high_state = None, state
+            while high - low > CRITICALITY_TOLERANCE:
+                middle = 0.5 * (low + high)
+                probed = probe(middle)
+                if condition(probed):
+                    high, high_state = middle, probed
+                else:
+                    low, low_state = middle, probed
+            return low_state, high_state
+
+        def root_instant(low, high, value, low_value, high_value) -> tuple[EgoState, EgoState]:
+            """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
+            same bracket to CRITICALITY_TOLERANCE, with fewer probes where the rate is smooth (regula falsi,
+            Illinois variant; each estimate kept tolerance / 2 inside the bracket, so that once near the root
+            the next probe closes the bracket from the other side; bisection whenever a probe did not halve it)."""
+            low_state, high_state = None, state
+            side, halve = 0, False
+            while high - low > CRITICALITY_TOLERANCE:
+                width = high - low
+                slope = high_value - low_value
+                if halve or not (slope > 0.0 and math.isfinite(slope)):
+                    guess = 0.5 * (low + high)
+                else:
+                    guess = low - low_value * width / slope
+                guess = min(max(guess, low + 0.5 * CRITICALITY_TOLERANCE), high - 0.5 * CRITICALITY_TOLERANCE)
+                probed = probe(guess)
+                rate = value(probed)
+                if rate >= 0:
+                    high, high_state, high_value = guess, probed, rate
+                    if side > 0:
+                        low_value *= 0.5
+                    side = 1
+                else:
+                    low, low_state, low_value = guess, probed, rate
+                    if side < 0:
+                        high_value *= 0.5
+                    side = -1
+                halve = high - low > 0.5 * width
+            return low_state, high_state
+
+        def look_at(i: int, *states) -> None:
+            for probed in states:
+                if probed is not None:
+                    extremes.look(traffic, i, probed, bounds.acceleration, bounds.yaw_rate, bounds.radius)
+            self.located += 1
+
+        for i, k in changes:
+            if k is None:
+                off_course = math.isnan(self.look_rates[i][1])
+                before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
+                                            math.isnan(extremes.rates(traffic, i, p)[1]) != was)
+            else:
+                before, at = root_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k],
+                                          self.look_rates[i][k], self.evaluated[i][1][k])
+            # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
+            # instant before it is not offered, DRAC growing without bound toward a contact
+            rates = extremes.rates(traffic, i, at)
+            contact = rates[0] == 0.0 and math.isnan(rates[1])
+            look_at(i, None if contact else before, at)
+        for i, end_time in ending:
+            # the vehicle's velocity jumps at its transition's end (TTC, DRAC and headway with it): looked at
+            # with the motion just before (1e-9 s earlier for the vehicle: < 1e-7 m) and at the instant
+            at = state if end_time == t1 else probe(end_time)
+            look_at(i, at._replace(time=end_time - 1e-9), at)
+        for i, leave in leaving:
+            self._lane_left(i, probe(leave))
+        front = self._front(state)
+        for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():
+            station = float(extremes.conflict[i])
+            start = max(t0, float(extremes.left_path[i]))
+            _, reached = bisect_instant(start, t1, lambda p: self._front(p) >= station)
+            self._reach(reached)
+            self.located += 1
+        ego.restore(end)
+        ego.discard(end)
+
+    def _transitions_ending(self, t0: float, t1: float) -> list[tuple[int, float]]:
+        """(vehicle, instant) of the lateral or speed transitions ending inside (t0, t1], for the vehicles
+        followed at every communication point (within criticality.RANGE)."""
+        traffic = self.traffic
+        ending = []
+        for i in self.traffic.active.tolist():
+            if self.next_look[i] <= t1 and traffic.duration[i] > 0.0:
+                end_time = float(traffic.t0[i] + traffic.duration[i])
+                if t0 < end_time <= t1:
+                    ending.append((i, end_time))
+        return ending
+
+    def _front(self, state: EgoState) -> float:
+        """Station of the front of the ego's footprint (criticality.Extremes.reach's)."""
+        return state.x + self.bounds.length / 2 * abs(math.cos(state.psi)) \
+            + self.bounds.width / 2 * abs(math.sin(state.psi))
+
+    def lane_leave_instant(self, i: int, state: EgoState) -> None:
+        """When an action starts vehicle i's lateral move: the instant its footprint leaves the ego's lane
+        (criticality.band_times, closed form), where the PET's conflict area is set."""
+        traffic, road = self.traffic, self.road
+        self.leaves_lane.pop(i, None)
+        lane = road.lane_at(-state.y)
+        centre = road.lane_center(lane)
+        _, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
+                              float(traffic.duration[i]), float(traffic.width[i]), centre - road.lane_width / 2,
+                              centre + road.lane_width / 2)
+        if state.time < leave < math.inf:
+            self.leaves_lane[i] = leave
+
+    def _lane_left(self, i: int, state: EgoState) -> None:
+        del self.leaves_lane[i]
+        station, _, _ = self.traffic.at(i, state.time)
+        self.extremes.path_left(i, state.time, station, float(self.traffic.length[i]), self._front(state))
+        self._pending()
+
+    def _reach(self, state: EgoState) -> None:
+        self.extremes.reach(state)
+        self._pending()
+
+    def _pending(self) -> None:
+        stations = self.extremes.pending_stations()
+        self.pet_pending = bool(len(stations))
+        self.pet_station = float(stations.min()) if len(stations) else math.inf
+
     # ---- inputs and records ---------------------------------------------------------------------
 
     def sample_driver(self, state: EgoState, period: float | None) -> None:
@@ -468,6 +699,7 @@ class Cosimulation:
         try:
             state = self.ego.read()
             self.fire_due(state)
+            self.look(state, everyone=True)
             self.sample_driver(state, None)
             self.apply_inputs(state, True)
             self.record(state)
@@ -490,6 +722,9 @@ class Cosimulation:
                 if earliest < limit:
                     horizons = self.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
+                # a snapshot at the step's start, from which extremes inside the step are located
+                base = ego.save() if self.exact and (self.earliest_look <= limit or self.pet_pending
+                                                     or self.leaves_lane) and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no
                     # other instant: its instant is known exactly)
@@ -511,11 +746,14 @@ class Cosimulation:
                     state = ego.read()
                 self.steps += 1
                 driver_sample = state.time >= next_sample
+                if base is not None or fired or state.time >= self.earliest_look or not self.exact:
+                    self.follow_criticality(base, t, state, everyone=fired)
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
                     self.cached_bounds.clear()  # the next event, a BRK on or off
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
+                    self.look(state, everyone=True)  # the motions from this instant on
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:
@@ -527,6 +765,7 @@ class Cosimulation:
                 self.record(state)
                 if progress is not None:
                     progress(self, state)
+            self.look(state, everyone=True)  # an extreme at the end of the run
             wall = wall_clock.perf_counter() - started
             return self.result(state, wall)
         finally:
@@ -550,7 +789,18 @@ class Cosimulation:
             seed=self.options.seed, road=self.road, columns=columns, vehicles=self.vehicle_tracks(columns["time"]),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
+            criticality=self.criticality_summary(),
+            ttc_series=partial(ttc_series, self.traffic, np.array(self.spawn_sample, dtype=np.int64),
+                               np.array(self.leave_sample, dtype=np.int64), self.bounds, columns),
         )
+
+    def criticality_summary(self) -> dict:
+        """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
+        back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
+        summary = self.extremes.summary(self.vehicle_ids, self._scenario_units)
+        if not self.exact:
+            summary["time_uncertainty_s"] = self.criticality_uncertainty
+        return summary
 
     def vehicle_tracks(self, times: np.ndarray) -> VehicleTracks:
         """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, into
@@ -571,6 +821,44 @@ class Cosimulation:
         offsets = np.concatenate([[0], np.cumsum(last - first)])
         return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), self.traffic.models,
                              first, offsets)
+
+
+def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds, columns: dict) -> np.ndarray:
+    """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle is on
+    a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions (each
+    vehicle from its first sample to the one it left at, -1: still on the road), computed when asked for
+    (RunResult.ttc_series), not during the run; not part of timeseries.csv."""
+    times = np.asarray(columns["time"])
+    series = np.full(len(times), np.inf)
+    last = np.where(last < 0, len(times), last)
+    for i in range(len(first)):
+        rows = slice(first[i], last[i])
+        t = times[rows]
+        motions = traffic.history(i)
+        k = np.maximum(np.searchsorted(motions[:, 0], t, side="right") - 1, 0)
+        t0, _, lateral0, _, lateral1, _, duration = motions[k].T
+        moving = t - t0 < duration
+        lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
+        station, lateral, speed = traffic.track(i, t)
+        dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
+        length, width = float(traffic.length[i]), float(traffic.width[i])
+        # only where the centres are within RANGE plus both footprints' radii can the footprints be
+        near = np.flatnonzero(np.sqrt(dx * dx + dy * dy) <= RANGE + bounds.radius
+                              + 0.5 * math.sqrt(length * length + width * width))
+        if not len(near):
+            continue
+        dx, dy = dx[near], dy[near]
+        psi = np.asarray(columns["psi"][rows])[near]
+        c, s = np.cos(psi), np.sin(psi)
+        vx, vy = np.asarray(columns["vx"][rows])[near], np.asarray(columns["vy"][rows])[near]
+        ego = Footprint(bounds.length / 2, bounds.width / 2, c, s)
+        value = ttcs(ego, dx, dy, -speed[near] - (vx * c - vy * s), -lateral_rate[near] - (vx * s + vy * c),
+                     length, width)
+        value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
+        index = near + first[i]
+        series[index] = np.minimum(series[index], value)
+    series[~np.isfinite(series)] = np.nan
+    return series
 
 
 def _differing_stretches(surfaces, lane: int, other: int) -> tuple[list[float], list[float]]:

@@ -99,7 +99,11 @@ def test_every_column_with_a_unit_names_it(client, tmp_path):
     assert columns[:6] == ["run", "speed_m/s", "mass_kg", "until_time_s", "status", "error"]
     expected = {"collisions", "final_time_s", "final_distance_m", "final_speed_m/s", "final_lateral_m", "sim_wall_s",
                 "real_time_factor", "run_wall_s", "warnings", "brk1_on_time_s", "brk1_off_time_s", "brk1_reason",
-                "brk1_distance_m", "brk1_stop_distance_m", "A1_min_gap_m"}
+                "brk1_distance_m", "brk1_stop_distance_m"}
+    # the criticality measures (SPEC 5), run-wide and for vehicle 1, lengths in m, DRAC in m/s2
+    measures = {"min_distance_m", "min_distance_time_s", "min_ttc_s", "min_ttc_time_s", "max_drac_m/s2",
+                "max_drac_time_s", "min_pet_s", "min_headway_s", "min_headway_time_s"}
+    expected |= measures | {f"A1_{name}" for name in measures}
     assert set(columns[6:]) == expected
     assert (out / sweeping.CSV_NAME).read_text().splitlines()[0].split(",")[:3] == ['"run"', '"speed_m/s"', '"mass_kg"']
     # only mass takes more than one value: the plot has one row of panels, against mass, in kg

@@ -20,6 +20,7 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = sorted([MANIFEST_NAME, "plot.png", "summary.json", "timeseries.csv"])
 
 
+@pytest.mark.slow
 def test_a_wheel_installed_in_a_fresh_venv_runs_the_demo_from_any_folder(tmp_path):
     # The wheel is built from a copy of the checkout (a build writes build/ and *.egg-info beside the sources)
     # without build isolation, so nothing is downloaded; the fresh venv borrows this venv's dependencies

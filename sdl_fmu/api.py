@@ -54,11 +54,24 @@ MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
 class InputError(ValueError):
     """A user mistake outside the scenario file: a bad option, FMU, tire file or results folder.
 
-    `option` is the keyword (e.g. "until_time", "fmu"); the message names the option or file."""
+    `option` is the keyword (e.g. "until_time", "params", "fmu"). The message names it as the API spells it
+    (`until_time nan: must be a finite number`); `command_line()` gives the same line with the command
+    line's flag (`--until-time nan: ...`)."""
 
-    def __init__(self, option: str | None, message: str):
+    def __init__(self, option: str | None, message: str, subject: str | None = None):
         self.option = option
-        super().__init__(message)
+        self.subject = subject  # the value and reason ("nan: must be ..."), when the message is keyword + subject
+        super().__init__(message if subject is None else f"{option} {subject}")
+
+    def command_line(self) -> str:
+        """The message as the command line words it: the keyword replaced by its flag."""
+        if self.subject is None:
+            return str(self)
+        return f"--{COMMAND_LINE_FLAGS.get(self.option, self.option.replace('_', '-'))} {self.subject}"
+
+
+# keywords whose command-line flag is not the keyword with - for _
+COMMAND_LINE_FLAGS = {"params": "param"}
 
 
 class RunTimeout(RuntimeError):
@@ -66,8 +79,7 @@ class RunTimeout(RuntimeError):
 
 
 def _option_error(option: str, value, reason: str) -> InputError:
-    return InputError(option, f"--{option.replace('_', '-')} {value}: {reason}")
-
+    return InputError(option, "", subject=f"{value}: {reason}")
 
 # --- scenarios ----------------------------------------------------------------------------------
 
@@ -190,12 +202,12 @@ def _model_description(fmu: Path, dynamics: str):
     missing = [n for n in (*EGO_VARIABLES, *wheels) if n not in names]
     if missing:
         raise _option_error("fmu", fmu, f"lacks the {dynamics} ego variables {', '.join(missing[:6])}"
-                            f"{' ...' if len(missing) > 6 else ''} (see --dynamics)")
+                            f"{' ...' if len(missing) > 6 else ''} (an FMU of the other dynamics?)")
     return description
 
 
 def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]:
-    """--param values checked against the FMU: an existing Real parameter, finite, within its min/max."""
+    """params checked against the FMU: an existing Real parameter, finite, within its min/max."""
     checked = {}
     variables = {v.name: v for v in description.modelVariables}
     for name, value in (params or {}).items():
@@ -204,22 +216,22 @@ def _parameters(params: dict | None, description, fmu: Path) -> dict[str, float]
         if variable is None or variable.causality != "parameter":
             known = ", ".join(v.name for v in description.modelVariables
                               if v.causality == "parameter" and not v.name.startswith("tire"))
-            raise _option_error("param", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
+            raise _option_error("params", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
                                 "tire<slot>_<KEY>)")
         if variable.type != "Real":
-            raise _option_error("param", shown, f"{name} is {variable.type}; only Real parameters can be set")
+            raise _option_error("params", shown, f"{name} is {variable.type}; only Real parameters can be set")
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise _option_error("param", shown, "the value must be a number (SI units)")
+            raise _option_error("params", shown, "the value must be a number (SI units)")
         value = float(value)
         if not math.isfinite(value):
-            raise _option_error("param", shown, "the value must be a finite number")
+            raise _option_error("params", shown, "the value must be a finite number")
         unit = f" {variable.unit}" if variable.unit and variable.unit != "1" else ""
         low = None if variable.min is None else float(variable.min)
         high = None if variable.max is None else float(variable.max)
         if low is not None and value < low:
-            raise _option_error("param", shown, f"below the declared minimum {low:g}{unit} of {name}")
+            raise _option_error("params", shown, f"below the declared minimum {low:g}{unit} of {name}")
         if high is not None and value > high:
-            raise _option_error("param", shown, f"above the declared maximum {high:g}{unit} of {name}")
+            raise _option_error("params", shown, f"above the declared maximum {high:g}{unit} of {name}")
         checked[name] = value
     return checked
 
@@ -248,7 +260,7 @@ def ego_fmu(dynamics: str = "simple", fmu: str | os.PathLike | None = None) -> P
 def _tire_starts(tires, dynamics: str):
     if dynamics != "advanced":
         if tires is not None:
-            raise _option_error("tires", tires, "applies to --dynamics advanced only")
+            raise _option_error("tires", tires, "applies to the advanced dynamics only")
         return {}, None, []
     from .dynamics.tires import TireFileError, default_attribute_file, slot_parameters
 
@@ -283,6 +295,13 @@ class Result:
 
     raw: RunResult
     scenario: Scenario
+
+    def __repr__(self) -> str:
+        """One short line (the time series and events stay in .arrays and .events)."""
+        final = self.final
+        return (f"<Result {Path(self.scenario.path).stem}: {self.raw.dynamics} dynamics, "
+                f"{len(self.raw.columns['time'])} samples to {final.get('time_s', float('nan')):.2f} s, "
+                f"{self.collisions} collision(s), {len(self.warnings)} warning(s)>")
 
     @property
     def arrays(self) -> dict[str, np.ndarray]:
@@ -332,7 +351,7 @@ class Result:
         try:
             return write_results(self.raw, Path(out), plot=plot)
         except ResultsFolderError as error:
-            raise InputError("out", f"--out {error}") from None
+            raise InputError("out", "", subject=str(error)) from None
 
     def plot(self, path: str | os.PathLike) -> Path:
         """Only the plot, as a PNG at `path`."""
@@ -436,7 +455,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str = "simple", fmu
         try:
             check_results_folder(out)
         except ResultsFolderError as error:
-            raise InputError("out", f"--out {error}") from None
+            raise InputError("out", "", subject=str(error)) from None
     fmu_path = ego_fmu(dynamics, fmu)
     parameters = _parameters(params, _description(fmu_path), fmu_path)
     options = RunOptions(dynamics=dynamics, speed=speed, seed=seed, step=step, driver_period=driver_period,

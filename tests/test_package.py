@@ -96,6 +96,7 @@ def test_the_cache_key_changes_with_every_input_of_the_build(changed, monkeypatc
     assert cache.build_key("simple") != before
 
 
+@pytest.mark.slow
 def test_two_processes_building_at_once_leave_one_good_fmu(tmp_path):
     env = {**os.environ, cache.CACHE_VARIABLE: str(tmp_path / "cache")}
     # and the temporary folder of a build that was killed (a process id that no longer exists) goes away
@@ -120,6 +121,7 @@ def test_a_cached_fmu_is_reused(simple_fmu):
     assert cache.cached_fmu("simple") == simple_fmu
 
 
+@pytest.mark.slow
 def test_build_still_exports_to_a_folder(tmp_path, capsys):
     assert main(["build", "--dynamics", "simple", "--out", str(tmp_path / "export")]) == 0
     exported = [tmp_path / "export" / f"fmi{version}" / "EgoVehicleSimple.fmu" for version in (2, 3)]

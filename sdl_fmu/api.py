@@ -81,6 +81,7 @@ class RunTimeout(RuntimeError):
 def _option_error(option: str, value, reason: str) -> InputError:
     return InputError(option, "", subject=f"{value}: {reason}")
 
+
 # --- scenarios ----------------------------------------------------------------------------------
 
 

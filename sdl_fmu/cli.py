@@ -145,7 +145,7 @@ def _number(text: str) -> float:
 
 DESCRIPTION = "Vehicle-dynamics FMUs (FMI 2.0 and 3.0) co-simulated with STISIM-style SDL traffic scenarios."
 EPILOG = """\
-'sdl-fmu COMMAND --help' shows a command's options. Try: sdl-fmu run demo
+'sdl-fmu command --help' shows a command's options. Try: sdl-fmu run demo
 exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 130 Ctrl-C,
             141 the output pipe was closed early (e.g. by head)"""
 
@@ -157,7 +157,7 @@ def parser() -> argparse.ArgumentParser:
                    formatter_class=argparse.RawDescriptionHelpFormatter)
     main.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = main.add_subparsers(dest="command", required=True, parser_class=_Parser, title="commands",
-                                   metavar="COMMAND")
+                                   metavar="command")
 
     build = commands.add_parser("build", help="build the ego-vehicle FMUs (export them to a folder)")
     build.add_argument("--dynamics", choices=[*DYNAMICS, "all"], default="all",

@@ -215,7 +215,6 @@ def test_there_are_at_least_200_cases():
     assert len(CASES) >= 200, len(CASES)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("argv, code, needle, lines", CASES)
 def test_user_mistake_is_one_line_per_problem_and_writes_nothing(argv, code, needle, lines, workspace, simple_fmu,
                                                                   advanced_fmu, monkeypatch, capsys):

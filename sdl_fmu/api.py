@@ -67,11 +67,24 @@ MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
 class InputError(ValueError):
     """A user mistake outside the scenario file: a bad option, FMU, tire file or results folder.
 
-    `option` is the keyword (e.g. "until_time", "fmu"); the message names the option or file."""
+    `option` is the keyword (e.g. "until_time", "params", "fmu"). The message names it as the API spells it
+    (`until_time nan: must be a finite number`); `command_line()` gives the same line with the command
+    line's flag (`--until-time nan: ...`)."""
 
-    def __init__(self, option: str | None, message: str):
+    def __init__(self, option: str | None, message: str, subject: str | None = None):
         self.option = option
-        super().__init__(message)
+        self.subject = subject  # the value and reason ("nan: must be ..."), when the message is keyword + subject
+        super().__init__(message if subject is None else f"{option} {subject}")
+
+    def command_line(self) -> str:
+        """The message as the command line words it: the keyword replaced by its flag."""
+        if self.subject is None:
+            return str(self)
+        return f"--{COMMAND_LINE_FLAGS.get(self.option, self.option.replace('_', '-'))} {self.subject}"
+
+
+# keywords whose command-line flag is not the keyword with - for _
+COMMAND_LINE_FLAGS = {"params": "param"}
 
 
 class RunTimeout(RuntimeError):
@@ -79,7 +92,7 @@ class RunTimeout(RuntimeError):
 
 
 def _option_error(option: str, value, reason: str) -> InputError:
-    return InputError(option, f"--{option.replace('_', '-')} {value}: {reason}")
+    return InputError(option, "", subject=f"{value}: {reason}")
 
 
 # --- scenarios ----------------------------------------------------------------------------------
@@ -218,8 +231,11 @@ def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
     except VehicleMapError as error:
         text = str(error)
         if vehicle is None and not text.startswith("--fmu"):  # the FMU does not fit the shipped map
-            text = f"--fmu {fmu}: does not fit --dynamics {dynamics}: {text}"
-        raise InputError("fmu" if vehicle is None or text.startswith("--fmu") else "vehicle", text) from None
+            text = f"--fmu {fmu}: does not fit the shipped {dynamics} map: {text}"
+        option = "fmu" if vehicle is None or text.startswith("--fmu") else "vehicle"
+        if text.startswith(f"--{option} "):  # the keyword form for the API, the flag form for the command line
+            raise InputError(option, "", subject=text[len(option) + 3:]) from None
+        raise InputError(option, text) from None
     from .fmu.cache import cached_fmu
 
     path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
@@ -228,7 +244,7 @@ def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
 
 
 def _parameters(params: dict | None, model) -> dict[str, float]:
-    """--param values checked against the FMU: an existing Real parameter, finite, within its min/max."""
+    """params checked against the FMU: an existing Real parameter, finite, within its min/max."""
     from .vehicle.model import REAL_TYPES
 
     description, fmu = model.description, model.fmu_path
@@ -240,22 +256,22 @@ def _parameters(params: dict | None, model) -> dict[str, float]:
         if variable is None or variable.causality != "parameter":
             known = ", ".join(v.name for v in description.modelVariables
                               if v.causality == "parameter" and not v.name.startswith("tire"))
-            raise _option_error("param", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
+            raise _option_error("params", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
                                 "tire<slot>_<KEY>)")
         if variable.type not in REAL_TYPES:
-            raise _option_error("param", shown, f"{name} is {variable.type}; only Real parameters can be set")
+            raise _option_error("params", shown, f"{name} is {variable.type}; only Real parameters can be set")
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise _option_error("param", shown, "the value must be a number (SI units)")
+            raise _option_error("params", shown, "the value must be a number (SI units)")
         value = float(value)
         if not math.isfinite(value):
-            raise _option_error("param", shown, "the value must be a finite number")
+            raise _option_error("params", shown, "the value must be a finite number")
         unit = f" {variable.unit}" if variable.unit and variable.unit != "1" else ""
         low = None if variable.min is None else float(variable.min)
         high = None if variable.max is None else float(variable.max)
         if low is not None and value < low:
-            raise _option_error("param", shown, f"below the declared minimum {low:g}{unit} of {name}")
+            raise _option_error("params", shown, f"below the declared minimum {low:g}{unit} of {name}")
         if high is not None and value > high:
-            raise _option_error("param", shown, f"above the declared maximum {high:g}{unit} of {name}")
+            raise _option_error("params", shown, f"above the declared maximum {high:g}{unit} of {name}")
         checked[name] = value
     return checked
 
@@ -308,6 +324,13 @@ class Result:
 
     raw: RunResult
     scenario: Scenario
+
+    def __repr__(self) -> str:
+        """One short line (the time series and events stay in .arrays and .events)."""
+        final = self.final
+        return (f"<Result {Path(self.scenario.path).stem}: {self.raw.dynamics} dynamics, "
+                f"{len(self.raw.columns['time'])} samples to {final.get('time_s', float('nan')):.2f} s, "
+                f"{self.collisions} collision(s), {len(self.warnings)} warning(s)>")
 
     @property
     def arrays(self) -> dict[str, np.ndarray]:
@@ -363,7 +386,7 @@ class Result:
         try:
             return write_results(self.raw, Path(out), plot=plot)
         except ResultsFolderError as error:
-            raise InputError("out", f"--out {error}") from None
+            raise InputError("out", "", subject=str(error)) from None
 
     def plot(self, path: str | os.PathLike) -> Path:
         """Only the plot, as a PNG at `path`."""
@@ -493,7 +516,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, 
         try:
             check_results_folder(out)
         except ResultsFolderError as error:
-            raise InputError("out", f"--out {error}") from None
+            raise InputError("out", "", subject=str(error)) from None
     fmu_path = model.fmu_path
     parameters = _parameters(params, model)
     options = RunOptions(speed=speed, seed=seed, step=step, driver_period=driver_period,
@@ -553,7 +576,7 @@ def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
         try:
             check_results_folder(out)
         except ResultsFolderError as error:
-            raise InputError("out", f"--out {error}") from None
+            raise InputError("out", "", subject=str(error)) from None
     identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,
                 "map": None if model.map_path is None else str(model.map_path),
                 "friction": None if model.friction is None else model.friction.meaning}
@@ -573,5 +596,5 @@ def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
         try:
             folder = pack.write(out, identity, outcomes)
         except ResultsFolderError as error:
-            raise InputError("out", f"--out {error}") from None
+            raise InputError("out", "", subject=str(error)) from None
     return VerifyResult(identity, outcomes, pack.table(outcomes), folder)

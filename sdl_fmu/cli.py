@@ -1,7 +1,8 @@
 """The `sdl-fmu` command line: build, check, run, sweep, verify. It only parses arguments, calls sdl_fmu.api and
 prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
-line on stderr saying how many and where their errors are."""
+line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
+quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import os
 import sys
 from pathlib import Path
 
-EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED = 1, 2, 3, 130
+EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
 DYNAMICS = ("simple", "advanced")
 FMI_VERSIONS = ("2", "3")
 
@@ -161,12 +162,25 @@ def _number(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
+DESCRIPTION = "Vehicle-dynamics FMUs (FMI 2.0 and 3.0) co-simulated with STISIM-style SDL traffic scenarios."
+EPILOG = """\
+'sdl-fmu command --help' shows a command's options. Try: sdl-fmu run demo
+exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 130 Ctrl-C,
+            141 the output pipe was closed early (e.g. by head)"""
+
+
 def parser() -> argparse.ArgumentParser:
-    main = _Parser(prog="sdl-fmu", description=__doc__.split(".")[0])
-    commands = main.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    from . import __version__
+
+    main = _Parser(prog="sdl-fmu", description=DESCRIPTION, epilog=EPILOG,
+                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    main.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    commands = main.add_subparsers(dest="command", required=True, parser_class=_Parser, title="commands",
+                                   metavar="command")
 
     build = commands.add_parser("build", help="build the ego-vehicle FMUs (export them to a folder)")
-    build.add_argument("--dynamics", choices=[*DYNAMICS, "all"], default="all")
+    build.add_argument("--dynamics", choices=[*DYNAMICS, "all"], default="all",
+                       help="which model's FMUs: simple, advanced or all (default: all)")
     build.add_argument("--fmi-version", choices=[*FMI_VERSIONS, "all"], default="all",
                        help="FMI version of the FMUs: 2, 3 or all (default: all, into OUT/fmi2/ and OUT/fmi3/)")
     build.add_argument("--out", default="dist", help="output folder (default: dist)")
@@ -183,7 +197,8 @@ def parser() -> argparse.ArgumentParser:
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
     run.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    run.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
+    run.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default; friction "
+                     "coefficients) or advanced (Magic Formula tires); not with --vehicle")
     run.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics, built on first use)")
     run.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     run.add_argument("--speed", type=_number, help="driver's start and target speed, scenario units (default 88 ft/s)")
@@ -211,7 +226,8 @@ def parser() -> argparse.ArgumentParser:
     where = sweep.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
-    sweep.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
+    sweep.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model for every run: simple (default) or "
+                       "advanced; not with --vehicle")
     sweep.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics)")
     sweep.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     sweep.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -240,7 +256,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 3 a sweep with failed
-    runs, 130 Ctrl-C)."""
+    runs, 130 Ctrl-C, 141 closed output pipe)."""
     try:
         from .api import InputError
         from .fmu.package import BuildError
@@ -252,22 +268,28 @@ def main(argv: list[str] | None = None) -> int:
         except _ArgumentError as error:
             print(error, file=sys.stderr)
             return EXIT_USAGE
-        except SystemExit as exit:  # --help
+        except SystemExit as exit:  # --help, --version
+            sys.stdout.flush()
             return exit.code if isinstance(exit.code, int) else EXIT_USAGE
         try:
-            return args.handler(args)
+            code = args.handler(args)
         except ScenarioError as error:
             print(error, file=sys.stderr)
             return EXIT_SCENARIO
-        except (InputError, BuildError, SweepError) as error:
+        except InputError as error:
+            print(f"sdl-fmu: {error.command_line()}", file=sys.stderr)
+            return EXIT_USAGE
+        except (BuildError, SweepError) as error:
             print(f"sdl-fmu: {error}", file=sys.stderr)
             return EXIT_USAGE
+        sys.stdout.flush()  # here, so that a closed pipe is caught below rather than at interpreter exit
+        return code
     except KeyboardInterrupt:
         print("sdl-fmu: interrupted (Ctrl-C); nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except BrokenPipeError:  # stdout closed early (`sdl-fmu check demo | head`): stop quietly
+    except BrokenPipeError:  # stdout closed early (`sdl-fmu check demo | head -1`): stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit flush cannot fail again
-        return EXIT_SCENARIO
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

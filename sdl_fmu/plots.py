@@ -571,7 +571,7 @@ def _plot_run(result: RunResult, path: Path) -> None:
     name = Path(str(result.scenario_path)).stem or "scenario"
     title = (f"{name} \u2014 {result.dynamics} dynamics \u2014 collisions: {result.collisions} \u2014 "
              f"{_final_text(result, time, from_si(np.asarray(result.columns['s'], dtype=float), units))}")
-    subtitle = f"{result.scenario_path}  |  {units} units  |  seed {result.seed}"
+    subtitle = f"{Path(str(result.scenario_path)).name}  |  {units} units  |  seed {result.seed}"
     if result.warnings:
         first = result.warnings[0] if len(result.warnings[0]) <= 90 else result.warnings[0][:87] + "..."
         subtitle += f"  |  {len(result.warnings)} warning(s): {first}"

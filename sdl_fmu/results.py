@@ -292,10 +292,22 @@ def _json_ready(value):
     return value
 
 
+LATERAL_SIGN = "positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: lateral = -y)"
+
+
+def key_units(units: str) -> dict[str, str]:
+    """summary.json's "key_units": the unit of each key of "final" and the events that carries one (the keys
+    themselves stay as SPEC names them), and the sign of lateral."""
+    length, speed = length_label(units), speed_label(units)
+    return {"time_s": "s", "distance": length, "speed": speed, "lateral": f"{length}, {LATERAL_SIGN}",
+            "timing.wall_s": "s", "timing.real_time_factor": "simulated s per wall-clock s"}
+
+
 def _summary_fields(result: RunResult, events) -> dict:
     return {
         "scenario": str(result.scenario_path),
         "units": result.units,
+        "key_units": key_units(result.units),
         "dynamics": result.dynamics,
         "seed": result.seed,
         "collisions": int(result.collisions),

@@ -11,8 +11,11 @@ from pathlib import Path
 
 import pytest
 
-# Every test (and every sdl-fmu subprocess it starts) uses a private FMU cache, never the user's.
-os.environ["SDL_FMU_CACHE"] = tempfile.mkdtemp(prefix="sdl-fmu-test-cache-")
+# Every test (and every sdl-fmu subprocess it starts) uses a private FMU cache, never the user's: a fresh one
+# per session, or $SDL_FMU_TEST_CACHE, kept between sessions (the developer loop; the cache is keyed by a hash
+# of every build input, so a changed model is rebuilt there too).
+KEPT_CACHE = os.environ.get("SDL_FMU_TEST_CACHE")
+os.environ["SDL_FMU_CACHE"] = KEPT_CACHE or tempfile.mkdtemp(prefix="sdl-fmu-test-cache-")
 
 from sdl_fmu.fmu.cache import cached_fmus  # noqa: E402
 from sdl_fmu.fmu.package import FMI_VERSIONS  # noqa: E402
@@ -211,4 +214,5 @@ def wine(tmp_path_factory):
 
 
 def pytest_unconfigure(config):
-    shutil.rmtree(os.environ["SDL_FMU_CACHE"], ignore_errors=True)
+    if not KEPT_CACHE:
+        shutil.rmtree(os.environ["SDL_FMU_CACHE"], ignore_errors=True)

@@ -85,22 +85,23 @@ def test_progress_bar_on_stderr_only_when_asked_or_a_terminal(capsys, simple_fmu
 
 
 @pytest.mark.parametrize("options, option, message", [
-    ({"until_time": float("nan")}, "until_time", "--until-time nan: must be a finite number"),
-    ({"speed": -1.0}, "speed", "--speed -1: must be >= 0"),
-    ({"step": 0}, "step", "--step 0: must be >= 1e-05"),
-    ({"seed": -1}, "seed", "--seed -1: must be from 0"),
-    ({"dynamics": "turbo"}, "dynamics", "--dynamics turbo: must be one of simple, advanced"),
-    ({"params": {"mass": 0.0}}, "param", "--param mass=0.0: below the declared minimum 1 kg of mass"),
-    ({"params": {"wheelbase": 0.0}}, "param", "--param wheelbase=0.0: below the declared minimum 0.1 m"),
-    ({"params": {"brake_decel_max": -9.81}}, "param", "below the declared minimum 0 m/s2 of brake_decel_max"),
-    ({"tires": "attributes.txt"}, "tires", "applies to --dynamics advanced only"),
-    ({"fmu": "nowhere.fmu"}, "fmu", "--fmu nowhere.fmu: no such file"),
+    ({"until_time": float("nan")}, "until_time", "until_time nan: must be a finite number"),
+    ({"speed": -1.0}, "speed", "speed -1: must be >= 0"),
+    ({"step": 0}, "step", "step 0: must be >= 1e-05"),
+    ({"seed": -1}, "seed", "seed -1: must be from 0"),
+    ({"dynamics": "turbo"}, "dynamics", "dynamics turbo: must be one of simple, advanced"),
+    ({"params": {"mass": 0.0}}, "params", "params mass=0.0: below the declared minimum 1 kg of mass"),
+    ({"params": {"wheelbase": 0.0}}, "params", "params wheelbase=0.0: below the declared minimum 0.1 m"),
+    ({"params": {"brake_decel_max": -9.81}}, "params", "below the declared minimum 0 m/s2 of brake_decel_max"),
+    ({"tires": "attributes.txt"}, "tires", "tires attributes.txt: applies to the advanced dynamics only"),
+    ({"fmu": "nowhere.fmu"}, "fmu", "fmu nowhere.fmu: no such file"),
 ])
-def test_user_mistakes_raise_input_error_naming_the_option(options, option, message, simple_fmu):
+def test_user_mistakes_raise_input_error_naming_the_keyword(options, option, message, simple_fmu):
+    # the API names its keywords (params, until_time), never the command line's flags (--param, --until-time)
     options.setdefault("fmu", simple_fmu)
     with pytest.raises(api.InputError) as caught:
         api.run("head_on", **options)
-    assert caught.value.option == option and message in str(caught.value)
+    assert caught.value.option == option and message in str(caught.value) and "--" not in str(caught.value)
 
 
 def test_the_fmu_itself_refuses_parameters_outside_their_declared_range(simple_fmu):

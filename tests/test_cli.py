@@ -81,3 +81,76 @@ def test_verify_prints_the_pass_fail_table(tmp_path, simple_fmu):
     completed = sdl_fmu("verify", "--fmu", simple_fmu, "--only", "braking", "--out", tmp_path / "v", cwd=tmp_path)
     assert completed.returncode == 0, completed.stderr
     assert any(line.split()[:2] == ["braking", "pass"] for line in completed.stdout.splitlines())
+
+
+# ---- conventions of the ecosystem ----------------------------------------------------------------------------
+
+
+def test_version_and_python_dash_m(tmp_path):
+    from sdl_fmu import __version__
+
+    for command in ([sys.executable, "-m", "sdl_fmu", "--version"], [sys.executable, "-m", "sdl_fmu.cli", "--version"]):
+        completed = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, timeout=120)
+        assert completed.returncode == 0 and completed.stdout.strip() == f"sdl-fmu {__version__}"
+
+
+def test_top_level_help_lists_every_command_with_one_line(tmp_path):
+    from sdl_fmu.cli import parser
+
+    completed = subprocess.run([sys.executable, "-m", "sdl_fmu", "--help"], capture_output=True, text=True,
+                               cwd=tmp_path, timeout=120)
+    assert completed.returncode == 0
+    commands = parser()._subparsers._group_actions[0]
+    for choice in commands._choices_actions:
+        line = next(line for line in completed.stdout.splitlines() if line.split()[:1] == [choice.dest])
+        assert choice.help and choice.help in line
+    assert set(commands.choices) == {choice.dest for choice in commands._choices_actions}
+
+
+def test_every_option_of_every_command_has_help_text():
+    import argparse
+
+    from sdl_fmu.cli import parser
+
+    main = parser()
+    commands = next(a for a in main._actions if isinstance(a, argparse._SubParsersAction))
+    for name, command in {"sdl-fmu": main, **commands.choices}.items():
+        for action in command._actions:
+            if action is commands or isinstance(action, argparse._HelpAction):
+                continue
+            assert action.help and action.help != argparse.SUPPRESS, f"{name} {action.option_strings or action.dest}"
+
+
+def test_a_closed_pipe_ends_quietly_with_141(tmp_path):
+    # the reader's end is closed before sdl-fmu writes, so its first write meets EPIPE: what `| head -1` does
+    # to a writer that is still writing, without depending on which process is faster
+    process = subprocess.Popen([sys.executable, "-m", "sdl_fmu", "check", "demo"], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, cwd=tmp_path)
+    process.stdout.close()
+    error = process.stderr.read().decode()
+    assert process.wait(timeout=120) == 141
+    assert "Traceback" not in error and "BrokenPipe" not in error and "Exception ignored" not in error
+
+
+def test_command_line_errors_name_the_flags_the_api_the_keywords(tmp_path, simple_fmu):
+    from sdl_fmu import api
+
+    completed = sdl_fmu("run", "head_on", "--fmu", simple_fmu, "--param", "mass=0", "--until-time", "1",
+                        cwd=tmp_path)
+    assert completed.returncode == 2
+    assert completed.stderr.startswith("sdl-fmu: --param mass=0.0: below the declared minimum 1 kg of mass")
+    with pytest.raises(api.InputError) as caught:
+        api.run("head_on", fmu=simple_fmu, params={"mass": 0}, until_time=1)
+    assert str(caught.value).startswith("params mass=0: below the declared minimum 1 kg of mass")
+
+
+def test_result_repr_is_one_short_line(simple_fmu):
+    from sdl_fmu import api
+
+    result = api.run("head_on", fmu=simple_fmu, until_time=30.0)
+    text = repr(result)
+    samples = len(result.time)
+    assert samples > 100  # a long run: its arrays must not be in the repr
+    assert text == (f"<Result head_on: simple dynamics, {samples} samples to {result.final['time_s']:.2f} s, "
+                    f"{result.collisions} collision(s), {len(result.warnings)} warning(s)>")
+    assert len(text) < 120 and "\n" not in text

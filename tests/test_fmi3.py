@@ -244,6 +244,7 @@ def test_fmi3_misuse_returns_error_status_not_a_crash(simple_fmus, tmp_path):
     slave.fmu.freeInstance()
 
 
+@pytest.mark.slow
 def test_build_command_writes_both_versions(tmp_path):
     completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "build", "--dynamics", "simple",
                                 "--fmi-version", "all", "--out", str(tmp_path)], capture_output=True, text=True,

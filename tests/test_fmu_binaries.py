@@ -60,6 +60,7 @@ def test_windows_binary_needs_system_dlls_only(fmu, request, tmp_path, version, 
     assert f"{prefix}DoStep" in exported and all(name.startswith(prefix) for name in exported), exported
 
 
+@pytest.mark.slow
 def test_build_without_mingw_says_so_in_one_line_and_builds_linux(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("SDL_FMU_MINGW_CC", "no-such-x86_64-w64-mingw32-gcc")
     path = build_fmu("simple", tmp_path)

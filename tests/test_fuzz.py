@@ -16,6 +16,7 @@ def count(statuses, function, status):
     return sum(n for key, n in statuses.items() if key.lower().endswith(f"{function} {status}".lower()))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("version", [2, 3], ids=["fmi2", "fmi3"])
 @pytest.mark.parametrize("fixture", ["simple_fmus", "advanced_fmus"], ids=["simple", "advanced"])
 def test_random_call_sequences(request, fixture, version):

@@ -194,6 +194,7 @@ SUBPROCESS_IMPORTERS = pytest.mark.parametrize("script, version", [(LIBCOSIM_SCR
                                                ids=["libcosimpy-fmi2", "ecospy-fmi2", "ecospy-fmi3"])
 
 
+@pytest.mark.slow
 @SUBPROCESS_IMPORTERS
 def test_subprocess_importer_simple(simple_fmus, script, version):
     samples = run_script(script, simple_fmus[version], SIMPLE_START, ("s", "v"), (10.0,))
@@ -201,6 +202,7 @@ def test_subprocess_importer_simple(simple_fmus, script, version):
     assert abs(samples["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
+@pytest.mark.slow
 @SUBPROCESS_IMPORTERS
 def test_subprocess_importer_advanced(advanced_fmus, reference, script, version):
     samples = run_script(script, advanced_fmus[version], ADVANCED_START, ADVANCED_OUTPUTS, SAMPLE_TIMES)
@@ -225,6 +227,7 @@ def make_container(fmu, directory, version=2):
     return directory / "container.fmu", lambda start: {(n if n in names else prefix + n): v for n, v in start.items()}
 
 
+@pytest.mark.slow
 @VERSIONS
 def test_fmu_container_simple(simple_fmus, tmp_path, version):
     container, names = make_container(simple_fmus[version], tmp_path / "container", version)
@@ -233,6 +236,7 @@ def test_fmu_container_simple(simple_fmus, tmp_path, version):
     assert abs(result["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
+@pytest.mark.slow
 @VERSIONS
 def test_fmu_container_advanced(advanced_fmus, reference, tmp_path, version):
     container, names = make_container(advanced_fmus[version], tmp_path / "container", version)
@@ -332,6 +336,7 @@ def test_linux_c_host_advanced(advanced_fmus, reference, linux_host, tmp_path, v
     assert_same_trajectory(sampled(columns), reference, SAME_BINARY_TOLERANCE)
 
 
+@pytest.mark.slow
 @VERSIONS
 def test_windows_dll_under_wine_simple(simple_fmus, windows_host, wine, tmp_path, version):
     fmu = simple_fmus[version]
@@ -341,6 +346,7 @@ def test_windows_dll_under_wine_simple(simple_fmus, windows_host, wine, tmp_path
     assert abs(columns["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
+@pytest.mark.slow
 @VERSIONS
 def test_windows_dll_under_wine_advanced(advanced_fmus, reference, windows_host, wine, tmp_path, version):
     fmu = advanced_fmus[version]

@@ -20,6 +20,7 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = sorted([MANIFEST_NAME, "plot.png", "summary.json", "timeseries.csv"])
 
 
+@pytest.mark.slow
 def test_a_wheel_installed_in_a_fresh_venv_runs_the_demo_from_any_folder(tmp_path):
     # The wheel is built from a copy of the checkout (a build writes build/ and *.egg-info beside the sources)
     # without build isolation, so nothing is downloaded; the fresh venv borrows this venv's dependencies
@@ -95,6 +96,7 @@ def test_the_cache_key_changes_with_every_input_of_the_build(changed, monkeypatc
     assert cache.build_key("simple") != before
 
 
+@pytest.mark.slow
 def test_two_processes_building_at_once_leave_one_good_fmu(tmp_path):
     env = {**os.environ, cache.CACHE_VARIABLE: str(tmp_path / "cache")}
     # and the temporary folder of a build that was killed (a process id that no longer exists) goes away
@@ -119,6 +121,7 @@ def test_a_cached_fmu_is_reused(simple_fmu):
     assert cache.cached_fmu("simple") == simple_fmu
 
 
+@pytest.mark.slow
 def test_build_still_exports_to_a_folder(tmp_path, capsys):
     assert main(["build", "--dynamics", "simple", "--out", str(tmp_path / "export")]) == 0
     exported = [tmp_path / "export" / f"fmi{version}" / "EgoVehicleSimple.fmu" for version in (2, 3)]

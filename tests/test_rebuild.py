@@ -178,6 +178,7 @@ def plain_compiler_line(directory, output, libm=True, optimization="-O2"):
     return output
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("version", [2, 3])
 def test_plain_compiler_line_gives_a_binary_a_plain_host_loads(simple_fmus, defaults_simple, host, tmp_path,
                                                                version):
@@ -195,6 +196,7 @@ def test_plain_compiler_line_gives_a_binary_a_plain_host_loads(simple_fmus, defa
         assert completed.returncode == 2 and "undefined symbol" in completed.stderr
 
 
+@pytest.mark.slow
 def test_fmpy_build_gives_a_binary_a_plain_host_loads(simple_fmus, defaults_simple, host, tmp_path):
     """fmpy's CMake template ignores buildDescription.xml's <Library name="m"/>; the README's fmpy call
     passes libm as the standard library of C targets (linked last, so it holds with --as-needed too)."""

@@ -122,8 +122,12 @@ def test_summary_json_keys_per_spec(tmp_path):
     result = make_result()
     out = write_results(result, tmp_path / "run", plot=False)
     data = json.loads((out / "summary.json").read_text())
-    assert set(data) == {"scenario", "seed", "units", "dynamics", "collisions", "final", "events", "warnings",
-                         "timing"}
+    assert set(data) == {"scenario", "seed", "units", "key_units", "dynamics", "collisions", "final", "events",
+                         "warnings", "timing"}
+    # every unit-carrying key of "final" has its unit stated, and lateral its sign
+    assert {"time_s": "s", "distance": "ft", "speed": "ft/s"}.items() <= data["key_units"].items()
+    assert data["key_units"]["lateral"].startswith("ft, positive to the driver's right")
+    assert set(data["final"]) <= set(data["key_units"])
     assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
     assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
     assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}

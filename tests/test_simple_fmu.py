@@ -290,6 +290,7 @@ def test_wrong_guid_is_refused(simple_fmu):
         shutil.rmtree(directory, ignore_errors=True)
 
 
+@pytest.mark.slow
 def test_sources_rebuild_the_binary(simple_fmu, defaults, tmp_path):
     # an importer on another platform compiles sources/ by buildDescription.xml; fmpy does it here
     from fmpy.build import build_platform_binary

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
 import shutil
 import subprocess
@@ -14,6 +15,7 @@ from pathlib import Path
 
 from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
                       generate_model_source, model_guid, runtime_sources, variable_table)
+from .documentation import DOCUMENTATION, LICENSE_ENTRY, index_html, license_text
 from .structure import declared_dependencies, reinitialized_states
 from .xml import build_description, model_description, model_description_fmi3
 
@@ -167,6 +169,7 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
                 description = model_description_fmi3(equations.interface, table, guid, dependencies,
                                                      reinitialized_states(equations))
             (root / "modelDescription.xml").write_bytes(description)
+            _write_documentation(root, equations, table, version, sources, module)
             runtime = list(runtime_sources(version))
             links.append(_binary_command(sources_dir, runtime,
                                          root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
@@ -179,6 +182,19 @@ def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
         _run_compilers(links)
         targets = [_zip_fmu(root, target) for root, target in roots]
     return targets
+
+
+def _write_documentation(root: Path, equations, table, version: int, sources: list[str], module: str) -> None:
+    """documentation/index.html (from the interface, the table and the model module's docstring) and the
+    licence under documentation/licenses/."""
+    documentation = root / DOCUMENTATION
+    documentation.parent.mkdir(parents=True)
+    text = index_html(equations.interface, table, version, inspect.getdoc(importlib.import_module(module)) or "",
+                      LINUX_BINARY_DIRECTORY[version], WINDOWS_BINARY_DIRECTORY[version], sources)
+    documentation.write_text(text, encoding="utf-8")
+    licence = root / LICENSE_ENTRY
+    licence.parent.mkdir(parents=True)
+    licence.write_text(license_text(), encoding="utf-8")
 
 
 def _zip_fmu(root: Path, target: Path) -> Path:

@@ -8,6 +8,7 @@ import xml.etree.ElementTree as ET
 from .. import __version__
 from ..interface import INPUT, OUTPUT, PARAMETER, STATE, DISCRETE, Interface
 from .codegen import TableEntry
+from .documentation import AUTHOR, COPYRIGHT, LICENSE
 from .structure import DeclaredDependencies
 
 LOG_CATEGORIES = {
@@ -22,8 +23,44 @@ def _number(value) -> str:
     return str(int(number)) if number.is_integer() and abs(number) < 1e15 else repr(number)
 
 
-def _unit_definitions(parent: ET.Element, interface: Interface, extra: tuple[str, ...] = ()) -> None:
-    used = sorted({v.unit for v in interface.variables if v.unit is not None} | set(extra))
+def derivative_unit(unit: str, units: dict) -> str:
+    """The unit of der(v) for a state v of this unit: the unit in units.json whose base is v's divided by s."""
+    base = dict(units[unit]["base"])
+    base["s"] = base.get("s", 0) - 1
+    base = {name: exponent for name, exponent in base.items() if exponent}
+    for name, definition in units.items():
+        if definition["base"] == base:
+            return name
+    raise ValueError(f"units.json has no unit for the derivative of a quantity in {unit} (base units {base})")
+
+
+def entry_unit(entry: TableEntry, table: list[TableEntry], interface: Interface) -> str | None:
+    """The unit of a variable of the table: its own, its state's over s for der(...), None for the event
+    indicators (only their sign counts) and for Integer and Boolean variables (FMI gives them no unit)."""
+    if entry.variable is not None:
+        return entry.variable.unit
+    if entry.derivative_of is not None:
+        return derivative_unit(table[entry.derivative_of - 1].variable.unit, interface.units)
+    return None
+
+
+EVENT_INDICATOR_DESCRIPTION = ("Event indicator {}: the model's discrete update happens where it changes sign; only "
+                               "its sign is meaningful (its magnitude's unit changes with the mode), so it has no unit")
+
+
+def entry_description(entry: TableEntry, table: list[TableEntry]) -> str:
+    """The description of a variable of the table (der(...) and event indicators included)."""
+    if entry.variable is not None:
+        return entry.variable.description
+    if entry.derivative_of is not None:
+        state = table[entry.derivative_of - 1].variable
+        return f"Time derivative of the state {state.name} ({state.description})"
+    return EVENT_INDICATOR_DESCRIPTION.format(entry.event_indicator + 1)
+
+
+def _unit_definitions(parent: ET.Element, interface: Interface, table: list[TableEntry],
+                      extra: tuple[str, ...] = ()) -> None:
+    used = sorted({entry_unit(e, table, interface) for e in table} - {None} | set(extra))
     definitions = ET.SubElement(parent, "UnitDefinitions")
     for name in used:
         unit = interface.units[name]
@@ -36,19 +73,18 @@ def _unit_definitions(parent: ET.Element, interface: Interface, extra: tuple[str
             ET.SubElement(element, "DisplayUnit", attributes)
 
 
-EVENT_INDICATOR_DESCRIPTION = "Event indicator {}: the model's discrete update happens where it changes sign"
-
-
-def _scalar_variable(parent: ET.Element, entry: TableEntry, value_reference: int) -> None:
+def _scalar_variable(parent: ET.Element, entry: TableEntry, value_reference: int, table: list[TableEntry],
+                     interface: Interface) -> None:
     v = entry.variable
     if v is None:  # der(state) or an event indicator
         element = ET.SubElement(parent, "ScalarVariable", name=entry.name, valueReference=str(value_reference),
-                                causality="local", variability="continuous")
+                                description=entry_description(entry, table), causality="local",
+                                variability="continuous")
         if entry.event_indicator is not None:
-            element.set("description", EVENT_INDICATOR_DESCRIPTION.format(entry.event_indicator + 1))
             ET.SubElement(element, "Real")
         else:
-            ET.SubElement(element, "Real", derivative=str(entry.derivative_of))
+            ET.SubElement(element, "Real", derivative=str(entry.derivative_of),
+                          unit=entry_unit(entry, table, interface))
         return
     attributes = {"name": v.name, "valueReference": str(value_reference), "causality": v.causality,
                   "variability": v.variability}
@@ -114,6 +150,7 @@ def _structure_lists(table: list[TableEntry]) -> tuple[list[int], list[int], lis
 def _generation_attributes(interface: Interface) -> dict[str, str]:
     """The root attributes both FMI versions share, after the version, model name and GUID/token."""
     return {"description": interface.description,
+            "author": AUTHOR, "version": __version__, "copyright": COPYRIGHT, "license": LICENSE,
             "generationTool": f"sdl-fmu {__version__} (CasADi code generation)",
             "generationDateAndTime": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
             "variableNamingConvention": "structured"}
@@ -139,11 +176,11 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
                                                          "canInterpolateInputs": "false",
                                                          "maxOutputDerivativeOrder": "0"})
     _source_files(co_simulation, sources)
-    _unit_definitions(root, interface)
+    _unit_definitions(root, interface, table)
     _log_categories_and_experiment(root, interface)
     variables = ET.SubElement(root, "ModelVariables")
     for position, entry in enumerate(table, start=1):
-        _scalar_variable(variables, entry, position)
+        _scalar_variable(variables, entry, position, table, interface)
 
     structure = ET.SubElement(root, "ModelStructure")
     outputs, derivatives, initial, _ = _structure_lists(table)
@@ -161,15 +198,14 @@ def model_description(interface: Interface, table: list[TableEntry], guid: str, 
 _FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
 
 
-def _fmi3_variable(parent: ET.Element, entry: TableEntry, value_reference: int, reinit: set[int]) -> None:
+def _fmi3_variable(parent: ET.Element, entry: TableEntry, value_reference: int, reinit: set[int],
+                   table: list[TableEntry], interface: Interface) -> None:
     v = entry.variable
     attributes = {"name": entry.name, "valueReference": str(value_reference)}
     if v is None:  # der(state) or an event indicator
-        attributes.update(causality="local", variability="continuous")
-        if entry.event_indicator is not None:
-            attributes["description"] = EVENT_INDICATOR_DESCRIPTION.format(entry.event_indicator + 1)
-        else:
-            attributes["derivative"] = str(entry.derivative_of)
+        attributes.update(description=entry_description(entry, table), causality="local", variability="continuous")
+        if entry.derivative_of is not None:
+            attributes.update(unit=entry_unit(entry, table, interface), derivative=str(entry.derivative_of))
         ET.SubElement(parent, "Float64", attributes)
         return
     if v.description:
@@ -199,13 +235,13 @@ def model_description_fmi3(interface: Interface, table: list[TableEntry], guid: 
     ET.SubElement(root, "ModelExchange", {**common, "needsCompletedIntegratorStep": "false"})
     ET.SubElement(root, "CoSimulation", {**common, "canHandleVariableCommunicationStepSize": "true",
                                          "hasEventMode": "false", "maxOutputDerivativeOrder": "0"})
-    _unit_definitions(root, interface, extra=("s",))  # time
+    _unit_definitions(root, interface, table, extra=("s",))  # time
     _log_categories_and_experiment(root, interface)
     variables = ET.SubElement(root, "ModelVariables")
     ET.SubElement(variables, "Float64", name="time", valueReference="0", causality="independent",
                   variability="continuous", unit="s", description="Simulation time")
     for position, entry in enumerate(table, start=1):
-        _fmi3_variable(variables, entry, position, reinit)
+        _fmi3_variable(variables, entry, position, reinit, table, interface)
 
     structure = ET.SubElement(root, "ModelStructure")
     outputs, derivatives, initial, indicators = _structure_lists(table)

@@ -241,8 +241,7 @@ def parser() -> argparse.ArgumentParser:
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)
 
-    verify = commands.add_parser("verify", help="the vehicle test pack: standard manoeuvres with their pass/fail "
-                                                "criteria, verify.json and report.html")
+    verify = commands.add_parser("verify", help="the vehicle test pack: standard manoeuvres, pass/fail, report")
     verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
     verify.add_argument("--fmu", help="vehicle FMU (default: the cached build of --dynamics)")
     verify.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu")

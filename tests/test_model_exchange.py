@@ -9,6 +9,8 @@ start of each step, v_k = v - a k h, over the steps until the speed is no longer
 the decreasing speed, which lies between the exact integral and the integral plus h (v(0) - v(end)) = h v.
 The stop is therefore in [v^2 / (2 a), v^2 / (2 a) + v h]."""
 
+import ctypes
+
 import numpy as np
 import pytest
 from fmpy import extract, read_model_description, simulate_fmu
@@ -121,7 +123,8 @@ def test_no_event_indicator_is_zero(simple_fmus, advanced_fmus, tmp_path, versio
               "starting": {"v0": 0.0, "throttle": 1.0}}[case]
     model, references, nz = model_instance(fmu, version, tmp_path)
     initialized(model, references, version, values)
-    indicators = np.asarray(model.getEventIndicators(nz) if version == 2 else model.getEventIndicators(nz))
+    indicators = np.full(nz, np.nan)
+    model.getEventIndicators(indicators.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), nz)
     assert np.all(indicators != 0.0), indicators
     model.terminate()
     model.freeInstance()

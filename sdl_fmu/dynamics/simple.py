@@ -52,10 +52,6 @@ SLIP_SPEED_FLOOR = 0.1
 # is left of such a stop is < STOP_SPEED^2 / (2 mu g). A vehicle moving forward on every wheel is held as
 # soon as its forward speed is not positive: a half-line no step can jump over.
 STOP_SPEED = 0.01
-# Hysteresis of the wheels' direction of motion (m/s): a wheel rolling forward turns backward when its contact
-# velocity falls below -WHEEL_HYSTERESIS, and back above +WHEEL_HYSTERESIS, so its indicator is never 0 just
-# after the switch (nor at the start from rest) and keeps its sign through the event.
-WHEEL_HYSTERESIS = 1e-6
 # Event indicator of a wheel while the vehicle is held (m/s): constant, negative like the wheel indicators
 # that cross at a forward stop, so the stop does not flip their sign.
 HELD_WHEEL_INDICATOR = -1.0
@@ -149,9 +145,11 @@ def equations() -> Equations:
         tire_force = ca.if_else(locked, limit, ca.sqrt(longitudinal**2 + lateral**2 + TINY**2))
         friction_used += tire_force / ca.fmax(limit, TINY) / 4
 
-        # direction of motion of the wheel: rolling along its own axis, sliding along the body axis, with
-        # hysteresis: the indicator crosses 0 where the motion has passed 0 by WHEEL_HYSTERESIS against sigma
-        indicator = ca.if_else(locked, contact_x, along) + sigma * WHEEL_HYSTERESIS
+        # direction of motion of the wheel: rolling along its own axis, sliding along the body axis (the motion
+        # itself, not sigma times it: a switch of sigma keeps the indicator's sign). No hysteresis here: a wheel
+        # whose rolling resistance holds it at the switch (Coulomb sticking) would switch back and forth across
+        # a band, an event every few nanoseconds.
+        indicator = ca.if_else(locked, contact_x, along)
         wheel_indicators.append(ca.if_else(stopped, HELD_WHEEL_INDICATOR, indicator))
         next_sigma[w] = ca.if_else(indicator > 0, 1, ca.if_else(indicator < 0, -1, sigma))
         forward = forward * (sigma > 0)

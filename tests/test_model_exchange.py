@@ -90,7 +90,7 @@ def model_instance(fmu, version, tmp_path):
     model = model_type(guid=description.guid, unzipDirectory=unzipdir,
                        modelIdentifier=description.modelExchange.modelIdentifier, instanceName="me")
     references = {v.name: v.valueReference for v in description.modelVariables}
-    return model, references, description.numberOfEventIndicators
+    return model, references, description.numberOfEventIndicators, description.numberOfContinuousStates
 
 
 def initialized(model, references, version, values):
@@ -116,13 +116,22 @@ def initialized(model, references, version, values):
 @pytest.mark.parametrize("model_name", ["simple", "advanced"])
 @pytest.mark.parametrize("case", ["held", "held_braking", "moving", "starting"])
 def test_no_event_indicator_is_zero(simple_fmus, advanced_fmus, tmp_path, version, model_name, case):
-    """Held at rest (with and without the brake), rolling, and just after the start from rest: every indicator
-    is nonzero (an indicator at 0 over an interval is invisible to an integrator)."""
+    """Held at rest (with and without the brake), rolling, and 1 ms (one Euler step) after the start from rest:
+    every indicator is nonzero (an indicator at 0 over an interval is invisible to an integrator). At the instant
+    of the start the Simple model's wheel indicators are 0 (its wheels' motion; no hysteresis, README)."""
     fmu = (simple_fmus if model_name == "simple" else advanced_fmus)[version]
     values = {"held": {"v0": 0.0}, "held_braking": {"v0": 0.0, "brake": 1.0}, "moving": {"v0": 20.0},
               "starting": {"v0": 0.0, "throttle": 1.0}}[case]
-    model, references, nz = model_instance(fmu, version, tmp_path)
+    model, references, nz, nx = model_instance(fmu, version, tmp_path)
     initialized(model, references, version, values)
+    if case == "starting":  # one forward Euler step of 1 ms
+        x, dx = np.zeros(nx), np.zeros(nx)
+        pointer = ctypes.POINTER(ctypes.c_double)
+        model.getContinuousStates(x.ctypes.data_as(pointer), nx)
+        (model.getDerivatives if version == 2 else model.getContinuousStateDerivatives)(dx.ctypes.data_as(pointer), nx)
+        model.setTime(1e-3)
+        x += 1e-3 * dx
+        model.setContinuousStates(x.ctypes.data_as(pointer), nx)
     indicators = np.full(nz, np.nan)
     model.getEventIndicators(indicators.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), nz)
     assert np.all(indicators != 0.0), indicators

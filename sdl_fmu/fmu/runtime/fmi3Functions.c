@@ -739,7 +739,7 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominal
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *nEventIndicators) {
-    Instance *instance = checked_type(c, "fmi3GetNumberOfEventIndicators", MASK_fmi3GetNumberOfEventIndicators, 0);
+    Instance *instance = checked(c, "fmi3GetNumberOfEventIndicators", MASK_fmi3GetNumberOfEventIndicators);
     if (!instance || !present(instance, "fmi3GetNumberOfEventIndicators", nEventIndicators, "nEventIndicators"))
         return fmi3Error;
     *nEventIndicators = (size_t)instance->info->nz;
@@ -747,7 +747,7 @@ fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *nEventIndicato
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *nContinuousStates) {
-    Instance *instance = checked_type(c, "fmi3GetNumberOfContinuousStates", MASK_fmi3GetNumberOfContinuousStates, 0);
+    Instance *instance = checked(c, "fmi3GetNumberOfContinuousStates", MASK_fmi3GetNumberOfContinuousStates);
     if (!instance || !present(instance, "fmi3GetNumberOfContinuousStates", nContinuousStates, "nContinuousStates"))
         return fmi3Error;
     *nContinuousStates = (size_t)instance->info->nx;

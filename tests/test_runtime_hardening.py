@@ -120,7 +120,8 @@ def test_time_that_cannot_advance_is_an_error_not_a_hang(simple):
     assert simple("DoStep", 1e16, 1e-3, 1) == ERROR
     assert "time cannot advance" in simple.messages[-1][1]
     assert simple("DoStep", 1e16, 2.0, 1) == ERROR  # t + 2 s exists, but not t + one 1 ms internal step
-    assert simple("DoStep", 1e16, 0.0, 1) == OK  # argument errors: the instance is not in the error state
+    assert simple("DoStep", 1e16, 0.0, 1) == ERROR  # FMI 2.0.4: a communication step must be > 0
+    assert simple("Terminate") == OK  # argument errors: the instance is not in the error state (Step Mode)
 
 
 def test_internal_step_budget_bounds_every_do_step(simple):

@@ -75,6 +75,13 @@ START_MARGIN = 1e-6  # m/s2: drive must exceed the holding forces by this to sta
 SPEED_SMOOTHING = 1e-9  # m/s: ds/dt = sqrt(v^2 + e^2) - e keeps d(ds/dt)/dv finite at v = 0
 POWER_LIMIT_MIN_SPIN = 1e-3  # rad/s: the power limit P / omega is not evaluated below this spin
 TINY = 1e-9  # floor of denominators that are 0 only for meaningless tire data (zero friction)
+# Hysteresis of a rolling wheel's direction (rad/s): a wheel rolling forward stops (locks or turns back) when its
+# spin falls below -SPIN_HYSTERESIS, one rolling backward when it rises above +SPIN_HYSTERESIS, so its indicator
+# is never 0 just after the switch (nor when a locked wheel is released) and keeps its sign through the event.
+SPIN_HYSTERESIS = 1e-6
+# Event indicator of a wheel while the vehicle is held: constant, negative like the indicators of the wheels
+# that stop or lock as the vehicle comes to rest, so the stop does not flip their sign.
+HELD_WHEEL_INDICATOR = -1.0
 
 
 def advanced_interface(attribute_file=DEFAULT_ATTRIBUTE_FILE) -> Interface:
@@ -198,6 +205,7 @@ def equations() -> Equations:
     force_x = force_y = yaw_moment = 0
     friction_used = 0
     spin_derivatives, wheel_indicators, wheel_modes = [], [], []
+    all_forward = 1  # every wheel rolls forward (all modes +1)
     for w in WHEELS:
         x_i, y_i = position[w]
         is_front = front[w]
@@ -223,14 +231,20 @@ def equations() -> Equations:
         spin_torque = (net_torque - mode * wheel_brake
                        - s["rolling_resistance"] * fz * radius * smooth_sign(omega, SPIN_SMOOTHING))
         spin_derivatives.append(moving * mode**2 * spin_torque / s["wheel_inertia"])
-        # locked: event when the brake can no longer hold; rolling: event when the spin reaches 0
+        # rolling: event when the spin has passed 0 (by SPIN_HYSTERESIS against the mode); locked: event when the
+        # brake can no longer hold (indicator |T_net| - T_brake, negative while it holds). Forward rolling is
+        # positive, locked and backward rolling negative: a wheel that locks from forward rolling, or is released
+        # forward, keeps its indicator's sign through the event.
         hold_margin = wheel_brake - ca.fabs(net_torque)
         holds = hold_margin > 0
-        wheel_indicators.append(ca.if_else(mode == 0, hold_margin, mode * omega))
-        forward = ca.if_else(holds * (omega <= 0), 0, ca.if_else(omega < 0, -1, 1))
-        backward = ca.if_else(holds * (omega >= 0), 0, ca.if_else(omega > 0, 1, -1))
+        spin_indicator = omega + mode * SPIN_HYSTERESIS
+        wheel_indicators.append(ca.if_else(stopped, HELD_WHEEL_INDICATOR,
+                                           ca.if_else(mode == 0, -hold_margin, spin_indicator)))
+        reversed_spin = mode * spin_indicator <= 0
+        rolling = ca.if_else(reversed_spin, ca.if_else(holds, 0, -mode), mode)
         released = ca.if_else(holds, 0, ca.if_else(net_torque >= 0, 1, -1))
-        wheel_modes.append(ca.if_else(mode > 0, forward, ca.if_else(mode < 0, backward, released)))
+        wheel_modes.append(ca.if_else(mode == 0, released, rolling))
+        all_forward = all_forward * (mode > 0)
         friction_used += ca.sqrt((fx / ca.fmax(mux * fz, TINY)) ** 2 + (fy / ca.fmax(muy * fz, TINY)) ** 2) / 4
 
     drag = -0.5 * s["air_density"] * s["drag_area"] * vx * ca.fabs(vx)
@@ -251,9 +265,12 @@ def equations() -> Equations:
     launch_force = s["throttle"] * s["drive_torque_max"] / radius
     holding_force = brake_torque / radius + s["rolling_resistance"] * m * g
     drive_excess = (launch_force - holding_force) / m - START_MARGIN
-    # moving: event when the speed has fallen to STOP_SPEED and the drive cannot keep it going;
-    # held: event when the drive exceeds the holding forces
-    moving_indicator = ca.fmax(speed - STOP_SPEED, drive_excess)
+    # moving: event when the speed has fallen to STOP_SPEED and the drive cannot keep it going; rolling forward
+    # on every wheel, the speed is the forward speed: the half-line vx <= STOP_SPEED, which no step can pass
+    # through. Held: event when the drive exceeds the holding forces. The moving indicator equals drive_excess
+    # (the held indicator) at a start, and both are <= 0 at a stop: neither event changes its sign.
+    at_rest = ca.if_else(all_forward, vx, speed) - STOP_SPEED
+    moving_indicator = ca.fmax(at_rest, drive_excess)
     indicator = ca.if_else(stopped, drive_excess, moving_indicator)
     next_stopped = ca.if_else(stopped, drive_excess <= 0, moving_indicator <= 0)
     # at rest every wheel is still (mode 0); a locked wheel's spin is held at 0

@@ -46,9 +46,14 @@ POWER_LIMIT_MIN_SPEED = 1e-3
 # v_low of the lateral slip w / sqrt(u^2 + v_low^2) (m/s): finite at standstill, where the tire acts as
 # a stiff viscous damper (time constant m v_low / (4 C) ~ 1 ms, which the L-stable solver handles).
 SLIP_SPEED_FLOOR = 0.1
-# A vehicle whose forward speed is not positive is held once its motion (speed and yaw rate times half
-# the wheelbase) falls below this (m/s); what is left of such a stop is < STOP_SPEED^2 / (2 mu g).
+# A vehicle that is not rolling forward on every wheel (spun, sliding sideways) is held once its forward speed
+# is not positive and its motion (speed and yaw rate times half the wheelbase) falls below this (m/s); what
+# is left of such a stop is < STOP_SPEED^2 / (2 mu g). A vehicle moving forward on every wheel is held as
+# soon as its forward speed is not positive: a half-line no step can jump over.
 STOP_SPEED = 0.01
+# Event indicator of a wheel while the vehicle is held (m/s): constant, negative like the wheel indicators
+# that cross at a forward stop, so the stop does not flip their sign.
+HELD_WHEEL_INDICATOR = -1.0
 # Smoothing of |v| at v = 0 (m/s): keeps derivatives finite; it changes |v| by < 1e-12 m/s.
 SPEED_SMOOTHING = 1e-12
 # Radius of the contact patch (m): a sliding wheel whose contact point turns about a centre closer than
@@ -107,6 +112,7 @@ def equations() -> Equations:
 
     force_x = force_y = yaw_moment = friction_used = 0
     wheel_indicators, next_sigma = [], {}
+    forward = 1  # every wheel moves forward (all sigma = +1)
     for w, (x_i, y_i) in wheel_positions(s).items():
         sigma = s[f"direction_{w}"]
         limit = s[f"mu_{w}"] * load
@@ -138,10 +144,14 @@ def equations() -> Equations:
         tire_force = ca.if_else(locked, limit, ca.sqrt(longitudinal**2 + lateral**2 + TINY**2))
         friction_used += tire_force / ca.fmax(limit, TINY) / 4
 
-        # direction of motion of the wheel: rolling along its own axis, sliding along the body axis
+        # direction of motion of the wheel: rolling along its own axis, sliding along the body axis (the motion
+        # itself, not sigma times it: a switch of sigma keeps the indicator's sign). No hysteresis here: a wheel
+        # whose rolling resistance holds it at the switch (Coulomb sticking) would switch back and forth across
+        # a band, an event every few nanoseconds.
         indicator = ca.if_else(locked, contact_x, along)
-        wheel_indicators.append(indicator)
+        wheel_indicators.append(ca.if_else(stopped, HELD_WHEEL_INDICATOR, indicator))
         next_sigma[w] = ca.if_else(indicator > 0, 1, ca.if_else(indicator < 0, -1, sigma))
+        forward = forward * (sigma > 0)
 
     drag = s["air_density"] * s["drag_area"] / 2 * speed
     ax = moving * (force_x - drag * vx) / m
@@ -153,13 +163,18 @@ def equations() -> Equations:
                                           s["drive_power_max"] / (m * POWER_LIMIT_MIN_SPEED))
     start_force = sum(clamp(start_drive - brake_accel, -s[f"mu_{w}"] * g, s[f"mu_{w}"] * g) for w in WHEELS) / 4
     net_start = start_force - s["rolling_resistance"] * g
-    wants_to_move = net_start > START_MARGIN
-    # moving: event when the forward speed reaches 0 (straight-line stops: exact), or when a vehicle that
-    # is not moving forward has almost no motion left; held: event when the drive could start it
+    drive_excess = net_start - START_MARGIN
+    wants_to_move = drive_excess > 0
+    # held: event when the drive could start it (drive_excess > 0). Moving: event when it comes to rest and the
+    # drive could not keep it going. Moving forward on every wheel, "at rest" is the half-line vx <= 0, which
+    # no step of any length can pass through; otherwise (spun, sliding) vx <= 0 with almost no motion left.
+    # The moving indicator is > 0 exactly where the vehicle stays moving, and equals drive_excess (the held
+    # indicator) at a start, so neither event changes its sign.
     motion = ca.sqrt(vx**2 + vy**2 + (r * s["wheelbase"] / 2) ** 2 + TINY**2)
-    moving_indicator = ca.fmax(vx, motion - STOP_SPEED)
-    indicator = ca.if_else(stopped, net_start - START_MARGIN, moving_indicator)
-    next_stopped = ca.if_else(stopped, 1 - wants_to_move, (moving_indicator <= 0) * (1 - wants_to_move))
+    at_rest = ca.if_else(forward, vx, ca.fmax(vx, motion - STOP_SPEED))
+    moving_indicator = ca.fmax(at_rest, drive_excess)
+    indicator = ca.if_else(stopped, drive_excess, moving_indicator)
+    next_stopped = ca.if_else(stopped, 1 - wants_to_move, moving_indicator <= 0)
 
     states = interface.names(STATE)
     velocity = {"vx", "vy", "yaw_rate"}

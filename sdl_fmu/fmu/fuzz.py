@@ -179,14 +179,18 @@ ALLOWED = {  # function -> {interface type: states where the standard allows it}
     "fmi2CompletedIntegratorStep": {CS: set(), ME: {"cont"}},
     "fmi2SetTime": {CS: set(), ME: {"event", "cont"}},
     "fmi2SetContinuousStates": {CS: set(), ME: {"cont"}},
-    "fmi2GetDerivatives": {CS: set(), ME: {"init", "event", "cont", "terminated"}},
+    "fmi2GetDerivatives": {CS: set(), ME: {"event", "cont", "terminated"}},
     "fmi2GetEventIndicators": {CS: set(), ME: {"init", "event", "cont", "terminated"}},
     "fmi2GetContinuousStates": {CS: set(), ME: {"init", "event", "cont", "terminated"}},
-    "fmi2GetNominalsOfContinuousStates": {CS: set(), ME: {"instantiated", "init", "event", "cont", "terminated"}},
+    "fmi2GetNominalsOfContinuousStates": {CS: set(), ME: {"instantiated", "event", "cont", "terminated"}},
     "state": {CS: "any", ME: "any"},
 }
-# FMI 3.0 differs: Event Mode is entered from Continuous-Time Mode only; the getters' states are not checked
-ALLOWED3 = {"fmi2EnterEventMode": {CS: set(), ME: {"cont"}}, "get": {CS: "any", ME: "any"}}
+# FMI 3.0 differs: Event Mode is entered from Continuous-Time Mode only, the time is set in Continuous-Time Mode
+# only, the nominals are not available before initialization; the getters' states are not checked
+ALLOWED3 = {"fmi2EnterEventMode": {CS: set(), ME: {"cont"}}, "get": {CS: "any", ME: "any"},
+            "fmi2SetTime": {CS: set(), ME: {"cont"}},
+            "fmi2GetDerivatives": {CS: set(), ME: {"init", "event", "cont", "terminated"}},
+            "fmi2GetNominalsOfContinuousStates": {CS: set(), ME: {"init", "event", "cont", "terminated"}}}
 
 
 @dataclass(frozen=True)
@@ -474,7 +478,7 @@ class Worker:
         must, uncertain = self.state_rule("fmi2DoStep")
         may = False
         ss = self.current_solver_step
-        if not (math.isfinite(t) and math.isfinite(h)) or h < 0:
+        if not (math.isfinite(t) and math.isfinite(h)) or h <= 0:  # FMI 2.0.4 / 3.0: the step must be > 0
             must, self.why = True, f"doStep({t}, {h})"
         elif abs(t - self.time) > TIME_MISMATCH * max(1.0, abs(t)):
             must, self.why = True, f"doStep at {t}, FMU at {self.time}"

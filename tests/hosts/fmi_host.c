@@ -2,9 +2,12 @@
  * LoadLibrary on Windows), instantiates it, sets start values, runs a fixed-step doStep loop and prints results.
  * Built by the tests with gcc (Linux) and with mingw-w64 (run under wine); the same file is the valgrind
  * driver (--repeat: instantiate/step/get-serialize-deserialize-set state/free loops).
+ * --misuse-states: after initialization, FMU-state handles are misused as importers do (fmusim v0.0.39's state-file
+ * options call FreeFMUstate(c, state) where &state is due; freed, double-freed, foreign and wild handles); every
+ * misuse must return an error (the FMU logs why) and the instance must go on.
  *
- *   fmi_host [--fmi3] LIBRARY TOKEN STEP STOP_TIME [--every N] [--repeat N] [r:VR=VALUE | i:VR=VALUE]...
- *            [o:VR | b:VR]...
+ *   fmi_host [--fmi3] LIBRARY TOKEN STEP STOP_TIME [--every N] [--repeat N] [--misuse-states]
+ *            [r:VR=VALUE | i:VR=VALUE]... [o:VR | b:VR]...
  *
  * TOKEN is the GUID (FMI 2.0) or instantiation token (FMI 3.0). r:/i: set a Real/Integer start value before
  * initialization; o:/b: a Real/Boolean output to print. Output lines start with the marker "RESULT", then time
@@ -210,10 +213,47 @@ static int state_roundtrip(const Api *api, void *c) {
     return status;
 }
 
+static int expect_error(const char *what, int status) {
+    if (status == (int)fmi2Error) {
+        printf("MISUSE %s refused\n", what);
+        return 0;
+    }
+    fprintf(stderr, "fmi_host: misuse %s returned status %d, expected an error\n", what, status);
+    return 1;
+}
+
+/* the handle misuse of --misuse-states on instance c (other: a second instance of the same FMU) */
+static int misuse_states(const Api *api, void *c, void *other) {
+    void *state = NULL, *stale, *foreign = NULL;
+    double wild[8] = {0};
+    int v3 = api->version == 3, status = 0;
+#define GET(instance, pointer) (v3 ? (int)api->get_state3(instance, pointer) : (int)api->get_state2(instance, pointer))
+#define SET(instance, handle) (v3 ? (int)api->set_state3(instance, handle) : (int)api->set_state2(instance, handle))
+#define FREE(instance, pointer)                                                                                   \
+    (v3 ? (int)api->free_state3(instance, (fmi3FMUState *)(pointer))                                              \
+        : (int)api->free_state2(instance, (fmi2FMUstate *)(pointer)))
+    if (failed("GetFMUstate", GET(c, &state)) || failed("GetFMUstate (other instance)", GET(other, &foreign)))
+        return 1;
+    status |= expect_error("FreeFMUstate(c, state) where &state is due", FREE(c, state));
+    status |= failed("SetFMUstate after the refused free", SET(c, state));
+    stale = state;
+    status |= failed("FreeFMUstate", FREE(c, &state));
+    status |= expect_error("SetFMUstate of a freed handle", SET(c, stale));
+    status |= expect_error("FreeFMUstate twice (double free)", FREE(c, &stale));
+    status |= expect_error("SetFMUstate of another instance's handle", SET(c, foreign));
+    status |= expect_error("FreeFMUstate of another instance's handle", FREE(c, &foreign));
+    status |= expect_error("SetFMUstate of a wild pointer", SET(c, (void *)wild));
+    status |= failed("FreeFMUstate (other instance)", FREE(other, &foreign));
+#undef GET
+#undef SET
+#undef FREE
+    return status;
+}
+
 /* One simulation; with roundtrip, the state is saved, serialized, deserialized and restored half-way. */
 static int simulate(const Api *api, const char *token, double step, double stop_time, int every, int roundtrip,
-                    int print, const Values *v) {
-    void *c;
+                    int print, int misuse, const Values *v) {
+    void *c, *other = NULL;
     double outputs[MAX_VALUES];
     fmi2Boolean booleans2[MAX_VALUES];
     fmi3Boolean booleans3[MAX_VALUES];
@@ -241,6 +281,12 @@ static int simulate(const Api *api, const char *token, double step, double stop_
         CALL("fmi2SetInteger", api->set_integer2(c, v->integer_vr, v->n_integer, v->integer_values));
         CALL("fmi2EnterInitializationMode", api->enter2(c));
         CALL("fmi2ExitInitializationMode", api->exit2(c));
+    }
+    if (misuse) {
+        other = v3 ? api->instantiate3("other", token, "", fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0, NULL,
+                                       logger3, NULL)
+                   : api->instantiate2("other", fmi2CoSimulation, token, "", &callbacks2, fmi2False, fmi2False);
+        if (!other || misuse_states(api, c, other)) goto fail;
     }
     for (k = 0; k <= steps; k++) {
         double time = (double)k * step; /* communication points k h, not a running sum */
@@ -274,13 +320,19 @@ fail:
         api->free3(c);
     else
         api->free2(c);
+    if (other) {
+        if (v3)
+            api->free3(other);
+        else
+            api->free2(other);
+    }
     return ok ? 0 : 1;
 }
 
 int main(int argc, char **argv) {
     Values values;
     Api api;
-    int every = 1, repeat = 0, i, status, first = 1;
+    int every = 1, repeat = 0, misuse = 0, i, status, first = 1;
     double step, stop_time;
 
     memset(&values, 0, sizeof(values));
@@ -302,6 +354,8 @@ int main(int argc, char **argv) {
         unsigned int vr;
         if (!strcmp(a, "--every") && i + 1 < argc) {
             every = atoi(argv[++i]);
+        } else if (!strcmp(a, "--misuse-states")) {
+            misuse = 1;
         } else if (!strcmp(a, "--repeat") && i + 1 < argc) {
             repeat = atoi(argv[++i]);
         } else if (a[0] == 'r' && a[1] == ':' && values.n_real < MAX_VALUES && sscanf(a + 2, "%u=", &vr) == 1) {
@@ -330,9 +384,9 @@ int main(int argc, char **argv) {
     }
     load_api(&api);
     if (symbols_missing) return 1;
-    status = simulate(&api, argv[first + 1], step, stop_time, every, 0, 1, &values);
+    status = simulate(&api, argv[first + 1], step, stop_time, every, 0, 1, misuse, &values);
     for (i = 0; i < repeat && status == 0; i++)
-        status = simulate(&api, argv[first + 1], step, stop_time, every, 1, 0, &values);
+        status = simulate(&api, argv[first + 1], step, stop_time, every, 1, 0, misuse, &values);
     fflush(stdout);
     close_library(library);
     return status;

@@ -233,8 +233,8 @@ Status instance_check_step(Instance *instance, double current_time, double h) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "communication point %g is not finite", current_time);
         return STATUS_ERROR;
     }
-    if (!(h >= 0.0) || !isfinite(h)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "communication step size %g must be finite and >= 0",
+    if (!(h > 0.0) || !isfinite(h)) { /* FMI 2.0.4 and 3.0: communicationStepSize > 0 */
+        instance_log(instance, STATUS_ERROR, "logStatusError", "communication step size %g must be finite and > 0",
                      h);
         return STATUS_ERROR;
     }

@@ -17,7 +17,49 @@ typedef struct {
 #define ANY_MODE                                                                                               \
     (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED |   \
      MODE_ERROR)
-#define AFTER_INSTANTIATION (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED)
+/* The FMI 2.0 state tables (sections 3.2.3 and 4.2.4) in one place, as the Reference-FMUs keep them: the states
+ * in which each function is allowed (elsewhere it returns fmi2Error with a log message). A test compares this
+ * table with the standard's (tests/test_state_tables.py). */
+#define MASK_fmi2SetDebugLogging               ANY_MODE
+#define MASK_fmi2SetupExperiment               MODE_INSTANTIATED
+#define MASK_fmi2EnterInitializationMode       MODE_INSTANTIATED
+#define MASK_fmi2ExitInitializationMode        MODE_INITIALIZATION
+#define MASK_fmi2Terminate                     (MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
+#define MASK_fmi2Reset                         ANY_MODE
+#define MASK_fmi2GetReal                       (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2GetInteger                    (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2GetBoolean                    (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2GetString                     (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2SetReal                       (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
+#define MASK_fmi2SetInteger                    (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
+#define MASK_fmi2SetBoolean                    (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
+#define MASK_fmi2SetString                     (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
+#define MASK_fmi2GetFMUstate                   (ANY_MODE & ~MODE_ERROR)
+#define MASK_fmi2SetFMUstate                   ANY_MODE
+#define MASK_fmi2FreeFMUstate                  ANY_MODE
+#define MASK_fmi2SerializedFMUstateSize        ANY_MODE
+#define MASK_fmi2SerializeFMUstate             ANY_MODE
+#define MASK_fmi2DeSerializeFMUstate           ANY_MODE
+#define MASK_fmi2GetDirectionalDerivative      (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2EnterEventMode                (MODE_EVENT | MODE_CONTINUOUS_TIME)
+#define MASK_fmi2NewDiscreteStates             MODE_EVENT
+#define MASK_fmi2EnterContinuousTimeMode       MODE_EVENT
+#define MASK_fmi2CompletedIntegratorStep       MODE_CONTINUOUS_TIME
+#define MASK_fmi2SetTime                       (MODE_EVENT | MODE_CONTINUOUS_TIME)
+#define MASK_fmi2SetContinuousStates           MODE_CONTINUOUS_TIME
+#define MASK_fmi2GetDerivatives                (MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2GetEventIndicators            (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2GetContinuousStates           (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2GetNominalsOfContinuousStates (MODE_INSTANTIATED | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2SetRealInputDerivatives       (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_STEP)
+#define MASK_fmi2GetRealOutputDerivatives      (MODE_STEP | MODE_TERMINATED | MODE_ERROR)
+#define MASK_fmi2DoStep                        MODE_STEP
+#define MASK_fmi2CancelStep                    0 /* stepInProgress: doStep never returns pending */
+#define MASK_fmi2GetStatus                     (MODE_STEP | MODE_TERMINATED)
+#define MASK_fmi2GetRealStatus                 (MODE_STEP | MODE_TERMINATED)
+#define MASK_fmi2GetIntegerStatus              (MODE_STEP | MODE_TERMINATED)
+#define MASK_fmi2GetBooleanStatus              (MODE_STEP | MODE_TERMINATED)
+#define MASK_fmi2GetStringStatus               (MODE_STEP | MODE_TERMINATED)
 
 static void log_to_importer(void *instance_pointer, Status status, const char *category, const char *message) {
     Instance *instance = (Instance *)instance_pointer;
@@ -66,6 +108,13 @@ static Instance *checked_cs(fmi2Component c, const char *function, int allowed_m
     return checked_type(c, function, allowed_modes, CO_SIMULATION_ONLY);
 }
 
+/* A refused null output argument, with its log message. */
+static int present(Instance *instance, const char *function, const void *pointer, const char *name) {
+    if (pointer) return 1;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: %s is a null pointer", function, name);
+    return 0;
+}
+
 static fmi2Status finish(Instance *instance, Status status) {
     if (status >= STATUS_ERROR) instance->now.mode = MODE_ERROR;
     return (fmi2Status)status;
@@ -79,12 +128,10 @@ const char *fmi2GetVersion(void) { return fmi2Version; }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nCategories,
                                const fmi2String categories[]) {
-    Instance *instance = checked(c, "fmi2SetDebugLogging", ANY_MODE);
-    (void)nCategories;
-    (void)categories;
+    Instance *instance = checked(c, "fmi2SetDebugLogging", MASK_fmi2SetDebugLogging);
     if (!instance) return fmi2Error;
-    instance->logging_on = loggingOn ? 1 : 0;
-    return fmi2OK;
+    return (fmi2Status)instance_set_debug_logging(instance, loggingOn ? 1 : 0, nCategories, categories,
+                                                  "fmi2SetDebugLogging");
 }
 
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
@@ -142,7 +189,7 @@ void fmi2FreeInstance(fmi2Component c) {
 
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    Instance *instance = checked(c, "fmi2SetupExperiment", MODE_INSTANTIATED);
+    Instance *instance = checked(c, "fmi2SetupExperiment", MASK_fmi2SetupExperiment);
     (void)toleranceDefined;
     (void)tolerance;
     if (!instance) return fmi2Error;
@@ -160,7 +207,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    Instance *instance = checked(c, "fmi2EnterInitializationMode", MODE_INSTANTIATED);
+    Instance *instance = checked(c, "fmi2EnterInitializationMode", MASK_fmi2EnterInitializationMode);
     if (!instance) return fmi2Error;
     instance->now.mode = MODE_INITIALIZATION;
     instance->initial_state_valid = 0;
@@ -168,7 +215,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    Instance *instance = checked(c, "fmi2ExitInitializationMode", MODE_INITIALIZATION);
+    Instance *instance = checked(c, "fmi2ExitInitializationMode", MASK_fmi2ExitInitializationMode);
     int states_changed, discrete_changed;
     Status status;
     if (!instance) return fmi2Error;
@@ -180,14 +227,14 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 
 fmi2Status fmi2Terminate(fmi2Component c) {
     Instance *instance =
-        checked(c, "fmi2Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP);
+        checked(c, "fmi2Terminate", MASK_fmi2Terminate);
     if (!instance) return fmi2Error;
     instance->now.mode = MODE_TERMINATED;
     return fmi2OK;
 }
 
 fmi2Status fmi2Reset(fmi2Component c) {
-    Instance *instance = checked(c, "fmi2Reset", ANY_MODE);
+    Instance *instance = checked(c, "fmi2Reset", MASK_fmi2Reset);
     if (!instance) return fmi2Error;
     instance_reset(instance);
     return fmi2OK;
@@ -195,28 +242,26 @@ fmi2Status fmi2Reset(fmi2Component c) {
 
 /* ---- variables -------------------------------------------------------------------------------- */
 
-#define GET_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED | MODE_ERROR)
-
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    Instance *instance = checked(c, "fmi2GetReal", GET_MODES);
+    Instance *instance = checked(c, "fmi2GetReal", MASK_fmi2GetReal);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_get(instance, vr, nvr, KIND_REAL, value);
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
-    Instance *instance = checked(c, "fmi2GetInteger", GET_MODES);
+    Instance *instance = checked(c, "fmi2GetInteger", MASK_fmi2GetInteger);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_get(instance, vr, nvr, KIND_INTEGER, value);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    Instance *instance = checked(c, "fmi2GetBoolean", GET_MODES);
+    Instance *instance = checked(c, "fmi2GetBoolean", MASK_fmi2GetBoolean);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_get(instance, vr, nvr, KIND_BOOLEAN, value);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
-    Instance *instance = checked(c, "fmi2GetString", GET_MODES);
+    Instance *instance = checked(c, "fmi2GetString", MASK_fmi2GetString);
     (void)vr;
     (void)value;
     if (!instance) return fmi2Error;
@@ -225,28 +270,26 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
     return fmi2Error;
 }
 
-#define SET_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
-
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    Instance *instance = checked(c, "fmi2SetReal", SET_MODES);
+    Instance *instance = checked(c, "fmi2SetReal", MASK_fmi2SetReal);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_set(instance, vr, nvr, KIND_REAL, value);
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
-    Instance *instance = checked(c, "fmi2SetInteger", SET_MODES);
+    Instance *instance = checked(c, "fmi2SetInteger", MASK_fmi2SetInteger);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_set(instance, vr, nvr, KIND_INTEGER, value);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
-    Instance *instance = checked(c, "fmi2SetBoolean", SET_MODES);
+    Instance *instance = checked(c, "fmi2SetBoolean", MASK_fmi2SetBoolean);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_set(instance, vr, nvr, KIND_BOOLEAN, value);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
-    Instance *instance = checked(c, "fmi2SetString", SET_MODES);
+    Instance *instance = checked(c, "fmi2SetString", MASK_fmi2SetString);
     (void)vr;
     (void)value;
     if (!instance) return fmi2Error;
@@ -258,41 +301,41 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 /* ---- FMU state -------------------------------------------------------------------------------- */
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    Instance *instance = checked(c, "fmi2GetFMUstate", ANY_MODE & ~MODE_ERROR);
+    Instance *instance = checked(c, "fmi2GetFMUstate", MASK_fmi2GetFMUstate);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_get_state(instance, FMUstate, "fmi2GetFMUstate");
 }
 
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
-    Instance *instance = checked(c, "fmi2SetFMUstate", ANY_MODE);
+    Instance *instance = checked(c, "fmi2SetFMUstate", MASK_fmi2SetFMUstate);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_set_state(instance, FMUstate, "fmi2SetFMUstate");
 }
 
 fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
-    Instance *instance = checked(c, "fmi2FreeFMUstate", ANY_MODE);
+    Instance *instance = checked(c, "fmi2FreeFMUstate", MASK_fmi2FreeFMUstate);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_free_state(instance, FMUstate, "fmi2FreeFMUstate");
 }
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
-    Instance *instance = checked(c, "fmi2SerializedFMUstateSize", ANY_MODE);
+    Instance *instance = checked(c, "fmi2SerializedFMUstateSize", MASK_fmi2SerializedFMUstateSize);
     (void)FMUstate;
-    if (!instance || !size) return fmi2Error;
+    if (!instance || !present(instance, "fmi2SerializedFMUstateSize", size, "size")) return fmi2Error;
     *size = snapshot_serialized_size(instance);
     return fmi2OK;
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
                                  size_t size) {
-    Instance *instance = checked(c, "fmi2SerializeFMUstate", ANY_MODE);
+    Instance *instance = checked(c, "fmi2SerializeFMUstate", MASK_fmi2SerializeFMUstate);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_serialize_state(instance, FMUstate, serializedState, size, "fmi2SerializeFMUstate");
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[], size_t size,
                                    fmi2FMUstate *FMUstate) {
-    Instance *instance = checked(c, "fmi2DeSerializeFMUstate", ANY_MODE);
+    Instance *instance = checked(c, "fmi2DeSerializeFMUstate", MASK_fmi2DeSerializeFMUstate);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_deserialize_state(instance, serializedState, size, FMUstate, 0,
                                                   "fmi2DeSerializeFMUstate");
@@ -301,7 +344,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", GET_MODES);
+    Instance *instance = checked(c, "fmi2GetDirectionalDerivative", MASK_fmi2GetDirectionalDerivative);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_directional_derivative(instance, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
                                                        dvUnknown);
@@ -310,17 +353,17 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
 /* ---- model exchange --------------------------------------------------------------------------- */
 
 fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    Instance *instance = checked_me(c, "fmi2EnterEventMode", MODE_EVENT | MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2EnterEventMode", MASK_fmi2EnterEventMode);
     if (!instance) return fmi2Error;
     instance->now.mode = MODE_EVENT;
     return fmi2OK;
 }
 
 fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
-    Instance *instance = checked_me(c, "fmi2NewDiscreteStates", MODE_EVENT);
+    Instance *instance = checked_me(c, "fmi2NewDiscreteStates", MASK_fmi2NewDiscreteStates);
     int states_changed = 0, discrete_changed = 0;
     Status status;
-    if (!instance || !eventInfo) return fmi2Error;
+    if (!instance || !present(instance, "fmi2NewDiscreteStates", eventInfo, "eventInfo")) return fmi2Error;
     status = instance_event_iteration(instance, &states_changed, &discrete_changed);
     eventInfo->newDiscreteStatesNeeded = fmi2False;
     eventInfo->terminateSimulation = fmi2False;
@@ -332,7 +375,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    Instance *instance = checked_me(c, "fmi2EnterContinuousTimeMode", MODE_EVENT);
+    Instance *instance = checked_me(c, "fmi2EnterContinuousTimeMode", MASK_fmi2EnterContinuousTimeMode);
     if (!instance) return fmi2Error;
     instance->now.mode = MODE_CONTINUOUS_TIME;
     return fmi2OK;
@@ -340,22 +383,24 @@ fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
 
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation) {
-    Instance *instance = checked_me(c, "fmi2CompletedIntegratorStep", MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2CompletedIntegratorStep", MASK_fmi2CompletedIntegratorStep);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!instance || !enterEventMode || !terminateSimulation) return fmi2Error;
+    if (!instance || !present(instance, "fmi2CompletedIntegratorStep", enterEventMode, "enterEventMode") ||
+        !present(instance, "fmi2CompletedIntegratorStep", terminateSimulation, "terminateSimulation"))
+        return fmi2Error;
     *enterEventMode = fmi2False;
     *terminateSimulation = fmi2False;
     return fmi2OK;
 }
 
 fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
-    Instance *instance = checked_me(c, "fmi2SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2SetTime", MASK_fmi2SetTime);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_set_time(instance, time);
 }
 
 fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    Instance *instance = checked_me(c, "fmi2SetContinuousStates", MODE_CONTINUOUS_TIME);
+    Instance *instance = checked_me(c, "fmi2SetContinuousStates", MASK_fmi2SetContinuousStates);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_set_states(instance, x, nx);
 }
@@ -378,31 +423,29 @@ static Instance *checked_vector(fmi2Component c, const char *function, int allow
     return instance;
 }
 
-#define VECTOR_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
-
 fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
     Instance *instance =
-        checked_vector(c, "fmi2GetDerivatives", VECTOR_MODES, derivatives, nx, STATE_VECTOR);
+        checked_vector(c, "fmi2GetDerivatives", MASK_fmi2GetDerivatives, derivatives, nx, STATE_VECTOR);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_derivatives(instance, instance->now.x, instance->now.d, derivatives);
 }
 
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
-    Instance *instance = checked_vector(c, "fmi2GetEventIndicators", VECTOR_MODES, eventIndicators, ni, INDICATOR_VECTOR);
+    Instance *instance = checked_vector(c, "fmi2GetEventIndicators", MASK_fmi2GetEventIndicators, eventIndicators, ni, INDICATOR_VECTOR);
     if (!instance) return fmi2Error;
     return (fmi2Status)instance_event_indicators(instance, instance->now.x, instance->now.d, eventIndicators);
 }
 
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
     Instance *instance =
-        checked_vector(c, "fmi2GetContinuousStates", VECTOR_MODES, x, nx, STATE_VECTOR);
+        checked_vector(c, "fmi2GetContinuousStates", MASK_fmi2GetContinuousStates, x, nx, STATE_VECTOR);
     if (!instance) return fmi2Error;
     memcpy(x, instance->now.x, sizeof(double) * nx);
     return fmi2OK;
 }
 
 fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[], size_t nx) {
-    Instance *instance = checked_vector(c, "fmi2GetNominalsOfContinuousStates", ANY_MODE, x_nominal, nx, STATE_VECTOR);
+    Instance *instance = checked_vector(c, "fmi2GetNominalsOfContinuousStates", MASK_fmi2GetNominalsOfContinuousStates, x_nominal, nx, STATE_VECTOR);
     if (!instance) return fmi2Error;
     memcpy(x_nominal, instance->info->state_nominal, sizeof(double) * nx);
     return fmi2OK;
@@ -412,7 +455,7 @@ fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                        const fmi2Integer order[], const fmi2Real value[]) {
-    Instance *instance = checked_cs(c, "fmi2SetRealInputDerivatives", ANY_MODE);
+    Instance *instance = checked_cs(c, "fmi2SetRealInputDerivatives", MASK_fmi2SetRealInputDerivatives);
     (void)vr;
     (void)nvr;
     (void)order;
@@ -424,7 +467,7 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                                         const fmi2Integer order[], fmi2Real value[]) {
-    Instance *instance = checked_cs(c, "fmi2GetRealOutputDerivatives", ANY_MODE);
+    Instance *instance = checked_cs(c, "fmi2GetRealOutputDerivatives", MASK_fmi2GetRealOutputDerivatives);
     (void)vr;
     (void)nvr;
     (void)order;
@@ -436,7 +479,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    Instance *instance = checked_cs(c, "fmi2DoStep", MODE_STEP);
+    Instance *instance = checked_cs(c, "fmi2DoStep", MASK_fmi2DoStep);
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!instance) return fmi2Error;
     /* wrong arguments change nothing, so the instance stays usable */
@@ -452,15 +495,15 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {
-    Instance *instance = checked_cs(c, "fmi2CancelStep", MODE_STEP);
+    Instance *instance = checked_cs(c, "fmi2CancelStep", MASK_fmi2CancelStep);
     if (!instance) return fmi2Error;
     instance_log(instance, STATUS_ERROR, "logStatusError", "fmi2DoStep always completes: nothing to cancel");
     return fmi2Error;
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    Instance *instance = checked_cs(c, "fmi2GetStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
-    if (!instance || !value) return fmi2Error;
+    Instance *instance = checked_cs(c, "fmi2GetStatus", MASK_fmi2GetStatus);
+    if (!instance || !present(instance, "fmi2GetStatus", value, "value")) return fmi2Error;
     if (s == fmi2DoStepStatus) {
         *value = fmi2OK;
         return fmi2OK;
@@ -469,8 +512,8 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
-    Instance *instance = checked_cs(c, "fmi2GetRealStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
-    if (!instance || !value) return fmi2Error;
+    Instance *instance = checked_cs(c, "fmi2GetRealStatus", MASK_fmi2GetRealStatus);
+    if (!instance || !present(instance, "fmi2GetRealStatus", value, "value")) return fmi2Error;
     if (s == fmi2LastSuccessfulTime) {
         *value = instance->now.time;
         return fmi2OK;
@@ -479,15 +522,15 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    Instance *instance = checked_cs(c, "fmi2GetIntegerStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetIntegerStatus", MASK_fmi2GetIntegerStatus);
     (void)s;
     (void)value;
     return instance ? fmi2Discard : fmi2Error;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
-    Instance *instance = checked_cs(c, "fmi2GetBooleanStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
-    if (!instance || !value) return fmi2Error;
+    Instance *instance = checked_cs(c, "fmi2GetBooleanStatus", MASK_fmi2GetBooleanStatus);
+    if (!instance || !present(instance, "fmi2GetBooleanStatus", value, "value")) return fmi2Error;
     if (s == fmi2Terminated) {
         *value = fmi2False;
         return fmi2OK;
@@ -496,7 +539,7 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    Instance *instance = checked_cs(c, "fmi2GetStringStatus", MODE_STEP | MODE_TERMINATED | MODE_ERROR);
+    Instance *instance = checked_cs(c, "fmi2GetStringStatus", MASK_fmi2GetStringStatus);
     (void)s;
     (void)value;
     return instance ? fmi2Discard : fmi2Error;

@@ -26,9 +26,41 @@ typedef struct {
 #define GET_MODES ANY_MODE
 #define SET_REAL_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
 /* discrete variables (Int32, Boolean) do not change in continuous-time mode */
-#define SET_DISCRETE_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
-#define DERIVATIVE_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED)
-#define VECTOR_MODES (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED | MODE_ERROR)
+/* The FMI 3.0 state tables (sections 3.2 and 4.2) in one place, as the Reference-FMUs keep them: the states
+ * in which each function is allowed (elsewhere it returns fmi3Error with a log message). A test compares this
+ * table with the standard's (tests/test_state_tables.py). */
+#define MASK_fmi3SetDebugLogging               ANY_MODE
+#define MASK_fmi3EnterInitializationMode       MODE_INSTANTIATED
+#define MASK_fmi3ExitInitializationMode        MODE_INITIALIZATION
+#define MASK_fmi3EnterEventMode                MODE_CONTINUOUS_TIME
+#define MASK_fmi3Terminate                     (MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
+#define MASK_fmi3Reset                         ANY_MODE
+#define MASK_fmi3GetFloat64                    ANY_MODE
+#define MASK_fmi3GetInt32                      ANY_MODE
+#define MASK_fmi3GetBoolean                    ANY_MODE
+#define MASK_fmi3SetFloat64                    (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
+#define MASK_fmi3SetInt32                      (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
+#define MASK_fmi3SetBoolean                    (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_STEP)
+#define MASK_fmi3GetFMUState                   (ANY_MODE & ~MODE_ERROR)
+#define MASK_fmi3SetFMUState                   ANY_MODE
+#define MASK_fmi3FreeFMUState                  ANY_MODE
+#define MASK_fmi3SerializedFMUStateSize        ANY_MODE
+#define MASK_fmi3SerializeFMUState             ANY_MODE
+#define MASK_fmi3DeserializeFMUState           ANY_MODE
+#define MASK_fmi3GetDirectionalDerivative      (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED)
+#define MASK_fmi3GetAdjointDerivative          (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED)
+#define MASK_fmi3UpdateDiscreteStates          MODE_EVENT
+#define MASK_fmi3EnterContinuousTimeMode       MODE_EVENT
+#define MASK_fmi3CompletedIntegratorStep       MODE_CONTINUOUS_TIME
+#define MASK_fmi3SetTime                       MODE_CONTINUOUS_TIME
+#define MASK_fmi3SetContinuousStates           MODE_CONTINUOUS_TIME
+#define MASK_fmi3GetContinuousStateDerivatives (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED)
+#define MASK_fmi3GetEventIndicators            (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED)
+#define MASK_fmi3GetContinuousStates           (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED)
+#define MASK_fmi3GetNominalsOfContinuousStates (MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_TERMINATED)
+#define MASK_fmi3GetNumberOfEventIndicators    (MODE_INSTANTIATED | MODE_EVENT)
+#define MASK_fmi3GetNumberOfContinuousStates   (MODE_INSTANTIATED | MODE_EVENT)
+#define MASK_fmi3DoStep                        MODE_STEP
 
 static void log_to_importer(void *instance_pointer, Status status, const char *category, const char *message) {
     Instance *instance = (Instance *)instance_pointer;
@@ -77,6 +109,13 @@ static fmi3Status unsupported(fmi3Instance c, const char *function, const char *
     return fmi3Error;
 }
 
+/* A refused null output argument, with its log message. */
+static int present(Instance *instance, const char *function, const void *pointer, const char *name) {
+    if (pointer) return 1;
+    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: %s is a null pointer", function, name);
+    return 0;
+}
+
 /* Scalar variables only: one value per value reference. */
 static int counts_match(Instance *instance, const char *function, size_t nValueReferences, size_t nValues) {
     if (nValueReferences == nValues) return 1;
@@ -92,12 +131,10 @@ const char *fmi3GetVersion(void) { return fmi3Version; }
 
 fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t nCategories,
                                const fmi3String categories[]) {
-    Instance *instance = checked(c, "fmi3SetDebugLogging", ANY_MODE);
-    (void)nCategories;
-    (void)categories;
+    Instance *instance = checked(c, "fmi3SetDebugLogging", MASK_fmi3SetDebugLogging);
     if (!instance) return fmi3Error;
-    instance->logging_on = loggingOn ? 1 : 0;
-    return fmi3OK;
+    return (fmi3Status)instance_set_debug_logging(instance, loggingOn ? 1 : 0, nCategories, categories,
+                                                  "fmi3SetDebugLogging");
 }
 
 static fmi3Instance instantiate(fmi3String instanceName, fmi3String instantiationToken, fmi3Boolean loggingOn,
@@ -192,7 +229,7 @@ void fmi3FreeInstance(fmi3Instance c) {
 
 fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
-    Instance *instance = checked(c, "fmi3EnterInitializationMode", MODE_INSTANTIATED);
+    Instance *instance = checked(c, "fmi3EnterInitializationMode", MASK_fmi3EnterInitializationMode);
     (void)toleranceDefined;
     (void)tolerance;
     if (!instance) return fmi3Error;
@@ -212,7 +249,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefi
 }
 
 fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
-    Instance *instance = checked(c, "fmi3ExitInitializationMode", MODE_INITIALIZATION);
+    Instance *instance = checked(c, "fmi3ExitInitializationMode", MASK_fmi3ExitInitializationMode);
     int states_changed, discrete_changed;
     Status status;
     if (!instance) return fmi3Error;
@@ -223,21 +260,21 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance c) {
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance c) {
-    Instance *instance = checked_type(c, "fmi3EnterEventMode", MODE_CONTINUOUS_TIME, 0);
+    Instance *instance = checked_type(c, "fmi3EnterEventMode", MASK_fmi3EnterEventMode, 0);
     if (!instance) return fmi3Error;
     instance->now.mode = MODE_EVENT;
     return fmi3OK;
 }
 
 fmi3Status fmi3Terminate(fmi3Instance c) {
-    Instance *instance = checked(c, "fmi3Terminate", MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP);
+    Instance *instance = checked(c, "fmi3Terminate", MASK_fmi3Terminate);
     if (!instance) return fmi3Error;
     instance->now.mode = MODE_TERMINATED;
     return fmi3OK;
 }
 
 fmi3Status fmi3Reset(fmi3Instance c) {
-    Instance *instance = checked(c, "fmi3Reset", ANY_MODE);
+    Instance *instance = checked(c, "fmi3Reset", MASK_fmi3Reset);
     if (!instance) return fmi3Error;
     instance_reset(instance);
     return fmi3OK;
@@ -247,7 +284,7 @@ fmi3Status fmi3Reset(fmi3Instance c) {
 
 fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           fmi3Float64 values[], size_t nValues) {
-    Instance *instance = checked(c, "fmi3GetFloat64", GET_MODES);
+    Instance *instance = checked(c, "fmi3GetFloat64", MASK_fmi3GetFloat64);
     size_t i, start = 0;
     if (!instance || !counts_match(instance, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
     if (nValueReferences > 0 && (!valueReferences || !values)) {
@@ -268,7 +305,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance c, const fmi3ValueReference valueReferenc
 
 fmi3Status fmi3GetInt32(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         fmi3Int32 values[], size_t nValues) {
-    Instance *instance = checked(c, "fmi3GetInt32", GET_MODES);
+    Instance *instance = checked(c, "fmi3GetInt32", MASK_fmi3GetInt32);
     if (!instance || !counts_match(instance, "fmi3GetInt32", nValueReferences, nValues)) return fmi3Error;
     /* fmi3Int32 is the runtime's int on every platform FMI 3.0 supports */
     return (fmi3Status)instance_get(instance, valueReferences, nValueReferences, KIND_INTEGER, values);
@@ -278,7 +315,7 @@ fmi3Status fmi3GetInt32(fmi3Instance c, const fmi3ValueReference valueReferences
 
 fmi3Status fmi3GetBoolean(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           fmi3Boolean values[], size_t nValues) {
-    Instance *instance = checked(c, "fmi3GetBoolean", GET_MODES);
+    Instance *instance = checked(c, "fmi3GetBoolean", MASK_fmi3GetBoolean);
     int chunk[BOOLEAN_CHUNK];
     size_t start, i;
     if (!instance || !counts_match(instance, "fmi3GetBoolean", nValueReferences, nValues)) return fmi3Error;
@@ -309,7 +346,7 @@ static int sets_time(Instance *instance, const char *function, const fmi3ValueRe
 
 fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           const fmi3Float64 values[], size_t nValues) {
-    Instance *instance = checked(c, "fmi3SetFloat64", SET_REAL_MODES);
+    Instance *instance = checked(c, "fmi3SetFloat64", MASK_fmi3SetFloat64);
     if (!instance || !counts_match(instance, "fmi3SetFloat64", nValueReferences, nValues) ||
         sets_time(instance, "fmi3SetFloat64", valueReferences, nValueReferences))
         return fmi3Error;
@@ -318,14 +355,14 @@ fmi3Status fmi3SetFloat64(fmi3Instance c, const fmi3ValueReference valueReferenc
 
 fmi3Status fmi3SetInt32(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                         const fmi3Int32 values[], size_t nValues) {
-    Instance *instance = checked(c, "fmi3SetInt32", SET_DISCRETE_MODES);
+    Instance *instance = checked(c, "fmi3SetInt32", MASK_fmi3SetInt32);
     if (!instance || !counts_match(instance, "fmi3SetInt32", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)instance_set(instance, valueReferences, nValueReferences, KIND_INTEGER, values);
 }
 
 fmi3Status fmi3SetBoolean(fmi3Instance c, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                           const fmi3Boolean values[], size_t nValues) {
-    Instance *instance = checked(c, "fmi3SetBoolean", SET_DISCRETE_MODES);
+    Instance *instance = checked(c, "fmi3SetBoolean", MASK_fmi3SetBoolean);
     int chunk[BOOLEAN_CHUNK];
     size_t start, i;
     if (!instance || !counts_match(instance, "fmi3SetBoolean", nValueReferences, nValues)) return fmi3Error;
@@ -437,33 +474,33 @@ fmi3Status fmi3GetVariableDependencies(fmi3Instance c, fmi3ValueReference depend
 /* ---- FMU state -------------------------------------------------------------------------------- */
 
 fmi3Status fmi3GetFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
-    Instance *instance = checked(c, "fmi3GetFMUState", ANY_MODE & ~MODE_ERROR);
+    Instance *instance = checked(c, "fmi3GetFMUState", MASK_fmi3GetFMUState);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_get_state(instance, FMUState, "fmi3GetFMUState");
 }
 
 fmi3Status fmi3SetFMUState(fmi3Instance c, fmi3FMUState FMUState) {
-    Instance *instance = checked(c, "fmi3SetFMUState", ANY_MODE);
+    Instance *instance = checked(c, "fmi3SetFMUState", MASK_fmi3SetFMUState);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_set_state(instance, FMUState, "fmi3SetFMUState");
 }
 
 fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
-    Instance *instance = checked(c, "fmi3FreeFMUState", ANY_MODE);
+    Instance *instance = checked(c, "fmi3FreeFMUState", MASK_fmi3FreeFMUState);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_free_state(instance, FMUState, "fmi3FreeFMUState");
 }
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, size_t *size) {
-    Instance *instance = checked(c, "fmi3SerializedFMUStateSize", ANY_MODE);
+    Instance *instance = checked(c, "fmi3SerializedFMUStateSize", MASK_fmi3SerializedFMUStateSize);
     (void)FMUState;
-    if (!instance || !size) return fmi3Error;
+    if (!instance || !present(instance, "fmi3SerializedFMUStateSize", size, "size")) return fmi3Error;
     *size = snapshot_serialized_size(instance);
     return fmi3OK;
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState FMUState, fmi3Byte serializedState[], size_t size) {
-    Instance *instance = checked(c, "fmi3SerializeFMUState", ANY_MODE);
+    Instance *instance = checked(c, "fmi3SerializeFMUState", MASK_fmi3SerializeFMUState);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_serialize_state(instance, FMUState, (char *)serializedState, size,
                                                 "fmi3SerializeFMUState");
@@ -471,7 +508,7 @@ fmi3Status fmi3SerializeFMUState(fmi3Instance c, fmi3FMUState FMUState, fmi3Byte
 
 fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedState[], size_t size,
                                    fmi3FMUState *FMUState) {
-    Instance *instance = checked(c, "fmi3DeserializeFMUState", ANY_MODE);
+    Instance *instance = checked(c, "fmi3DeserializeFMUState", MASK_fmi3DeserializeFMUState);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_deserialize_state(instance, (const char *)serializedState, size, FMUState, 1,
                                                   "fmi3DeserializeFMUState");
@@ -482,7 +519,7 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedStat
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
-    Instance *instance = checked(c, "fmi3GetDirectionalDerivative", DERIVATIVE_MODES);
+    Instance *instance = checked(c, "fmi3GetDirectionalDerivative", MASK_fmi3GetDirectionalDerivative);
     if (!instance) return fmi3Error;
     if (nSeed != nKnowns || nSensitivity != nUnknowns) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
@@ -497,7 +534,7 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                     const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                     size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
-    Instance *instance = checked(c, "fmi3GetAdjointDerivative", DERIVATIVE_MODES);
+    Instance *instance = checked(c, "fmi3GetAdjointDerivative", MASK_fmi3GetAdjointDerivative);
     if (!instance) return fmi3Error;
     if (nSeed != nUnknowns || nSensitivity != nKnowns) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
@@ -601,7 +638,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesN
                                     fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
-    Instance *instance = checked_type(c, "fmi3UpdateDiscreteStates", MODE_EVENT, 0);
+    Instance *instance = checked_type(c, "fmi3UpdateDiscreteStates", MASK_fmi3UpdateDiscreteStates, 0);
     int states_changed = 0, discrete_changed = 0;
     Status status;
     if (!instance) return fmi3Error;
@@ -617,7 +654,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesN
 }
 
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
-    Instance *instance = checked_type(c, "fmi3EnterContinuousTimeMode", MODE_EVENT, 0);
+    Instance *instance = checked_type(c, "fmi3EnterContinuousTimeMode", MASK_fmi3EnterContinuousTimeMode, 0);
     if (!instance) return fmi3Error;
     instance->now.mode = MODE_CONTINUOUS_TIME;
     return fmi3OK;
@@ -625,22 +662,24 @@ fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance c) {
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance c, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
-    Instance *instance = checked_type(c, "fmi3CompletedIntegratorStep", MODE_CONTINUOUS_TIME, 0);
+    Instance *instance = checked_type(c, "fmi3CompletedIntegratorStep", MASK_fmi3CompletedIntegratorStep, 0);
     (void)noSetFMUStatePriorToCurrentPoint;
-    if (!instance || !enterEventMode || !terminateSimulation) return fmi3Error;
+    if (!instance || !present(instance, "fmi3CompletedIntegratorStep", enterEventMode, "enterEventMode") ||
+        !present(instance, "fmi3CompletedIntegratorStep", terminateSimulation, "terminateSimulation"))
+        return fmi3Error;
     *enterEventMode = fmi3False;
     *terminateSimulation = fmi3False;
     return fmi3OK;
 }
 
 fmi3Status fmi3SetTime(fmi3Instance c, fmi3Float64 time) {
-    Instance *instance = checked_type(c, "fmi3SetTime", MODE_EVENT | MODE_CONTINUOUS_TIME, 0);
+    Instance *instance = checked_type(c, "fmi3SetTime", MASK_fmi3SetTime, 0);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_set_time(instance, time);
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance c, const fmi3Float64 continuousStates[], size_t nContinuousStates) {
-    Instance *instance = checked_type(c, "fmi3SetContinuousStates", MODE_CONTINUOUS_TIME, 0);
+    Instance *instance = checked_type(c, "fmi3SetContinuousStates", MASK_fmi3SetContinuousStates, 0);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_set_states(instance, continuousStates, nContinuousStates);
 }
@@ -661,27 +700,27 @@ static Instance *checked_vector(fmi3Instance c, const char *function, int allowe
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 derivatives[], size_t nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetContinuousStateDerivatives", ANY_MODE);
+    Instance *instance = checked(c, "fmi3GetContinuousStateDerivatives", MASK_fmi3GetContinuousStateDerivatives);
     if (!instance) return fmi3Error;
-    instance = checked_vector(c, "fmi3GetContinuousStateDerivatives", VECTOR_MODES, derivatives, nContinuousStates,
+    instance = checked_vector(c, "fmi3GetContinuousStateDerivatives", MASK_fmi3GetContinuousStateDerivatives, derivatives, nContinuousStates,
                               instance->info->nx);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_derivatives(instance, instance->now.x, instance->now.d, derivatives);
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
-    Instance *instance = checked(c, "fmi3GetEventIndicators", ANY_MODE);
+    Instance *instance = checked(c, "fmi3GetEventIndicators", MASK_fmi3GetEventIndicators);
     if (!instance) return fmi3Error;
-    instance = checked_vector(c, "fmi3GetEventIndicators", VECTOR_MODES, eventIndicators, nEventIndicators,
+    instance = checked_vector(c, "fmi3GetEventIndicators", MASK_fmi3GetEventIndicators, eventIndicators, nEventIndicators,
                               instance->info->nz);
     if (!instance) return fmi3Error;
     return (fmi3Status)instance_event_indicators(instance, instance->now.x, instance->now.d, eventIndicators);
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 continuousStates[], size_t nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetContinuousStates", ANY_MODE);
+    Instance *instance = checked(c, "fmi3GetContinuousStates", MASK_fmi3GetContinuousStates);
     if (!instance) return fmi3Error;
-    instance = checked_vector(c, "fmi3GetContinuousStates", VECTOR_MODES, continuousStates, nContinuousStates,
+    instance = checked_vector(c, "fmi3GetContinuousStates", MASK_fmi3GetContinuousStates, continuousStates, nContinuousStates,
                               instance->info->nx);
     if (!instance) return fmi3Error;
     memcpy(continuousStates, instance->now.x, sizeof(double) * nContinuousStates);
@@ -689,9 +728,10 @@ fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 continuousStates[
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominals[], size_t nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetNominalsOfContinuousStates", ANY_MODE);
+    Instance *instance = checked(c, "fmi3GetNominalsOfContinuousStates", MASK_fmi3GetNominalsOfContinuousStates);
     if (!instance) return fmi3Error;
-    instance = checked_vector(c, "fmi3GetNominalsOfContinuousStates", ANY_MODE, nominals, nContinuousStates,
+    instance = checked_vector(c, "fmi3GetNominalsOfContinuousStates", MASK_fmi3GetNominalsOfContinuousStates, nominals,
+                              nContinuousStates,
                               instance->info->nx);
     if (!instance) return fmi3Error;
     memcpy(nominals, instance->info->state_nominal, sizeof(double) * nContinuousStates);
@@ -699,15 +739,17 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominal
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *nEventIndicators) {
-    Instance *instance = checked(c, "fmi3GetNumberOfEventIndicators", ANY_MODE);
-    if (!instance || !nEventIndicators) return fmi3Error;
+    Instance *instance = checked(c, "fmi3GetNumberOfEventIndicators", MASK_fmi3GetNumberOfEventIndicators);
+    if (!instance || !present(instance, "fmi3GetNumberOfEventIndicators", nEventIndicators, "nEventIndicators"))
+        return fmi3Error;
     *nEventIndicators = (size_t)instance->info->nz;
     return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetNumberOfContinuousStates", ANY_MODE);
-    if (!instance || !nContinuousStates) return fmi3Error;
+    Instance *instance = checked(c, "fmi3GetNumberOfContinuousStates", MASK_fmi3GetNumberOfContinuousStates);
+    if (!instance || !present(instance, "fmi3GetNumberOfContinuousStates", nContinuousStates, "nContinuousStates"))
+        return fmi3Error;
     *nContinuousStates = (size_t)instance->info->nx;
     return fmi3OK;
 }
@@ -733,7 +775,7 @@ fmi3Status fmi3GetOutputDerivatives(fmi3Instance c, const fmi3ValueReference val
 fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi3Float64 communicationStepSize,
                       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
                       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
-    Instance *instance = checked_type(c, "fmi3DoStep", MODE_STEP, 1);
+    Instance *instance = checked_type(c, "fmi3DoStep", MASK_fmi3DoStep, 1);
     Status status;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!instance) return fmi3Error;

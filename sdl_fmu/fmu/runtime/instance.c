@@ -17,11 +17,55 @@ static void *allocate_array(Instance *instance, size_t count, size_t size) {
     return instance->allocate(count + 1, size);
 }
 
+/* The log categories declared in the modelDescription.xml (sdl_fmu/fmu/xml.py LOG_CATEGORIES, same order). */
+static const char *const LOG_CATEGORIES[] = {"logEvents", "logStatusWarning", "logStatusError"};
+#define N_LOG_CATEGORIES (sizeof(LOG_CATEGORIES) / sizeof(LOG_CATEGORIES[0]))
+#define ALL_CATEGORIES ((1u << N_LOG_CATEGORIES) - 1u)
+
+static int category_index(const char *category) {
+    size_t i;
+    for (i = 0; category && i < N_LOG_CATEGORIES; i++)
+        if (strcmp(category, LOG_CATEGORIES[i]) == 0) return (int)i;
+    return -1;
+}
+
+Status instance_set_debug_logging(Instance *instance, int logging_on, size_t n, const char *const categories[],
+                                  const char *function) {
+    unsigned mask = 0;
+    size_t i;
+    if (n > 0 && !categories) {
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: categories is a null pointer", function);
+        return STATUS_ERROR;
+    }
+    for (i = 0; i < n; i++) {
+        int index = category_index(categories[i]);
+        if (index < 0) {
+            instance_log(instance, STATUS_ERROR, "logStatusError",
+                         "%s: unknown log category \"%s\" (declared: logEvents, logStatusWarning, logStatusError)",
+                         function, categories[i] ? categories[i] : "(null)");
+            return STATUS_ERROR;
+        }
+        mask |= 1u << index;
+    }
+    if (n == 0) {
+        instance->logging_on = logging_on;
+        instance->categories_on = logging_on ? ALL_CATEGORIES : 0u;
+    } else {
+        /* on: exactly the named categories; off: the named ones off, the others as they were */
+        instance->categories_on = logging_on ? mask : (instance->categories_on & ~mask);
+        instance->logging_on = instance->categories_on != 0u;
+    }
+    return STATUS_OK;
+}
+
 void instance_log(Instance *instance, Status status, const char *category, const char *format, ...) {
     char message[1024];
     va_list args;
+    int index;
     if (!instance || !instance->log) return;
-    if (status == STATUS_OK && !instance->logging_on) return;
+    index = category_index(category);
+    if (status == STATUS_OK && (!instance->logging_on || index < 0 || !(instance->categories_on & (1u << index))))
+        return;
     va_start(args, format);
     vsnprintf(message, sizeof(message), format, args);
     va_end(args);
@@ -52,6 +96,9 @@ Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimu
     instance->log = log;
     instance->log_context = log_context;
     instance->is_cosimulation = is_cosimulation;
+    instance->categories_on = ALL_CATEGORIES;
+    instance->issued = NULL;
+    instance->n_issued = instance->issued_capacity = 0;
     name_length = strlen(name ? name : "");
     instance->name = (char *)allocate(name_length + 1, 1);
     if (instance->name && name) memcpy(instance->name, name, name_length + 1);
@@ -128,6 +175,8 @@ void instance_free(Instance *instance) {
     release(instance->z_trial);
     release(instance->d_trial);
     release(instance->pivots);
+    while (instance->n_issued > 0) snapshot_free(instance, instance->issued[instance->n_issued - 1]);
+    release(instance->issued);
     release(instance);
 }
 
@@ -391,10 +440,36 @@ Status instance_set_states(Instance *instance, const double x[], size_t nx) {
 
 /* ---- FMU state ---------------------------------------------------------------------------- */
 
+/* The registry of issued handles: an array of pointers, searched by comparison (a few handles at most). */
+static long issued_index(const Instance *instance, const void *state) {
+    size_t i;
+    for (i = 0; i < instance->n_issued; i++)
+        if ((const void *)instance->issued[i] == state) return (long)i;
+    return -1;
+}
+
+static int register_issued(Instance *instance, Snapshot *snapshot) {
+    if (instance->n_issued == instance->issued_capacity) {
+        size_t capacity = instance->issued_capacity ? 2 * instance->issued_capacity : 8;
+        Snapshot **grown = (Snapshot **)instance->allocate(capacity, sizeof(Snapshot *));
+        if (!grown) return 0;
+        if (instance->n_issued) memcpy(grown, instance->issued, sizeof(Snapshot *) * instance->n_issued);
+        instance->release(instance->issued);
+        instance->issued = grown;
+        instance->issued_capacity = capacity;
+    }
+    instance->issued[instance->n_issued++] = snapshot;
+    return 1;
+}
+
 Snapshot *snapshot_create(Instance *instance) {
     const ModelInfo *info = instance->info;
     Snapshot *snapshot = (Snapshot *)instance->allocate(1, sizeof(Snapshot));
     if (!snapshot) return NULL;
+    if (!register_issued(instance, snapshot)) {
+        instance->release(snapshot);
+        return NULL;
+    }
     snapshot->tag = SNAPSHOT_TAG;
     snapshot->x = (double *)allocate_array(instance, (size_t)info->nx, sizeof(double));
     snapshot->d = (double *)allocate_array(instance, (size_t)info->nd, sizeof(double));
@@ -419,7 +494,10 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
 }
 
 void snapshot_free(Instance *instance, Snapshot *snapshot) {
+    long index;
     if (!snapshot) return;
+    index = issued_index(instance, snapshot);
+    if (index >= 0) instance->issued[index] = instance->issued[--instance->n_issued];
     snapshot->tag = 0;
     instance->release(snapshot->x);
     instance->release(snapshot->d);
@@ -429,8 +507,14 @@ void snapshot_free(Instance *instance, Snapshot *snapshot) {
 }
 
 int snapshot_handle_valid(Instance *instance, const void *state, const char *function) {
-    if (state && ((const Snapshot *)state)->tag == SNAPSHOT_TAG) return 1;
-    instance_log(instance, STATUS_ERROR, "logStatusError", "%s: not an FMU state of this FMU", function);
+    if (state && issued_index(instance, state) >= 0) return 1;
+    if (!state)
+        instance_log(instance, STATUS_ERROR, "logStatusError", "%s: null FMU state", function);
+    else
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "%s: %p is not an FMU state of this instance (never issued by it, from another instance, or "
+                     "already freed)",
+                     function, state);
     return 0;
 }
 

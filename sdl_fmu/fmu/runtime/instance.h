@@ -42,7 +42,8 @@ typedef struct {
     const ModelInfo *info;
     char *name;
     int is_cosimulation;
-    int logging_on;
+    int logging_on;        /* debug logging (OK-status messages) on */
+    unsigned categories_on; /* bit i: LOG_CATEGORIES[i] enabled for debug messages */
     void *environment;
     AllocateFn allocate;
     FreeFn release;
@@ -66,12 +67,23 @@ typedef struct {
     double *jac, *matrix, *stage[6], *x_stage, *rhs, *x_start, *x_trial, *z_start, *z_trial, *d_trial;
     int *pivots;
     long long steps, event_count;
+
+    /* The FMU-state handles this instance issued and has not freed: a handle from the importer is checked by
+     * looking it up here, never by reading through it. */
+    Snapshot **issued;
+    size_t n_issued, issued_capacity;
 } Instance;
 
 Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimulation, AllocateFn allocate,
                           FreeFn release, LogFn log, void *log_context);
 void instance_free(Instance *instance);
 void instance_reset(Instance *instance);
+/* fmi2/3SetDebugLogging: no categories switches all; else on enables exactly the named ones, off disables them;
+ * each must be declared
+ * (an unknown name is refused with a message and nothing changes). Messages with a non-OK status are always
+ * passed to the importer's logger; OK-status (debug) messages only when their category is on. */
+Status instance_set_debug_logging(Instance *instance, int logging_on, size_t n, const char *const categories[],
+                                  const char *function);
 void instance_log(Instance *instance, Status status, const char *category, const char *format, ...)
 #if defined(__MINGW32__)
     __attribute__((format(gnu_printf, 4, 5))) /* instance.c formats with mingw-w64's C99 printf */
@@ -107,7 +119,8 @@ void snapshot_copy(const Instance *instance, Snapshot *to, const Snapshot *from)
 void snapshot_free(Instance *instance, Snapshot *snapshot);
 size_t snapshot_serialized_size(const Instance *instance);
 void snapshot_serialize(const Instance *instance, const Snapshot *snapshot, char *bytes);
-/* Whether an FMU state handle from the importer was made by snapshot_create (else logs and 0). */
+/* Whether an FMU state handle from the importer is one this instance issued and has not freed (found in its
+ * registry by pointer comparison only; else logs and 0). */
 int snapshot_handle_valid(Instance *instance, const void *state, const char *function);
 /* Checks a state field by field (mode word, finite time and values, inputs and parameters in range) before
  * it may touch an instance; deserialize also checks size, GUID hash and checksum. */

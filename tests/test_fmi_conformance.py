@@ -1,0 +1,113 @@
+"""The standard's letter, through ctypes on the real binaries: a communication step of 0 is refused (FMI 2.0.4
+sec. 4.2.2, FMI 3.0 fmi3DoStep: communicationStepSize > 0); SetDebugLogging honours its categories and refuses
+unknown ones with a message; the FMI 3.0 state table's rows for fmi3GetNominalsOfContinuousStates,
+fmi3GetNumberOf* and fmi3SetTime; a refused null output argument is explained by a log message."""
+
+import ctypes
+
+from sdl_fmu.fmu import fuzz
+from sdl_fmu.fmu.xml import LOG_CATEGORIES
+
+from test_runtime_hardening import ERROR, OK, Raw, Raw3
+
+
+def declare(library, name, argtypes):
+    """Signatures the fuzzer does not call (without them ctypes would pass pointers as C ints)."""
+    function = getattr(library, name)
+    function.restype, function.argtypes = ctypes.c_int, argtypes
+    return library
+
+
+LOGGING_ARGUMENTS = [ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t, ctypes.POINTER(ctypes.c_char_p)]
+
+
+class Categorised(Raw):
+    """Raw, also recording each message's category."""
+
+    def _log(self, environment, name, status, category, message, argument):
+        super()._log(environment, name, status, category, message, argument)
+        self.categories = getattr(self, "categories", []) + [category.decode()]
+
+    def instantiate(self, kind=fuzz.CS):
+        declare(self.library, "fmi2SetDebugLogging", LOGGING_ARGUMENTS)
+        return super().instantiate(kind)
+
+
+def categories(names):
+    return len(names), (ctypes.c_char_p * len(names))(*[n.encode() for n in names])
+
+
+def test_a_step_of_zero_is_refused(simple_fmus, tmp_path):
+    cs2 = Raw(simple_fmus[2], tmp_path / "2").instantiate().start(v0=20.0)
+    cs3 = Raw3(simple_fmus[3], tmp_path / "3")
+    try:
+        assert cs2("DoStep", 0.0, 0.0, 1) == ERROR
+        assert cs2("DoStep", 0.0, 0.01, 1) == OK  # refused arguments leave it usable
+        assert cs3("EnterInitializationMode", False, 0.0, 0.0, False, 0.0) == OK
+        assert cs3("ExitInitializationMode") == OK
+        assert cs3.do_step(0.0, 0.0) == ERROR
+        assert cs3.do_step(0.0, 0.01) == OK
+    finally:
+        cs2.free()
+        cs3.free()
+
+
+def test_debug_logging_honours_categories(simple_fmu, tmp_path):
+    raw = Categorised(simple_fmu, tmp_path).instantiate()
+    try:
+        assert raw("SetDebugLogging", 1, *categories(["logNoSuchCategory"])) == ERROR
+        assert any("logNoSuchCategory" in m for _, m in raw.messages)
+        assert raw("SetDebugLogging", 1, *categories(["logStatusError"])) == OK
+        raw.start(v0=2.0, brake=1.0)  # stops after v0 / (mu g) = 0.34 s: a stop event inside the step
+        raw.categories = []
+        assert raw("DoStep", 0.0, 1.0, 1) == OK
+        assert "logEvents" not in raw.categories
+        assert raw("SetDebugLogging", 1, *categories(["logEvents"])) == OK
+        assert raw("DoStep", 1.0, 0.5, 1) == OK  # held: no event, but the discrete update runs quietly
+        raw2 = Categorised(simple_fmu, tmp_path / "second").instantiate()
+        try:
+            assert raw2("SetDebugLogging", 1, *categories(["logEvents"])) == OK
+            raw2.start(v0=2.0, brake=1.0)
+            raw2.categories = []
+            assert raw2("DoStep", 0.0, 1.0, 1) == OK
+            assert "logEvents" in raw2.categories  # the same stop, now logged
+        finally:
+            raw2.free()
+    finally:
+        raw.free()
+
+
+def test_the_runtime_knows_the_declared_categories(simple_fmu, tmp_path):
+    raw = Categorised(simple_fmu, tmp_path).instantiate()
+    try:
+        assert raw("SetDebugLogging", 1, *categories(list(LOG_CATEGORIES))) == OK
+    finally:
+        raw.free()
+
+
+def test_fmi3_state_table_rows(simple_fmus, tmp_path):
+    me = Raw3(simple_fmus[3], tmp_path, cosimulation=False)
+    for name in ("fmi3GetNumberOfContinuousStates", "fmi3GetNumberOfEventIndicators"):
+        declare(me.library, name, [ctypes.c_void_p, ctypes.POINTER(ctypes.c_size_t)])
+    try:
+        nx = me.description.numberOfContinuousStates
+        count = ctypes.c_size_t()
+        # Instantiated: the numbers yes, the nominals not yet
+        assert me("GetNumberOfContinuousStates", ctypes.byref(count)) == OK and count.value == nx
+        assert me("GetNumberOfEventIndicators", ctypes.byref(count)) == OK
+        assert me("GetNominalsOfContinuousStates", (ctypes.c_double * nx)(), nx) == ERROR
+        assert me("GetNumberOfContinuousStates", None) == ERROR  # a null output, with a message
+        assert me("EnterInitializationMode", False, 0.0, 0.0, False, 0.0) == OK
+        assert me("GetNumberOfContinuousStates", ctypes.byref(count)) == ERROR
+        assert me("ExitInitializationMode") == OK  # Event Mode
+        assert me("SetTime", 0.0) == ERROR
+        assert me("GetNumberOfContinuousStates", ctypes.byref(count)) == OK
+        assert me("EnterContinuousTimeMode") == OK
+        assert me("GetNumberOfEventIndicators", ctypes.byref(count)) == ERROR
+        assert me("GetNominalsOfContinuousStates", (ctypes.c_double * nx)(), nx) == OK
+        assert me("SetTime", 0.001) == OK
+        flag = ctypes.c_bool()
+        assert me("CompletedIntegratorStep", True, None, ctypes.byref(flag)) == ERROR
+        assert me("SerializedFMUStateSize", None, None) == ERROR
+    finally:
+        me.free()

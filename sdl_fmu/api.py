@@ -218,8 +218,8 @@ def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
     from .vehicle import SHIPPED, EgoModel, VehicleMapError, shipped_map_path
 
     if vehicle is not None and dynamics is not None:
-        raise _option_error("dynamics", dynamics, "give --dynamics (a shipped model) or --vehicle (a vehicle map), "
-                            "not both")
+        raise _option_error("dynamics", dynamics, "give either a shipped model (dynamics) or a vehicle map "
+                            "(vehicle), not both")
     dynamics = "simple" if dynamics is None else dynamics
     if dynamics not in SHIPPED:
         raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
@@ -287,8 +287,8 @@ def _tire_starts(tires, model):
     """The tire slots' start values from a Tire Attribute File, for a vehicle whose map declares tire slots."""
     if model.friction is None or model.friction.tire_slots is None:
         if tires is not None:
-            raise _option_error("tires", tires, f"applies to --dynamics advanced only (a vehicle map with "
-                                                f"friction tire_slots; {model.name}'s has none)")
+            raise _option_error("tires", tires, "applies to the advanced dynamics only (a vehicle map whose friction "
+                                                f"input has tire_slots; {model.name}'s has none)")
         return {}, None, []
     from .dynamics.tires import TireFileError, default_attribute_file, slot_parameters
 

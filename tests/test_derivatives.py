@@ -12,6 +12,8 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model
 
+from sdl_fmu.dynamics.advanced import SPIN_HYSTERESIS
+
 EPS = np.finfo(float).eps
 RELATIVE_STEP = 1e-5  # ~ cube root of eps: balances O(h^2) truncation against O(eps/h) round-off
 # A model evaluation is a chain of a few hundred floating-point operations: its values carry a relative
@@ -343,8 +345,8 @@ def test_advanced_derivatives_against_finite_differences(advanced_fmus, tmp_path
     locked.start_continuous_time()
     x = locked.known_values()[:len(locked.states)]
     spin_names = [f"wheel_speed_{w}" for w in ("fl", "fr", "rl", "rr")]
-    for name in spin_names:
-        x[[s.name for s in locked.states].index(name)] = -1e-9
+    for name in spin_names:  # past zero by more than the rolling mode's hysteresis, so the event locks the wheel
+        x[[s.name for s in locked.states].index(name)] = -10 * SPIN_HYSTERESIS
     locked.set_states(x)
     locked.event()
     modes = [locked.variables[f"wheel_mode_{w}"].valueReference for w in ("fl", "fr", "rl", "rr")]

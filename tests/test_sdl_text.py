@@ -101,7 +101,7 @@ def test_fractional_attribute_with_advanced_dynamics_is_an_error_naming_the_line
     path.write_text("// surfaces\n1000,RSA,1,1\n1100,RSA,1,2.7,-1,3.0\n")
     assert main(["run", str(path), "--dynamics", "advanced", "--out", str(tmp_path / "out")]) == 1
     assert capsys.readouterr().err.splitlines() == [
-        f"{path}:3: RSA parameter 2 (value): 2.7: with advanced dynamics the value is a surface attribute number "
+        f"{path}:3: RSA parameter 2 (value): 2.7: for this vehicle the value is a surface attribute number "
         "and must be whole"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["frac.sdl"]
 

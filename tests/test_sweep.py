@@ -159,7 +159,7 @@ def test_the_command_line_exits_3_with_one_line_when_runs_failed(cluster, scenar
     out, err = capsys.readouterr()
     assert code == 3 and out == ""
     assert err.splitlines() == [f"sdl-fmu: all 2 runs failed ({tmp_path / 'none' / 'sweep.csv'}, column error); "
-                                "run 0: --param brake_decel_max=-1.0: below the declared minimum 0 m/s2 of "
+                                "run 0: params brake_decel_max=-1.0: below the declared minimum 0 m/s2 of "
                                 "brake_decel_max"]
     assert main([*common, "--vary", "speed=60,80", "--out", str(tmp_path / "fine")]) == 0
     assert capsys.readouterr().err == ""

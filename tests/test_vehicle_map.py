@@ -90,9 +90,9 @@ def test_map_mistakes_are_one_line_naming_file_and_key(simple_fmu, tmp_path, edi
 FMU_MISTAKES = [
     ("no co-simulation", dict(edit_description=lambda text: re.sub(r"<CoSimulation.*?</CoSimulation>", "", text,
                                                                    flags=re.S)),
-     r"--fmu \S+NoCs\.fmu: has no co-simulation interface"),
+     r"^fmu \S+NoCs\.fmu: has no co-simulation interface"),
     ("no binary for this platform", dict(drop=lambda name: name.startswith("binaries/linux64/")),
-     r"--fmu \S+NoCs\.fmu: has no binary for this platform \(binaries/linux64/EgoVehicleSimple\.so\)"),
+     r"^fmu \S+NoCs\.fmu: has no binary for this platform \(binaries/linux64/EgoVehicleSimple\.so\)"),
 ]
 
 
@@ -118,7 +118,7 @@ def test_command_line_reports_a_map_mistake_in_one_line(simple_fmu, tmp_path):
 
 
 def test_dynamics_and_vehicle_together_are_refused(simple_fmu, tmp_path):
-    with pytest.raises(api.InputError, match="--dynamics simple: give --dynamics .* or --vehicle"):
+    with pytest.raises(api.InputError, match="^dynamics simple: give either a shipped model .* or a vehicle map"):
         api.run("head_on", dynamics="simple", fmu=simple_fmu, vehicle=write(tmp_path, BARE_MAP))
 
 
@@ -287,7 +287,7 @@ def test_a_sweep_drives_a_vehicle_map(simple_fmu, tmp_path):
     cluster.close()
     assert [row["status"] for row in rows] == ["ok", "ok"]
     for row in rows:
-        direct = api.run(scenario, fmu=simple_fmu, vehicle=vehicle, speed=row["speed"], until_distance=400.0)
+        direct = api.run(scenario, fmu=simple_fmu, vehicle=vehicle, speed=row["speed_ft/s"], until_distance=400.0)
         assert row["final_time_s"] == direct.final["time_s"]
 
 

@@ -199,24 +199,60 @@ def distance_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ya
 def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: float, yaw_rate: float, length: float,
                         width: float) -> tuple[float, float, float]:
     """(distance, its rate, its rate with the ego's yaw frozen) in one pass over the corners (the master's
-    look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0."""
-    if penetration(ego, dx, dy, length, width) >= 0.0:
-        return 0.0, 0.0, 0.0
+    look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0.
+
+    The per-look path, so written out: `penetration` and `_corners` inline (the same operations in the same
+    order, so the same bits); the eight corner distances first, then the rates of the closest corners only
+    (in corner order: the first sets them, later equally close ones can only lower them)."""
     a, b, c, s = ego
-    vu, vv = vx * c + vy * s, -vx * s + vy * c
-    best, rate, frozen = INF, INF, INF
+    ac = c if c >= 0.0 else -c
+    as_ = s if s >= 0.0 else -s
+    hl, hw = length / 2, width / 2
+    du = dx * c + dy * s  # the vehicle's centre in the ego's body frame
+    dv = -dx * s + dy * c
+    if (a * ac + b * as_ + hl - abs(dx) >= 0.0 and a * as_ + b * ac + hw - abs(dy) >= 0.0
+            and a + hl * ac + hw * as_ - abs(du) >= 0.0 and b + hl * as_ + hw * ac - abs(dv) >= 0.0):
+        return 0.0, 0.0, 0.0  # penetration >= 0: in contact or touching
+    acs, as_s, bc, bs = a * c, a * s, b * c, b * s
+    lc, ls, wc, ws = hl * c, hl * s, hw * c, hw * s
+    corners = (
+        # ego corner (sign_l a, sign_w b) turned by psi, minus the vehicle's centre, against the vehicle's box
+        (acs - bs - dx, as_s + bc - dy, hl, hw),
+        (acs + bs - dx, as_s - bc - dy, hl, hw),
+        (-acs - bs - dx, -as_s + bc - dy, hl, hw),
+        (-acs + bs - dx, -as_s - bc - dy, hl, hw),
+        # vehicle corner (sign_l hl, sign_w hw) turned by -psi, plus the centre in the body frame, against the ego's
+        (du + lc + ws, dv - ls + wc, a, b),
+        (du + lc - ws, dv - ls - wc, a, b),
+        (du - lc + ws, dv + ls + wc, a, b),
+        (du - lc - ws, dv + ls - wc, a, b),
+    )
     sqrt = math.sqrt
-    for k, (x, y, half_x, half_y) in enumerate(_corners(ego, dx, dy, length, width)):
-        # max(|x| - half_x, 0) without the call (the per-look path); the same value as np.maximum
+    gaps = []
+    for x, y, half_x, half_y in corners:
+        # max(|x| - half_x, 0) without the calls; the same value as np.maximum
         ex = (x if x >= 0.0 else -x) - half_x
         if ex < 0.0:
             ex = 0.0
         ey = (y if y >= 0.0 else -y) - half_y
         if ey < 0.0:
             ey = 0.0
-        d = sqrt(ex * ex + ey * ey)
-        if d > best:
+        gaps.append(sqrt(ex * ex + ey * ey))
+    best = min(gaps)
+    vu, vv = vx * c + vy * s, -vx * s + vy * c
+    rate = frozen = INF
+    first = True
+    for k in range(8):
+        d = gaps[k]
+        if d != best:
             continue
+        x, y, half_x, half_y = corners[k]
+        ex = (x if x >= 0.0 else -x) - half_x
+        if ex < 0.0:
+            ex = 0.0
+        ey = (y if y >= 0.0 else -y) - half_y
+        if ey < 0.0:
+            ey = 0.0
         gx = ex if x >= 0.0 else -ex
         gy = ey if y >= 0.0 else -ey
         if k < 4:  # ego corner: e = p + d
@@ -226,14 +262,13 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
             px_rate, py_rate = vu + yaw_rate * y, vv - yaw_rate * x
             r_frozen = (gx * vu + gy * vv) / d
         r = (gx * px_rate + gy * py_rate) / d
-        if d < best:
-            rate, frozen = r, r_frozen
+        if first:
+            rate, frozen, first = r, r_frozen, False
         else:
             if r < rate:
                 rate = r
             if r_frozen < frozen:
                 frozen = r_frozen
-        best = d
     return best, rate, frozen
 
 

@@ -54,10 +54,13 @@ Design: how the master uses these (one record for the run, `Extremes`, one row p
    looked-at vehicle's rate turned from < 0 at the step's start to >= 0, or its collision course began or
    ended. It bisects it like any trigger (rollback, TIME_TOLERANCE) and looks at the vehicle at the
    located instant.
-3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range), where TTC,
-   DRAC and headway are followed at every communication point (the driver's 20 Hz samples at least):
-   their roots and courses are found by the sign checks of 2, which assume at most one change of sign
-   between two communication points (no horizon bounds TTC's or headway's rate yet). Beyond RANGE only the
+3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range) while a
+   vehicle is on a collision course or has a headway: TTC, DRAC and headway are followed at every
+   communication point there (the driver's 20 Hz samples at least), their roots and courses found by the
+   sign checks of 2, which assume at most one change of sign between two communication points (no horizon
+   bounds TTC's or headway's rate yet). Within RANGE with neither (a car beside the ego's path), the
+   distance's horizon below, cut to `course_horizon`'s proven bound on when a course or a headway can
+   begin. Beyond RANGE only the
    distance applies, and the horizon is a proven lower bound, from the ego's bounds as in triggers.py (the
    acceleration A of its CG, its yaw rate r_max, the radius R of its footprint): the earliest of coming
    within RANGE (`distance_horizon`) and of a new minimum distance, which needs both the distance below the
@@ -573,6 +576,51 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
     return min(within, margin / (2 * fastest / rho + 2 * acceleration / speed))
 
 
+def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
+                   turn: float, acceleration: float) -> float:
+    """A lower bound (s) on when a collision course or a time headway can begin for a vehicle beside the ego's
+    path (the common case within RANGE: a car passing in the next lane): `until` or a half, quarter, ... of it
+    (at most COURSE_HALVINGS times) that the test below proves, else 0. half_x, half_y: the sums of the two
+    footprints' half extents along the road's axes x, y now (`_axes`' h: a |cos psi| + b |sin psi| + l / 2,
+    a |sin psi| + b |cos psi| + w / 2).
+
+    TTC is finite only if some s >= 0 has the projections overlapping on all four axes, so in particular on
+    x and y: |dx + vx s| < half_x and |dy + vy s| < half_y at the same s; and a headway needs
+    |dy| < half_y (s = 0). Neither can hold while the footprints' y projections stay apart, on the same
+    side, for every s in [0, S] with S >= every s at which the x projections overlap. Over tau in [0, T],
+    with the relative acceleration bounded by A (`acceleration`) and the ego turning (`turn` = R r_max):
+    - each velocity component moves at most F = A T and each position component at most v tau + E,
+      E = A T^2 / 2, from now;
+    - half_x and half_y grow at most turn T (d/dt (a |cos psi| + b |sin psi|) is at most
+      sqrt(a^2 + b^2) r_max <= R r_max, Cauchy-Schwarz);
+    - |dx + vx s| < half_x implies |vx| s < |dx| + half_x, so with |vx| > F every such s is below
+      S = (|dx| + |vx| T + E + half_x + turn T) / (|vx| - F);
+    - with sigma = sign(dy): sigma (dy + vy s) >= sigma dy - E + min(0, sigma vy T) + min(0, (sigma vy - F) S)
+      for every s in [0, S] (linear in s and tau, so its least value is at an end).
+    So if that lower bound exceeds half_y + turn T (by COURSE_MARGIN, for the rounding of `ttc` and
+    `headway`), TTC and the headway stay undefined for the whole of [0, T]."""
+    if dy == 0.0:
+        return 0.0
+    side = 1.0 if dy > 0.0 else -1.0
+    speed = abs(vx)
+    horizon = min(until, COURSE_WINDOW)
+    for _ in range(COURSE_HALVINGS + 1):
+        drift = acceleration * horizon  # F
+        slip = 0.5 * drift * horizon  # E
+        grow = turn * horizon
+        if speed <= drift:
+            horizon *= 0.5
+            continue
+        reach = (abs(dx) + speed * horizon + slip + half_x + grow) / (speed - drift)  # S
+        lateral = side * vy
+        margin = (side * dy - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach)
+                  - (half_y + grow))
+        if margin > COURSE_MARGIN:
+            return horizon
+        horizon *= 0.5
+    return 0.0
+
+
 def _reach_times(distance, rate, acceleration):
     """`_reach_time` over arrays (triggers.reach_time)."""
     used_up = distance <= 0.0
@@ -604,6 +652,11 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 # m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
 # follows encounters within device.ssm.range (default 50 m); the distance everywhere
 RANGE = 50.0
+# course_horizon: s, the longest horizon tried; how many times it is halved before giving up; m, the least
+# lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
+COURSE_WINDOW = 1.0
+COURSE_HALVINGS = 4
+COURSE_MARGIN = 1e-6
 SCALAR_VEHICLES = 4  # as master.SCALAR_VEHICLES: up to this many vehicles in plain floats
 
 MEASURES = ("min_distance", "min_ttc", "max_drac", "min_pet", "min_headway")
@@ -724,7 +777,7 @@ class Extremes:
         dx, dy = station - state.x, -lateral - state.y
         vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
         d, rate, frozen = _distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
-        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF)
+        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego)
         if d > RANGE:
             return {"min_distance": d}, (rate, math.nan, math.nan, math.nan), motion
         value = ttc(ego, dx, dy, vx, vy, length, width)
@@ -757,22 +810,25 @@ class Extremes:
              radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
         """The master's look at vehicle i at a communication point or a located instant: offers its values
         and returns its rates (`rates`) and a horizon: a lower bound (s from now) on when it next needs a
-        look. 0 within RANGE (TTC, DRAC and headway are followed at every communication point there, their
-        roots and collision courses located by the master); beyond it, the earliest of the vehicle coming
-        within RANGE and of a new minimum distance (which needs both the distance below the recorded minimum
-        and an approach ending: the latest of `distance_horizon`, `approach_horizon` and `heading_horizon`),
-        and never past the
-        end of a lateral transition (the vehicle's velocity changes at once there). The ego's bounds as in
+        look. 0 within RANGE on a collision course or with a headway (TTC, DRAC and headway are followed at
+        every communication point there, their roots and collision courses located by the master); beyond
+        it, the earliest of the vehicle coming within RANGE and of a new minimum distance (which needs both
+        the distance below the recorded minimum and an approach ending: the latest of `distance_horizon`,
+        `approach_horizon` and `heading_horizon`), and never past the end of a lateral transition (the
+        vehicle's velocity changes at once there). Within RANGE with neither, the new minimum's and the
+        transition's bound, no later than `course_horizon` proves no collision course or headway can
+        begin. The ego's bounds as in
         triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
-        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left) = \
+        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left, ego) = \
             self._evaluate(traffic, i, state) if evaluated is None else evaluated
         t = state.time
         for name, value in values.items():
             self.offer(name, i, t, value)
-        if d <= RANGE:
-            return rates, 0.0
+        near = d <= RANGE
+        if near and (rates[1] == rates[1] or rates[3] == rates[3]):
+            return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
         turn = radius * yaw_rate_bound
         relative = acceleration + abs(speed_rate)
         entering = distance_horizon(d, frozen, RANGE, turn, relative)
@@ -782,7 +838,15 @@ class Extremes:
             new_minimum = max(new_minimum, approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
                                                             yaw_rate_bound),
                               heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
-        return rates, min(min(entering, new_minimum), transition_left)
+        if not near:
+            return rates, min(min(entering, new_minimum), transition_left)
+        until = min(new_minimum, transition_left)
+        if not until > 0.0:
+            return rates, 0.0
+        a, b, c, s = ego
+        ac, as_ = abs(c), abs(s)
+        return rates, course_horizon(dx, dy, vx, vy, a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2,
+                                     until, turn, relative)
 
     # -- post-encroachment time
 

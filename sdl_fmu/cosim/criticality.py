@@ -448,6 +448,12 @@ def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehi
     value = headway(ego, dx, dy, station_rate, vehicle_station_rate, length, width)
     if value == INF:
         return math.nan
+    return _headway_rate(ego, value, station_rate, vehicle_station_rate, station_acceleration, yaw_rate)
+
+
+def _headway_rate(ego: Footprint, value: float, station_rate: float, vehicle_station_rate: float,
+                  station_acceleration: float, yaw_rate: float) -> float:
+    """`headway_rate` where the headway `value` is known to be defined."""
     a, b, c, s = ego
     cos_rate = -math.copysign(1.0, c) * s * yaw_rate
     sin_rate = math.copysign(1.0, s) * c * yaw_rate
@@ -782,9 +788,10 @@ class Extremes:
             return {"min_distance": d}, (rate, math.nan, math.nan, math.nan), motion
         value = ttc(ego, dx, dy, vx, vy, length, width)
         ego_ax = state.ax * c - state.ay * s
-        values = {"min_distance": d, "min_ttc": value,
-                  "min_headway": headway(ego, dx, dy, ego_vx, -speed, length, width)}
-        headway_change = headway_rate(ego, dx, dy, ego_vx, -speed, ego_ax, state.yaw_rate, length, width)
+        gap_time = headway(ego, dx, dy, ego_vx, -speed, length, width)
+        values = {"min_distance": d, "min_ttc": value, "min_headway": gap_time}
+        headway_change = math.nan if gap_time == INF else \
+            _headway_rate(ego, gap_time, ego_vx, -speed, ego_ax, state.yaw_rate)
         if not 0.0 < value < INF:
             return values, (rate, math.nan, math.nan, headway_change), motion
         ax, ay = -speed_rate - ego_ax, -(state.ax * s + state.ay * c)
@@ -800,6 +807,16 @@ class Extremes:
         from nan to a number or back (a collision course began or ended, or the vehicle crossed RANGE: the
         value there bounds the interval over which the extreme is taken)."""
         return self._evaluate(traffic, i, state)[1]
+
+    def distance_rate(self, traffic, i: int, state) -> float:
+        """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
+        t = state.time
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+        return _distance_and_rates(Footprint(self.ego_length / 2, self.ego_width / 2, c, s), station - state.x,
+                                   -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy, state.yaw_rate,
+                                   float(traffic.length[i]), float(traffic.width[i]))[1]
 
     def evaluate(self, traffic, i: int, state):
         """Vehicle i at the ego's state, nothing offered yet: for `look` (its `evaluated`), so that the master

@@ -575,13 +575,19 @@ class Cosimulation:
                 before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
                                             math.isnan(extremes.rates(traffic, i, p)[1]) != was)
             else:
-                before, at = root_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k],
+                rate_of = (lambda p, i=i: extremes.distance_rate(traffic, i, p)) if k == 0 else \
+                    (lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k])
+                before, at = root_instant(t0, t1, rate_of,
                                           self.look_rates[i][k], self.evaluated[i][1][k])
             # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
             # instant before it is not offered, DRAC growing without bound toward a contact
-            rates = extremes.rates(traffic, i, at)
+            evaluated = extremes.evaluate(traffic, i, at)
+            rates = evaluated[1]
             contact = rates[0] == 0.0 and math.isnan(rates[1])
-            look_at(i, None if contact else before, at)
+            if not contact and before is not None:
+                extremes.look(traffic, i, before, bounds.acceleration, bounds.yaw_rate, bounds.radius)
+            extremes.look(traffic, i, at, bounds.acceleration, bounds.yaw_rate, bounds.radius, evaluated)
+            self.located += 1
         for i, end_time in ending:
             # the vehicle's velocity jumps at its transition's end (TTC, DRAC and headway with it): looked at
             # with the motion just before (1e-9 s earlier for the vehicle: < 1e-7 m) and at the instant

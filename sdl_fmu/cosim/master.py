@@ -537,13 +537,15 @@ class Cosimulation:
             """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
             same bracket to CRITICALITY_TOLERANCE, with fewer probes where the rate is smooth (regula falsi,
             Illinois variant; each estimate kept tolerance / 2 inside the bracket, so that once near the root
-            the next probe closes the bracket from the other side; bisection whenever a probe did not halve it)."""
+            the next probe closes the bracket from the other side; bisection whenever a probe did not halve it,
+            and while the rate at high is exactly 0: a flat extreme, the distance to a car passing in the next
+            lane, whose rate jumps from < 0 to 0 at the root, where the secant only ever points at high)."""
             low_state, high_state = None, state
             side, halve = 0, False
             while high - low > CRITICALITY_TOLERANCE:
                 width = high - low
                 slope = high_value - low_value
-                if halve or not (slope > 0.0 and math.isfinite(slope)):
+                if halve or high_value == 0.0 or not (slope > 0.0 and math.isfinite(slope)):
                     guess = 0.5 * (low + high)
                 else:
                     guess = low - low_value * width / slope

@@ -585,8 +585,8 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
 def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
                    turn: float, acceleration: float) -> float:
     """A lower bound (s) on when a collision course or a time headway can begin for a vehicle beside the ego's
-    path (the common case within RANGE: a car passing in the next lane): `until` or a half, quarter, ... of it
-    (at most COURSE_HALVINGS times) that the test below proves, else 0. half_x, half_y: the sums of the two
+    path (the common case within RANGE: a car passing in the next lane): the longest T <= `until` (found
+    within COURSE_BISECTIONS bisections) that the test below proves, else 0. half_x, half_y: the sums of the two
     footprints' half extents along the road's axes x, y now (`_axes`' h: a |cos psi| + b |sin psi| + l / 2,
     a |sin psi| + b |cos psi| + w / 2).
 
@@ -608,23 +608,29 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
     if dy == 0.0:
         return 0.0
     side = 1.0 if dy > 0.0 else -1.0
-    speed = abs(vx)
-    horizon = min(until, COURSE_WINDOW)
-    for _ in range(COURSE_HALVINGS + 1):
+    lateral, ahead, speed, gap = side * vy, abs(dx) + half_x, abs(vx), side * dy - half_y
+
+    def proven(horizon: float) -> bool:
         drift = acceleration * horizon  # F
+        if speed <= drift:
+            return False
         slip = 0.5 * drift * horizon  # E
         grow = turn * horizon
-        if speed <= drift:
-            horizon *= 0.5
-            continue
-        reach = (abs(dx) + speed * horizon + slip + half_x + grow) / (speed - drift)  # S
-        lateral = side * vy
-        margin = (side * dy - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach)
-                  - (half_y + grow))
-        if margin > COURSE_MARGIN:
-            return horizon
-        horizon *= 0.5
-    return 0.0
+        reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
+        return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
+                > COURSE_MARGIN)
+
+    # the test only gets harder as T grows (every term worsens): the longest T it passes, bisected
+    low, high = 0.0, min(until, COURSE_WINDOW)
+    if proven(high):
+        return high
+    for _ in range(COURSE_BISECTIONS):
+        middle = 0.5 * (low + high)
+        if proven(middle):
+            low = middle
+        else:
+            high = middle
+    return low
 
 
 def _reach_times(distance, rate, acceleration):
@@ -658,10 +664,10 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 # m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
 # follows encounters within device.ssm.range (default 50 m); the distance everywhere
 RANGE = 50.0
-# course_horizon: s, the longest horizon tried; how many times it is halved before giving up; m, the least
+# course_horizon: s, the longest horizon tried; how many bisections find the longest it proves; m, the least
 # lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
 COURSE_WINDOW = 1.0
-COURSE_HALVINGS = 4
+COURSE_BISECTIONS = 7
 COURSE_MARGIN = 1e-6
 SCALAR_VEHICLES = 4  # as master.SCALAR_VEHICLES: up to this many vehicles in plain floats
 
@@ -685,6 +691,9 @@ class Extremes:
         self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
         self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
         self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
+        # s from the last look: a lower bound on when that vehicle's next located instant (a closest
+        # approach, a collision course's start or end, a transition's end) can be (0: any time)
+        self.quiet = 0.0
 
     def _grow(self, size: int) -> None:
         while size > len(self.left_path):
@@ -845,25 +854,35 @@ class Extremes:
             self.offer(name, i, t, value)
         near = d <= RANGE
         if near and (rates[1] == rates[1] or rates[3] == rates[3]):
+            self.quiet = 0.0
             return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
         turn = radius * yaw_rate_bound
         relative = acceleration + abs(speed_rate)
         entering = distance_horizon(d, frozen, RANGE, turn, relative)
         new_minimum = distance_horizon(d, frozen, float(self.value["min_distance"][i]) - FLAT, turn, relative)
+        # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
+        approach_end = INF if rates[0] >= 0.0 else 0.0
         if frozen < -turn:
             vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
-            new_minimum = max(new_minimum, approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
-                                                            yaw_rate_bound),
-                              heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
+            approach_end = max(approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
+                                                yaw_rate_bound),
+                               heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
+            new_minimum = max(new_minimum, approach_end)
         if not near:
+            # a collision course can be seen only within RANGE
+            self.quiet = min(min(entering, approach_end), transition_left)
             return rates, min(min(entering, new_minimum), transition_left)
+        a, b, c, s = ego
+        ac, as_ = abs(c), abs(s)
+        half_x, half_y = a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
+        quiet = min(approach_end, transition_left)
+        self.quiet = course_horizon(dx, dy, vx, vy, half_x, half_y, quiet, turn, relative) if quiet > 0.0 else 0.0
         until = min(new_minimum, transition_left)
         if not until > 0.0:
             return rates, 0.0
-        a, b, c, s = ego
-        ac, as_ = abs(c), abs(s)
-        return rates, course_horizon(dx, dy, vx, vy, a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2,
-                                     until, turn, relative)
+        if until <= self.quiet:  # proven there already (the test only gets harder as T grows)
+            return rates, until
+        return rates, max(self.quiet, course_horizon(dx, dy, vx, vy, half_x, half_y, until, turn, relative))
 
     # -- post-encroachment time
 

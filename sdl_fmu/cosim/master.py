@@ -152,10 +152,16 @@ class Cosimulation:
         self.extremes = Extremes(self.bounds.length, self.bounds.width)
         self.next_look = np.full(16, NO_LOOK)
         self.earliest_look = NO_LOOK
+        # per vehicle, the instant before which its located instants cannot be (Extremes.quiet), and the
+        # earliest step end at which one can be found (at its next look and not before that instant): a step
+        # ending before that needs no FMU snapshot to locate it from
+        self.quiet_until = np.full(16, NO_LOOK)
+        self.earliest_quiet = NO_LOOK
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
         self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
         self.pet_station = math.inf  # the nearest such area's station
+        self.pet_due = NO_LOOK  # a lower bound on when the ego's front can reach it (NO_LOOK: to be computed)
         self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
@@ -436,9 +442,12 @@ class Cosimulation:
     # ---- criticality ------------------------------------------------------------------------------
 
     def criticality_due(self, t: float, limit: float) -> bool:
-        """Whether an extreme could lie in a step from t to at most `limit`: a vehicle's look comes due (every
-        step within criticality.RANGE), a vehicle's footprint leaves the ego's lane, or a PET is pending."""
-        return (self.earliest_look <= limit and bool(len(self.traffic.active))) or self.pet_pending \
+        """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU
+        snapshot): a vehicle's look comes due after the instant before which none of its located instants can
+        be (Extremes.quiet), a vehicle's footprint leaves the ego's lane, or the ego's front can reach a
+        pending PET's conflict area (`pet_horizon`)."""
+        return (self.earliest_quiet <= limit and bool(len(self.traffic.active))) \
+            or (self.pet_pending and self.pet_due <= limit) \
             or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
 
     def look(self, state: EgoState, everyone: bool = False) -> None:
@@ -450,17 +459,22 @@ class Cosimulation:
         traffic, bounds = self.traffic, self.bounds
         if len(self.next_look) < traffic.size:
             self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
-        earliest = math.inf
+            self.quiet_until = np.concatenate([self.quiet_until, np.full(traffic.size, NO_LOOK)])
+        earliest = earliest_quiet = math.inf
         evaluated, self.evaluated = self.evaluated, {}
+        extremes = self.extremes
         for i in traffic.active.tolist():
             instant = float(self.next_look[i])
             if everyone or instant <= t:
-                rates, horizon = self.extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
-                                                    bounds.radius, evaluated.get(i))
+                rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
+                                               bounds.radius, evaluated.get(i))
                 self.look_rates[i] = rates
                 instant = self.next_look[i] = t + horizon
+                self.quiet_until[i] = t + extremes.quiet
             earliest = min(earliest, instant)
+            earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
         self.earliest_look = earliest
+        self.earliest_quiet = earliest_quiet
 
     def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
         """After a step from t0 to state.time: locates the extremes inside it (from the snapshot `base` at t0;
@@ -651,6 +665,16 @@ class Cosimulation:
         stations = self.extremes.pending_stations()
         self.pet_pending = bool(len(stations))
         self.pet_station = float(stations.min()) if len(stations) else math.inf
+        self.pet_due = NO_LOOK
+
+    def pet_horizon(self, state: EgoState) -> float:
+        """When the ego's front can first reach the pending conflict station: the front's station rate is at
+        most the reference point's (which grows at most at the acceleration bound A) plus R r_max (the
+        footprint turning), so reach_time(station - front, station rate + R r_max, A) as for event distances."""
+        bounds = self.bounds
+        station_rate = state.vx * math.cos(state.psi) - state.vy * math.sin(state.psi)
+        return state.time + reach_time_scalar(self.pet_station - self._front(state),
+                                              station_rate + bounds.radius * bounds.yaw_rate, bounds.acceleration)
 
     # ---- inputs and records ---------------------------------------------------------------------
 
@@ -730,8 +754,10 @@ class Cosimulation:
                 if earliest < limit:
                     horizons = self.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
+                if self.pet_pending and self.pet_due <= limit:
+                    self.pet_due = self.pet_horizon(state)
                 # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (self.earliest_look <= limit or self.pet_pending
+                base = ego.save() if self.exact and (self.earliest_quiet <= limit or self.pet_pending
                                                      or self.leaves_lane) and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no

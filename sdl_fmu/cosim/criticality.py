@@ -585,8 +585,8 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
 def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
                    turn: float, acceleration: float) -> float:
     """A lower bound (s) on when a collision course or a time headway can begin for a vehicle beside the ego's
-    path (the common case within RANGE: a car passing in the next lane): the longest T <= `until` (found
-    within COURSE_BISECTIONS bisections) that the test below proves, else 0. half_x, half_y: the sums of the two
+    path (the common case within RANGE: a car passing in the next lane): a T <= `until`, near the longest that the
+    test below proves, else 0. half_x, half_y: the sums of the two
     footprints' half extents along the road's axes x, y now (`_axes`' h: a |cos psi| + b |sin psi| + l / 2,
     a |sin psi| + b |cos psi| + w / 2).
 
@@ -620,17 +620,21 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
         return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
                 > COURSE_MARGIN)
 
-    # the test only gets harder as T grows (every term worsens): the longest T it passes, bisected
-    low, high = 0.0, min(until, COURSE_WINDOW)
-    if proven(high):
-        return high
-    for _ in range(COURSE_BISECTIONS):
-        middle = 0.5 * (low + high)
-        if proven(middle):
-            low = middle
-        else:
-            high = middle
-    return low
+    # the test only gets harder as T grows (every term worsens). A first T from its leading terms (S ~ S0 =
+    # (|dx| + half_x) / |vx|: gap + min(0, sigma vy) S0 - (A S0 + turn + max(0, -sigma vy)) T > 0), shortened
+    # until the test passes
+    if speed <= 0.0:
+        return 0.0
+    reach0 = ahead / speed
+    room = gap + min(0.0, lateral) * reach0
+    if room <= 0.0:
+        return 0.0
+    horizon = min(min(until, COURSE_WINDOW), 0.9 * room / (acceleration * reach0 + turn + max(0.0, -lateral)))
+    for _ in range(COURSE_TRIES):
+        if proven(horizon):
+            return horizon
+        horizon *= 0.75
+    return 0.0
 
 
 def _reach_times(distance, rate, acceleration):
@@ -664,10 +668,10 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 # m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
 # follows encounters within device.ssm.range (default 50 m); the distance everywhere
 RANGE = 50.0
-# course_horizon: s, the longest horizon tried; how many bisections find the longest it proves; m, the least
-# lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
+# course_horizon: s, the longest horizon tried; how many times it shortens its first guess (by a quarter) before giving up; m,
+# the least lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
 COURSE_WINDOW = 1.0
-COURSE_BISECTIONS = 7
+COURSE_TRIES = 8
 COURSE_MARGIN = 1e-6
 SCALAR_VEHICLES = 4  # as master.SCALAR_VEHICLES: up to this many vehicles in plain floats
 
@@ -872,17 +876,17 @@ class Extremes:
             # a collision course can be seen only within RANGE
             self.quiet = min(min(entering, approach_end), transition_left)
             return rates, min(min(entering, new_minimum), transition_left)
+        # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
+        longest = min(max(new_minimum, approach_end), transition_left)
+        if not longest > 0.0:
+            self.quiet = 0.0
+            return rates, 0.0
         a, b, c, s = ego
         ac, as_ = abs(c), abs(s)
-        half_x, half_y = a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
-        quiet = min(approach_end, transition_left)
-        self.quiet = course_horizon(dx, dy, vx, vy, half_x, half_y, quiet, turn, relative) if quiet > 0.0 else 0.0
-        until = min(new_minimum, transition_left)
-        if not until > 0.0:
-            return rates, 0.0
-        if until <= self.quiet:  # proven there already (the test only gets harder as T grows)
-            return rates, until
-        return rates, max(self.quiet, course_horizon(dx, dy, vx, vy, half_x, half_y, until, turn, relative))
+        course = course_horizon(dx, dy, vx, vy, a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2,
+                                longest, turn, relative)
+        self.quiet = min(min(approach_end, transition_left), course)
+        return rates, min(min(new_minimum, transition_left), course)
 
     # -- post-encroachment time
 

@@ -53,6 +53,9 @@ MIN_LOOKAHEAD = 1e-3
 # s, how exactly a criticality extreme's instant is located (a bracket this wide holds the root, so that two
 # runs at different steps agree within TIME_TOLERANCE)
 CRITICALITY_TOLERANCE = TIME_TOLERANCE / 4
+# the fraction of the way to a flat extreme's extended root a probe goes (root_instant): short of it, so that
+# the probes approach it from below, where the rate is known
+FLAT_STEP = 0.98
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 # up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
@@ -551,17 +554,30 @@ class Cosimulation:
             """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
             same bracket to CRITICALITY_TOLERANCE, with fewer probes where the rate is smooth (regula falsi,
             Illinois variant; each estimate kept tolerance / 2 inside the bracket, so that once near the root
-            the next probe closes the bracket from the other side; bisection whenever a probe did not halve it,
-            and while the rate at high is exactly 0: a flat extreme, the distance to a car passing in the next
-            lane, whose rate jumps from < 0 to 0 at the root, where the secant only ever points at high)."""
+            the next probe closes the bracket from the other side; bisection whenever a probe did not halve
+            it). While the rate at high is exactly 0 (a flat extreme: the distance to a car passing in the next
+            lane, whose rate rises continuously to 0 at the root and stays 0 after it) the secant to high only
+            ever points at high: the estimate is then the secant through the last two probes below the root,
+            extended to 0, taken FLAT_STEP of the way (or bisection before there are two, and after a probe
+            past the root that did not halve the bracket)."""
             low_state, high_state = None, state
             side, halve = 0, False
+            rising, earlier = low_value, None  # the rate at low (unscaled), and (instant, rate) of the low before
             while high - low > CRITICALITY_TOLERANCE:
                 width = high - low
                 slope = high_value - low_value
-                if halve or high_value == 0.0 or not (slope > 0.0 and math.isfinite(slope)):
-                    guess = 0.5 * (low + high)
-                else:
+                guess = 0.5 * (low + high)
+                flat = high_value == 0.0
+                if halve:
+                    pass
+                elif flat:
+                    if earlier is not None and rising > earlier[1]:
+                        extended = low - rising * (low - earlier[0]) / (rising - earlier[1])
+                        if extended < high:
+                            # FLAT_STEP of the way, to stay below the root (then the next extension is
+                            # nearer), and once it is within tolerance / 2, a probe there to close the bracket
+                            guess = low + FLAT_STEP * (extended - low)
+                elif slope > 0.0 and math.isfinite(slope):
                     guess = low - low_value * width / slope
                 guess = min(max(guess, low + 0.5 * CRITICALITY_TOLERANCE), high - 0.5 * CRITICALITY_TOLERANCE)
                 probed = probe(guess)
@@ -572,11 +588,12 @@ class Cosimulation:
                         low_value *= 0.5
                     side = 1
                 else:
-                    low, low_state, low_value = guess, probed, rate
+                    earlier = (low, rising)
+                    low, low_state, low_value, rising = guess, probed, rate, rate
                     if side < 0:
                         high_value *= 0.5
                     side = -1
-                halve = high - low > 0.5 * width
+                halve = high - low > 0.5 * width and not (flat and rate < 0)
             return low_state, high_state
 
         def look_at(i: int, *states) -> None:

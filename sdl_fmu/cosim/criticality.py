@@ -862,7 +862,6 @@ class Extremes:
             return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
         turn = radius * yaw_rate_bound
         relative = acceleration + abs(speed_rate)
-        entering = distance_horizon(d, frozen, RANGE, turn, relative)
         new_minimum = distance_horizon(d, frozen, float(self.value["min_distance"][i]) - FLAT, turn, relative)
         # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
         approach_end = INF if rates[0] >= 0.0 else 0.0
@@ -874,6 +873,7 @@ class Extremes:
             new_minimum = max(new_minimum, approach_end)
         if not near:
             # a collision course can be seen only within RANGE
+            entering = distance_horizon(d, frozen, RANGE, turn, relative)
             self.quiet = min(min(entering, approach_end), transition_left)
             return rates, min(min(entering, new_minimum), transition_left)
         # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both

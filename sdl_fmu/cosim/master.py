@@ -159,6 +159,7 @@ class Cosimulation:
         # earliest step end at which one can be found (at its next look and not before that instant): a step
         # ending before that needs no FMU snapshot to locate it from
         self.quiet_until = np.full(16, NO_LOOK)
+        self.look_time = np.full(16, NO_LOOK)  # per vehicle, its last look at a communication point
         self.earliest_quiet = NO_LOOK
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
@@ -453,27 +454,32 @@ class Cosimulation:
             or (self.pet_pending and self.pet_due <= limit) \
             or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
 
-    def look(self, state: EgoState, everyone: bool = False) -> None:
+    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None) -> None:
         """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
-        communication point, keeps their rates (the next step's start) and their next-look instants."""
+        communication point, keeps their rates (the next step's start) and their next-look instants. With
+        `ahead` (a step's end), also the vehicles last looked at before now whose located instants could
+        come by then: a look now moves that bound on, and the step may then need no FMU snapshot."""
         t = state.time
-        if not everyone and t < self.earliest_look:
+        if not everyone and t < self.earliest_look and ahead is None:
             return
         traffic, bounds = self.traffic, self.bounds
         if len(self.next_look) < traffic.size:
             self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
             self.quiet_until = np.concatenate([self.quiet_until, np.full(traffic.size, NO_LOOK)])
+            self.look_time = np.concatenate([self.look_time, np.full(traffic.size, NO_LOOK)])
         earliest = earliest_quiet = math.inf
         evaluated, self.evaluated = self.evaluated, {}
         extremes = self.extremes
         for i in traffic.active.tolist():
             instant = float(self.next_look[i])
-            if everyone or instant <= t:
+            if everyone or instant <= t or (ahead is not None and self.quiet_until[i] <= ahead
+                                            and self.look_time[i] < t):
                 rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
                                                bounds.radius, evaluated.get(i))
                 self.look_rates[i] = rates
                 instant = self.next_look[i] = t + horizon
                 self.quiet_until[i] = t + extremes.quiet
+                self.look_time[i] = t
             earliest = min(earliest, instant)
             earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
         self.earliest_look = earliest
@@ -773,6 +779,8 @@ class Cosimulation:
                     earliest = min(horizons.values()) if horizons else math.inf
                 if self.pet_pending and self.pet_due <= limit:
                     self.pet_due = self.pet_horizon(state)
+                if self.exact and self.earliest_quiet <= limit:
+                    self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
                 # a snapshot at the step's start, from which extremes inside the step are located
                 base = ego.save() if self.exact and (self.earliest_quiet <= limit or self.pet_pending
                                                      or self.leaves_lane) and self.criticality_due(t, limit) else None

@@ -44,7 +44,9 @@ Design: how the master uses these (one record for the run, `Extremes`, one row p
    an extreme is reached stays), and the look returns the vehicle's rates and its horizon. The master
    keeps a next-look instant per vehicle and their minimum, as it keeps its traffic bounds: at a
    communication point it looks at the vehicles whose instant has come, and drops every next-look instant
-   when something fires (an action changes a vehicle's motion). It also looks at every vehicle at its
+   when something fires (an action changes a vehicle's motion). A look also leaves `Extremes.quiet`, a
+   bound before which none of the vehicle's located instants (2) can be: the master starts a step from an FMU
+   snapshot only when such a bound ends within it. It also looks at every vehicle at its
    spawn, its departure and the run's end (an extreme at the end of an interval), and at every located
    instant below.
 2. Located instants. Inside a step an extreme is the root of its rate (`Extremes.rates`: distance, TTC,

@@ -28,7 +28,7 @@ class WithoutCriticality(Cosimulation):
     def follow_criticality(self, base, t0, state, everyone):
         pass
 
-    def look(self, state, everyone=False):
+    def look(self, state, everyone=False, ahead=None):
         pass
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, approach_horizons, band_times, conflict_station,
+                                       course_horizon,
                                        distance, distance_horizon, distance_horizons, distance_rate, distance_rates,
                                        distances, drac, drac_rate, dracs, heading_horizon, headway, headway_rate,
                                        headways, post_encroachment_time, signed_distance, signed_distances, ttc,
@@ -236,6 +237,45 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
                 assert distance_rate(ego_s, dx_s, dy_s, vx_s, vy_s, start[7], CAR_LENGTH, CAR_WIDTH) < 0
             checked += 1
     assert checked > 50
+
+
+def test_course_horizon_is_a_lower_bound_on_a_collision_course_or_headway_beginning():
+    # A vehicle beside the ego's path (the next lane, or farther), relative acceleration |(ax, ay)| <= A in
+    # any direction (half the cases straight at the vehicle's side, the worst for the lateral gap), the ego
+    # turning at up to r_max: before course_horizon's instant TTC stays undefined (no collision course) and
+    # so does the headway (given both moving forward: only the lateral overlap could start it). Checked on a
+    # grid up to each horizon.
+    rng = np.random.default_rng(17)
+    acceleration, yaw_rate_bound = 12.0, 0.8
+    radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
+    turn = radius * yaw_rate_bound
+    proven = 0
+    for _ in range(1500):
+        side = rng.choice([-1.0, 1.0])
+        dy0 = side * rng.uniform(1.0, 9.0)
+        size = rng.uniform(0, acceleration)
+        angle = rng.uniform(0, 2 * math.pi) if rng.uniform() < 0.5 else (-math.pi / 2 if side > 0 else math.pi / 2)
+        start = (rng.uniform(-60, 60), dy0, rng.choice([rng.uniform(-45, 45), rng.uniform(-2, 2)]),
+                 rng.uniform(-2, 2), size * math.cos(angle), size * math.sin(angle), rng.uniform(-0.2, 0.2),
+                 rng.choice([-1.0, 1.0, rng.uniform(-1, 1)]) * yaw_rate_bound)
+        ego, dx, dy, vx, vy = motion(0.0, start)
+        a, b, c, s = ego
+        half_x = a * abs(c) + b * abs(s) + CAR_LENGTH / 2
+        half_y = a * abs(s) + b * abs(c) + CAR_WIDTH / 2
+        until = course_horizon(dx, dy, vx, vy, half_x, half_y, 1.0, turn, acceleration)
+        assert 0.0 <= until <= 1.0
+        if until == 0.0:
+            continue
+        proven += 1
+        for t in np.linspace(0, until, 60):
+            ego_t, dx_t, dy_t, vx_t, vy_t = motion(t, start)
+            assert ttc(ego_t, dx_t, dy_t, vx_t, vy_t, CAR_LENGTH, CAR_WIDTH) == math.inf
+            assert headway(ego_t, dx_t, dy_t, 25.0, 20.0, CAR_LENGTH, CAR_WIDTH) == math.inf
+    assert proven > 300
+    # not vacuous: a car 20 m ahead in the next lane (clearance 3.6 - 1.8 = 1.8 m), closing at 40 m/s, is
+    # proven off course for a while, one in the ego's lane never
+    assert course_horizon(20.0, LANE, -40.0, 0.0, 4.55, 1.8, 1.0, turn, acceleration) > 0.01
+    assert course_horizon(20.0, 0.5, -40.0, 0.0, 4.55, 1.8, 1.0, turn, acceleration) == 0.0
 
 
 # ---- PET on a hand-built crossing -------------------------------------------------------------------------------

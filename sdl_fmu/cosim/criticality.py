@@ -44,7 +44,9 @@ Design: how the master uses these (one record for the run, `Extremes`, one row p
    an extreme is reached stays), and the look returns the vehicle's rates and its horizon. The master
    keeps a next-look instant per vehicle and their minimum, as it keeps its traffic bounds: at a
    communication point it looks at the vehicles whose instant has come, and drops every next-look instant
-   when something fires (an action changes a vehicle's motion). It also looks at every vehicle at its
+   when something fires (an action changes a vehicle's motion). A look also leaves `Extremes.quiet`, a
+   bound before which none of the vehicle's located instants (2) can be: the master starts a step from an FMU
+   snapshot only when such a bound ends within it. It also looks at every vehicle at its
    spawn, its departure and the run's end (an extreme at the end of an interval), and at every located
    instant below.
 2. Located instants. Inside a step an extreme is the root of its rate (`Extremes.rates`: distance, TTC,
@@ -54,10 +56,13 @@ Design: how the master uses these (one record for the run, `Extremes`, one row p
    looked-at vehicle's rate turned from < 0 at the step's start to >= 0, or its collision course began or
    ended. It bisects it like any trigger (rollback, TIME_TOLERANCE) and looks at the vehicle at the
    located instant.
-3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range), where TTC,
-   DRAC and headway are followed at every communication point (the driver's 20 Hz samples at least):
-   their roots and courses are found by the sign checks of 2, which assume at most one change of sign
-   between two communication points (no horizon bounds TTC's or headway's rate yet). Beyond RANGE only the
+3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range) while a
+   vehicle is on a collision course or has a headway: TTC, DRAC and headway are followed at every
+   communication point there (the driver's 20 Hz samples at least), their roots and courses found by the
+   sign checks of 2, which assume at most one change of sign between two communication points (no horizon
+   bounds TTC's or headway's rate yet). Within RANGE with neither (a car beside the ego's path), the
+   distance's horizon below, cut to `course_horizon`'s proven bound on when a course or a headway can
+   begin. Beyond RANGE only the
    distance applies, and the horizon is a proven lower bound, from the ego's bounds as in triggers.py (the
    acceleration A of its CG, its yaw rate r_max, the radius R of its footprint): the earliest of coming
    within RANGE (`distance_horizon`) and of a new minimum distance, which needs both the distance below the
@@ -199,24 +204,60 @@ def distance_rate(ego: Footprint, dx: float, dy: float, vx: float, vy: float, ya
 def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: float, yaw_rate: float, length: float,
                         width: float) -> tuple[float, float, float]:
     """(distance, its rate, its rate with the ego's yaw frozen) in one pass over the corners (the master's
-    look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0."""
-    if penetration(ego, dx, dy, length, width) >= 0.0:
-        return 0.0, 0.0, 0.0
+    look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0.
+
+    The per-look path, so written out: `penetration` and `_corners` inline (the same operations in the same
+    order, so the same bits); the eight corner distances first, then the rates of the closest corners only
+    (in corner order: the first sets them, later equally close ones can only lower them)."""
     a, b, c, s = ego
-    vu, vv = vx * c + vy * s, -vx * s + vy * c
-    best, rate, frozen = INF, INF, INF
+    ac = c if c >= 0.0 else -c
+    as_ = s if s >= 0.0 else -s
+    hl, hw = length / 2, width / 2
+    du = dx * c + dy * s  # the vehicle's centre in the ego's body frame
+    dv = -dx * s + dy * c
+    if (a * ac + b * as_ + hl - abs(dx) >= 0.0 and a * as_ + b * ac + hw - abs(dy) >= 0.0
+            and a + hl * ac + hw * as_ - abs(du) >= 0.0 and b + hl * as_ + hw * ac - abs(dv) >= 0.0):
+        return 0.0, 0.0, 0.0  # penetration >= 0: in contact or touching
+    acs, as_s, bc, bs = a * c, a * s, b * c, b * s
+    lc, ls, wc, ws = hl * c, hl * s, hw * c, hw * s
+    corners = (
+        # ego corner (sign_l a, sign_w b) turned by psi, minus the vehicle's centre, against the vehicle's box
+        (acs - bs - dx, as_s + bc - dy, hl, hw),
+        (acs + bs - dx, as_s - bc - dy, hl, hw),
+        (-acs - bs - dx, -as_s + bc - dy, hl, hw),
+        (-acs + bs - dx, -as_s - bc - dy, hl, hw),
+        # vehicle corner (sign_l hl, sign_w hw) turned by -psi, plus the centre in the body frame, against the ego's
+        (du + lc + ws, dv - ls + wc, a, b),
+        (du + lc - ws, dv - ls - wc, a, b),
+        (du - lc + ws, dv + ls + wc, a, b),
+        (du - lc - ws, dv + ls - wc, a, b),
+    )
     sqrt = math.sqrt
-    for k, (x, y, half_x, half_y) in enumerate(_corners(ego, dx, dy, length, width)):
-        # max(|x| - half_x, 0) without the call (the per-look path); the same value as np.maximum
+    gaps = []
+    for x, y, half_x, half_y in corners:
+        # max(|x| - half_x, 0) without the calls; the same value as np.maximum
         ex = (x if x >= 0.0 else -x) - half_x
         if ex < 0.0:
             ex = 0.0
         ey = (y if y >= 0.0 else -y) - half_y
         if ey < 0.0:
             ey = 0.0
-        d = sqrt(ex * ex + ey * ey)
-        if d > best:
+        gaps.append(sqrt(ex * ex + ey * ey))
+    best = min(gaps)
+    vu, vv = vx * c + vy * s, -vx * s + vy * c
+    rate = frozen = INF
+    first = True
+    for k in range(8):
+        d = gaps[k]
+        if d != best:
             continue
+        x, y, half_x, half_y = corners[k]
+        ex = (x if x >= 0.0 else -x) - half_x
+        if ex < 0.0:
+            ex = 0.0
+        ey = (y if y >= 0.0 else -y) - half_y
+        if ey < 0.0:
+            ey = 0.0
         gx = ex if x >= 0.0 else -ex
         gy = ey if y >= 0.0 else -ey
         if k < 4:  # ego corner: e = p + d
@@ -226,14 +267,13 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
             px_rate, py_rate = vu + yaw_rate * y, vv - yaw_rate * x
             r_frozen = (gx * vu + gy * vv) / d
         r = (gx * px_rate + gy * py_rate) / d
-        if d < best:
-            rate, frozen = r, r_frozen
+        if first:
+            rate, frozen, first = r, r_frozen, False
         else:
             if r < rate:
                 rate = r
             if r_frozen < frozen:
                 frozen = r_frozen
-        best = d
     return best, rate, frozen
 
 
@@ -410,6 +450,12 @@ def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehi
     value = headway(ego, dx, dy, station_rate, vehicle_station_rate, length, width)
     if value == INF:
         return math.nan
+    return _headway_rate(ego, value, station_rate, vehicle_station_rate, station_acceleration, yaw_rate)
+
+
+def _headway_rate(ego: Footprint, value: float, station_rate: float, vehicle_station_rate: float,
+                  station_acceleration: float, yaw_rate: float) -> float:
+    """`headway_rate` where the headway `value` is known to be defined."""
     a, b, c, s = ego
     cos_rate = -math.copysign(1.0, c) * s * yaw_rate
     sin_rate = math.copysign(1.0, s) * c * yaw_rate
@@ -538,6 +584,61 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
     return min(within, margin / (2 * fastest / rho + 2 * acceleration / speed))
 
 
+def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
+                   turn: float, acceleration: float) -> float:
+    """A lower bound (s) on when a collision course or a time headway can begin for a vehicle beside the ego's
+    path (the common case within RANGE: a car passing in the next lane): a T <= `until`, near the longest that the
+    test below proves, else 0. half_x, half_y: the sums of the two
+    footprints' half extents along the road's axes x, y now (`_axes`' h: a |cos psi| + b |sin psi| + l / 2,
+    a |sin psi| + b |cos psi| + w / 2).
+
+    TTC is finite only if some s >= 0 has the projections overlapping on all four axes, so in particular on
+    x and y: |dx + vx s| < half_x and |dy + vy s| < half_y at the same s; and a headway needs
+    |dy| < half_y (s = 0). Neither can hold while the footprints' y projections stay apart, on the same
+    side, for every s in [0, S] with S >= every s at which the x projections overlap. Over tau in [0, T],
+    with the relative acceleration bounded by A (`acceleration`) and the ego turning (`turn` = R r_max):
+    - each velocity component moves at most F = A T and each position component at most v tau + E,
+      E = A T^2 / 2, from now;
+    - half_x and half_y grow at most turn T (d/dt (a |cos psi| + b |sin psi|) is at most
+      sqrt(a^2 + b^2) r_max <= R r_max, Cauchy-Schwarz);
+    - |dx + vx s| < half_x implies |vx| s < |dx| + half_x, so with |vx| > F every such s is below
+      S = (|dx| + |vx| T + E + half_x + turn T) / (|vx| - F);
+    - with sigma = sign(dy): sigma (dy + vy s) >= sigma dy - E + min(0, sigma vy T) + min(0, (sigma vy - F) S)
+      for every s in [0, S] (linear in s and tau, so its least value is at an end).
+    So if that lower bound exceeds half_y + turn T (by COURSE_MARGIN, for the rounding of `ttc` and
+    `headway`), TTC and the headway stay undefined for the whole of [0, T]."""
+    if dy == 0.0:
+        return 0.0
+    side = 1.0 if dy > 0.0 else -1.0
+    lateral, ahead, speed, gap = side * vy, abs(dx) + half_x, abs(vx), side * dy - half_y
+
+    def proven(horizon: float) -> bool:
+        drift = acceleration * horizon  # F
+        if speed <= drift:
+            return False
+        slip = 0.5 * drift * horizon  # E
+        grow = turn * horizon
+        reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
+        return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
+                > COURSE_MARGIN)
+
+    # the test only gets harder as T grows (every term worsens). A first T from its leading terms (S ~ S0 =
+    # (|dx| + half_x) / |vx|: gap + min(0, sigma vy) S0 - (A S0 + turn + max(0, -sigma vy)) T > 0), shortened
+    # until the test passes
+    if speed <= 0.0:
+        return 0.0
+    reach0 = ahead / speed
+    room = gap + min(0.0, lateral) * reach0
+    if room <= 0.0:
+        return 0.0
+    horizon = min(min(until, COURSE_WINDOW), 0.9 * room / (acceleration * reach0 + turn + max(0.0, -lateral)))
+    for _ in range(COURSE_TRIES):
+        if proven(horizon):
+            return horizon
+        horizon *= 0.75
+    return 0.0
+
+
 def _reach_times(distance, rate, acceleration):
     """`_reach_time` over arrays (triggers.reach_time)."""
     used_up = distance <= 0.0
@@ -569,6 +670,11 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 # m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
 # follows encounters within device.ssm.range (default 50 m); the distance everywhere
 RANGE = 50.0
+# course_horizon: s, the longest horizon tried; how many times it shortens its first guess (by a quarter) before giving up; m,
+# the least lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
+COURSE_WINDOW = 1.0
+COURSE_TRIES = 8
+COURSE_MARGIN = 1e-6
 SCALAR_VEHICLES = 4  # as master.SCALAR_VEHICLES: up to this many vehicles in plain floats
 
 MEASURES = ("min_distance", "min_ttc", "max_drac", "min_pet", "min_headway")
@@ -591,6 +697,9 @@ class Extremes:
         self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
         self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
         self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
+        # s from the last look: a lower bound on when that vehicle's next located instant (a closest
+        # approach, a collision course's start or end, a transition's end) can be (0: any time)
+        self.quiet = 0.0
 
     def _grow(self, size: int) -> None:
         while size > len(self.left_path):
@@ -689,14 +798,15 @@ class Extremes:
         dx, dy = station - state.x, -lateral - state.y
         vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
         d, rate, frozen = _distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
-        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF)
+        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego)
         if d > RANGE:
             return {"min_distance": d}, (rate, math.nan, math.nan, math.nan), motion
         value = ttc(ego, dx, dy, vx, vy, length, width)
         ego_ax = state.ax * c - state.ay * s
-        values = {"min_distance": d, "min_ttc": value,
-                  "min_headway": headway(ego, dx, dy, ego_vx, -speed, length, width)}
-        headway_change = headway_rate(ego, dx, dy, ego_vx, -speed, ego_ax, state.yaw_rate, length, width)
+        gap_time = headway(ego, dx, dy, ego_vx, -speed, length, width)
+        values = {"min_distance": d, "min_ttc": value, "min_headway": gap_time}
+        headway_change = math.nan if gap_time == INF else \
+            _headway_rate(ego, gap_time, ego_vx, -speed, ego_ax, state.yaw_rate)
         if not 0.0 < value < INF:
             return values, (rate, math.nan, math.nan, headway_change), motion
         ax, ay = -speed_rate - ego_ax, -(state.ax * s + state.ay * c)
@@ -713,6 +823,16 @@ class Extremes:
         value there bounds the interval over which the extreme is taken)."""
         return self._evaluate(traffic, i, state)[1]
 
+    def distance_rate(self, traffic, i: int, state) -> float:
+        """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
+        t = state.time
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+        return _distance_and_rates(Footprint(self.ego_length / 2, self.ego_width / 2, c, s), station - state.x,
+                                   -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy, state.yaw_rate,
+                                   float(traffic.length[i]), float(traffic.width[i]))[1]
+
     def evaluate(self, traffic, i: int, state):
         """Vehicle i at the ego's state, nothing offered yet: for `look` (its `evaluated`), so that the master
         reads the rates at a step's end (`rates`) and looks there with one evaluation."""
@@ -722,32 +842,53 @@ class Extremes:
              radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
         """The master's look at vehicle i at a communication point or a located instant: offers its values
         and returns its rates (`rates`) and a horizon: a lower bound (s from now) on when it next needs a
-        look. 0 within RANGE (TTC, DRAC and headway are followed at every communication point there, their
-        roots and collision courses located by the master); beyond it, the earliest of the vehicle coming
-        within RANGE and of a new minimum distance (which needs both the distance below the recorded minimum
-        and an approach ending: the latest of `distance_horizon`, `approach_horizon` and `heading_horizon`),
-        and never past the
-        end of a lateral transition (the vehicle's velocity changes at once there). The ego's bounds as in
+        look. 0 within RANGE on a collision course or with a headway (TTC, DRAC and headway are followed at
+        every communication point there, their roots and collision courses located by the master); beyond
+        it, the earliest of the vehicle coming within RANGE and of a new minimum distance (which needs both
+        the distance below the recorded minimum and an approach ending: the latest of `distance_horizon`,
+        `approach_horizon` and `heading_horizon`), and never past the end of a lateral transition (the
+        vehicle's velocity changes at once there). Within RANGE with neither, the new minimum's and the
+        transition's bound, no later than `course_horizon` proves no collision course or headway can
+        begin. The ego's bounds as in
         triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
-        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left) = \
+        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left, ego) = \
             self._evaluate(traffic, i, state) if evaluated is None else evaluated
         t = state.time
         for name, value in values.items():
             self.offer(name, i, t, value)
-        if d <= RANGE:
-            return rates, 0.0
+        near = d <= RANGE
+        if near and (rates[1] == rates[1] or rates[3] == rates[3]):
+            self.quiet = 0.0
+            return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
         turn = radius * yaw_rate_bound
         relative = acceleration + abs(speed_rate)
-        entering = distance_horizon(d, frozen, RANGE, turn, relative)
         new_minimum = distance_horizon(d, frozen, float(self.value["min_distance"][i]) - FLAT, turn, relative)
+        # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
+        approach_end = INF if rates[0] >= 0.0 else 0.0
         if frozen < -turn:
             vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
-            new_minimum = max(new_minimum, approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
-                                                            yaw_rate_bound),
-                              heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
-        return rates, min(min(entering, new_minimum), transition_left)
+            approach_end = max(approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
+                                                yaw_rate_bound),
+                               heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
+            new_minimum = max(new_minimum, approach_end)
+        if not near:
+            # a collision course can be seen only within RANGE
+            entering = distance_horizon(d, frozen, RANGE, turn, relative)
+            self.quiet = min(min(entering, approach_end), transition_left)
+            return rates, min(min(entering, new_minimum), transition_left)
+        # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
+        longest = min(max(new_minimum, approach_end), transition_left)
+        if not longest > 0.0:
+            self.quiet = 0.0
+            return rates, 0.0
+        a, b, c, s = ego
+        ac, as_ = abs(c), abs(s)
+        course = course_horizon(dx, dy, vx, vy, a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2,
+                                longest, turn, relative)
+        self.quiet = min(min(approach_end, transition_left), course)
+        return rates, min(min(new_minimum, transition_left), course)
 
     # -- post-encroachment time
 

@@ -53,6 +53,9 @@ MIN_LOOKAHEAD = 1e-3
 # s, how exactly a criticality extreme's instant is located (a bracket this wide holds the root, so that two
 # runs at different steps agree within TIME_TOLERANCE)
 CRITICALITY_TOLERANCE = TIME_TOLERANCE / 4
+# the fraction of the way to a flat extreme's extended root a probe goes (root_instant): short of it, so that
+# the probes approach it from below, where the rate is known
+FLAT_STEP = 0.98
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 # up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
@@ -152,10 +155,17 @@ class Cosimulation:
         self.extremes = Extremes(self.bounds.length, self.bounds.width)
         self.next_look = np.full(16, NO_LOOK)
         self.earliest_look = NO_LOOK
+        # per vehicle, the instant before which its located instants cannot be (Extremes.quiet), and the
+        # earliest step end at which one can be found (at its next look and not before that instant): a step
+        # ending before that needs no FMU snapshot to locate it from
+        self.quiet_until = np.full(16, NO_LOOK)
+        self.look_time = np.full(16, NO_LOOK)  # per vehicle, its last look at a communication point
+        self.earliest_quiet = NO_LOOK
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
         self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
         self.pet_station = math.inf  # the nearest such area's station
+        self.pet_due = NO_LOOK  # a lower bound on when the ego's front can reach it (NO_LOOK: to be computed)
         self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
@@ -436,31 +446,44 @@ class Cosimulation:
     # ---- criticality ------------------------------------------------------------------------------
 
     def criticality_due(self, t: float, limit: float) -> bool:
-        """Whether an extreme could lie in a step from t to at most `limit`: a vehicle's look comes due (every
-        step within criticality.RANGE), a vehicle's footprint leaves the ego's lane, or a PET is pending."""
-        return (self.earliest_look <= limit and bool(len(self.traffic.active))) or self.pet_pending \
+        """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU
+        snapshot): a vehicle's look comes due after the instant before which none of its located instants can
+        be (Extremes.quiet), a vehicle's footprint leaves the ego's lane, or the ego's front can reach a
+        pending PET's conflict area (`pet_horizon`)."""
+        return (self.earliest_quiet <= limit and bool(len(self.traffic.active))) \
+            or (self.pet_pending and self.pet_due <= limit) \
             or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
 
-    def look(self, state: EgoState, everyone: bool = False) -> None:
+    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None) -> None:
         """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
-        communication point, keeps their rates (the next step's start) and their next-look instants."""
+        communication point, keeps their rates (the next step's start) and their next-look instants. With
+        `ahead` (a step's end), also the vehicles last looked at before now whose located instants could
+        come by then: a look now moves that bound on, and the step may then need no FMU snapshot."""
         t = state.time
-        if not everyone and t < self.earliest_look:
+        if not everyone and t < self.earliest_look and ahead is None:
             return
         traffic, bounds = self.traffic, self.bounds
         if len(self.next_look) < traffic.size:
             self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
-        earliest = math.inf
+            self.quiet_until = np.concatenate([self.quiet_until, np.full(traffic.size, NO_LOOK)])
+            self.look_time = np.concatenate([self.look_time, np.full(traffic.size, NO_LOOK)])
+        earliest = earliest_quiet = math.inf
         evaluated, self.evaluated = self.evaluated, {}
+        extremes = self.extremes
         for i in traffic.active.tolist():
             instant = float(self.next_look[i])
-            if everyone or instant <= t:
-                rates, horizon = self.extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
-                                                    bounds.radius, evaluated.get(i))
+            if everyone or instant <= t or (ahead is not None and self.quiet_until[i] <= ahead
+                                            and self.look_time[i] < t):
+                rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
+                                               bounds.radius, evaluated.get(i))
                 self.look_rates[i] = rates
                 instant = self.next_look[i] = t + horizon
+                self.quiet_until[i] = t + extremes.quiet
+                self.look_time[i] = t
             earliest = min(earliest, instant)
+            earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
         self.earliest_look = earliest
+        self.earliest_quiet = earliest_quiet
 
     def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
         """After a step from t0 to state.time: locates the extremes inside it (from the snapshot `base` at t0;
@@ -537,15 +560,30 @@ class Cosimulation:
             """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
             same bracket to CRITICALITY_TOLERANCE, with fewer probes where the rate is smooth (regula falsi,
             Illinois variant; each estimate kept tolerance / 2 inside the bracket, so that once near the root
-            the next probe closes the bracket from the other side; bisection whenever a probe did not halve it)."""
+            the next probe closes the bracket from the other side; bisection whenever a probe did not halve
+            it). While the rate at high is exactly 0 (a flat extreme: the distance to a car passing in the next
+            lane, whose rate rises continuously to 0 at the root and stays 0 after it) the secant to high only
+            ever points at high: the estimate is then the secant through the last two probes below the root,
+            extended to 0, taken FLAT_STEP of the way (or bisection before there are two, and after a probe
+            past the root that did not halve the bracket)."""
             low_state, high_state = None, state
             side, halve = 0, False
+            rising, earlier = low_value, None  # the rate at low (unscaled), and (instant, rate) of the low before
             while high - low > CRITICALITY_TOLERANCE:
                 width = high - low
                 slope = high_value - low_value
-                if halve or not (slope > 0.0 and math.isfinite(slope)):
-                    guess = 0.5 * (low + high)
-                else:
+                guess = 0.5 * (low + high)
+                flat = high_value == 0.0
+                if halve:
+                    pass
+                elif flat:
+                    if earlier is not None and rising > earlier[1]:
+                        extended = low - rising * (low - earlier[0]) / (rising - earlier[1])
+                        if extended < high:
+                            # FLAT_STEP of the way, to stay below the root (then the next extension is
+                            # nearer), and once it is within tolerance / 2, a probe there to close the bracket
+                            guess = low + FLAT_STEP * (extended - low)
+                elif slope > 0.0 and math.isfinite(slope):
                     guess = low - low_value * width / slope
                 guess = min(max(guess, low + 0.5 * CRITICALITY_TOLERANCE), high - 0.5 * CRITICALITY_TOLERANCE)
                 probed = probe(guess)
@@ -556,11 +594,12 @@ class Cosimulation:
                         low_value *= 0.5
                     side = 1
                 else:
-                    low, low_state, low_value = guess, probed, rate
+                    earlier = (low, rising)
+                    low, low_state, low_value, rising = guess, probed, rate, rate
                     if side < 0:
                         high_value *= 0.5
                     side = -1
-                halve = high - low > 0.5 * width
+                halve = high - low > 0.5 * width and not (flat and rate < 0)
             return low_state, high_state
 
         def look_at(i: int, *states) -> None:
@@ -575,13 +614,19 @@ class Cosimulation:
                 before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
                                             math.isnan(extremes.rates(traffic, i, p)[1]) != was)
             else:
-                before, at = root_instant(t0, t1, lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k],
+                rate_of = (lambda p, i=i: extremes.distance_rate(traffic, i, p)) if k == 0 else \
+                    (lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k])
+                before, at = root_instant(t0, t1, rate_of,
                                           self.look_rates[i][k], self.evaluated[i][1][k])
             # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
             # instant before it is not offered, DRAC growing without bound toward a contact
-            rates = extremes.rates(traffic, i, at)
+            evaluated = extremes.evaluate(traffic, i, at)
+            rates = evaluated[1]
             contact = rates[0] == 0.0 and math.isnan(rates[1])
-            look_at(i, None if contact else before, at)
+            if not contact and before is not None:
+                extremes.look(traffic, i, before, bounds.acceleration, bounds.yaw_rate, bounds.radius)
+            extremes.look(traffic, i, at, bounds.acceleration, bounds.yaw_rate, bounds.radius, evaluated)
+            self.located += 1
         for i, end_time in ending:
             # the vehicle's velocity jumps at its transition's end (TTC, DRAC and headway with it): looked at
             # with the motion just before (1e-9 s earlier for the vehicle: < 1e-7 m) and at the instant
@@ -643,6 +688,16 @@ class Cosimulation:
         stations = self.extremes.pending_stations()
         self.pet_pending = bool(len(stations))
         self.pet_station = float(stations.min()) if len(stations) else math.inf
+        self.pet_due = NO_LOOK
+
+    def pet_horizon(self, state: EgoState) -> float:
+        """When the ego's front can first reach the pending conflict station: the front's station rate is at
+        most the reference point's (which grows at most at the acceleration bound A) plus R r_max (the
+        footprint turning), so reach_time(station - front, station rate + R r_max, A) as for event distances."""
+        bounds = self.bounds
+        station_rate = state.vx * math.cos(state.psi) - state.vy * math.sin(state.psi)
+        return state.time + reach_time_scalar(self.pet_station - self._front(state),
+                                              station_rate + bounds.radius * bounds.yaw_rate, bounds.acceleration)
 
     # ---- inputs and records ---------------------------------------------------------------------
 
@@ -722,8 +777,12 @@ class Cosimulation:
                 if earliest < limit:
                     horizons = self.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
+                if self.pet_pending and self.pet_due <= limit:
+                    self.pet_due = self.pet_horizon(state)
+                if self.exact and self.earliest_quiet <= limit:
+                    self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
                 # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (self.earliest_look <= limit or self.pet_pending
+                base = ego.save() if self.exact and (self.earliest_quiet <= limit or self.pet_pending
                                                      or self.leaves_lane) and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no

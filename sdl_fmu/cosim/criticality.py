@@ -757,7 +757,7 @@ class Extremes:
         ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c  # inertial
         if len(idx) <= SCALAR_VEHICLES:
             for i in idx.tolist():
-                station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+                station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
                 length, width = float(traffic.length[i]), float(traffic.width[i])
                 dx, dy = station - state.x, -lateral - state.y
                 vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
@@ -789,7 +789,7 @@ class Extremes:
         t = state.time
         c, s = math.cos(state.psi), math.sin(state.psi)
         ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
-        station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         elapsed, duration = t - float(traffic.t0[i]), float(traffic.duration[i])
         moving = elapsed < duration
         speed_rate = (float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration if moving else 0.0
@@ -827,7 +827,7 @@ class Extremes:
         """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
         t = state.time
         c, s = math.cos(state.psi), math.sin(state.psi)
-        station, lateral, speed, lateral_rate = _motion(traffic, i, t)
+        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
         return _distance_and_rates(Footprint(self.ego_length / 2, self.ego_width / 2, c, s), station - state.x,
                                    -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy, state.yaw_rate,
@@ -970,7 +970,7 @@ def relative_motion(traffic, i: int, state, ego_length: float, ego_width: float)
     vehicle's station acceleration -(speed1 - speed0) / duration during a transition, its lateral rate
     constant)."""
     c, s = math.cos(state.psi), math.sin(state.psi)
-    station, lateral, speed, lateral_rate = _motion(traffic, i, state.time)
+    station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, state.time)
     elapsed, duration = state.time - float(traffic.t0[i]), float(traffic.duration[i])
     station_acceleration = -(float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration \
         if elapsed < duration else 0.0
@@ -978,22 +978,3 @@ def relative_motion(traffic, i: int, state, ego_length: float, ego_width: float)
             -speed - (state.vx * c - state.vy * s), -lateral_rate - (state.vx * s + state.vy * c),
             station_acceleration - (state.ax * c - state.ay * s), -(state.ax * s + state.ay * c),
             float(traffic.length[i]), float(traffic.width[i]))
-
-
-def _motion(traffic, i: int, t: float) -> tuple[float, float, float, float]:
-    """(station, lateral, speed, lateral rate) of vehicle i at t in plain floats, operation for operation as
-    Traffic.motion (so that both forms record the same bits)."""
-    t0, station0, lateral0, speed0, lateral1, speed1, duration = (
-        float(traffic.t0[i]), float(traffic.station0[i]), float(traffic.lateral0[i]), float(traffic.speed0[i]),
-        float(traffic.lateral1[i]), float(traffic.speed1[i]), float(traffic.duration[i]))
-    elapsed = t - t0
-    if elapsed < duration:
-        fraction = elapsed / duration
-        travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
-        lateral_rate = (lateral1 - lateral0) / duration
-    else:
-        fraction = 1.0
-        travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
-        lateral_rate = 0.0
-    return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed0 + (speed1 - speed0) * fraction,
-            lateral_rate)

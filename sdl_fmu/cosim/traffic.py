@@ -228,6 +228,24 @@ class Traffic:
         speed_rate = np.where(moving, np.abs(speed1 - speed0) / span, 0.0)
         return self.station0[idx] - travelled, lateral, speed, lateral_rate, speed_rate
 
+    def motion_of(self, i: int, t: float) -> tuple[float, float, float, float, float]:
+        """`motion` of vehicle i in plain floats, operation for operation (both forms give the same bits)."""
+        t0, station0, lateral0, speed0, lateral1, speed1, duration = (
+            float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
+            float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]))
+        elapsed = t - t0
+        if elapsed < duration:
+            fraction = elapsed / duration
+            travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
+            lateral_rate = (lateral1 - lateral0) / duration
+            speed_rate = abs(speed1 - speed0) / duration
+        else:
+            fraction = 1.0
+            travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
+            lateral_rate = speed_rate = 0.0
+        return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction,
+                speed0 + (speed1 - speed0) * fraction, lateral_rate, speed_rate)
+
     def at(self, i: int, t: float) -> tuple[float, float, float]:
         """(station, lateral, speed) of vehicle i at time t, in plain floats (`Motion.at`)."""
         return motion_at(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),

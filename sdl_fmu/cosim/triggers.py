@@ -214,29 +214,10 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     return np.minimum(np.minimum(action, contact), leave)
 
 
-def _motion(traffic: Traffic, i: int, t: float) -> tuple[float, float, float, float, float]:
-    """`Traffic.motion` of one vehicle in plain floats, operation for operation."""
-    t0, station0, lateral0, speed0, lateral1, speed1, duration = (
-        float(traffic.t0[i]), float(traffic.station0[i]), float(traffic.lateral0[i]), float(traffic.speed0[i]),
-        float(traffic.lateral1[i]), float(traffic.speed1[i]), float(traffic.duration[i]))
-    elapsed = t - t0
-    if elapsed < duration:
-        fraction = elapsed / duration
-        travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
-        lateral_rate = (lateral1 - lateral0) / duration
-        speed_rate = abs(speed1 - speed0) / duration
-    else:
-        fraction = 1.0
-        travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
-        lateral_rate = speed_rate = 0.0
-    return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed0 + (speed1 - speed0) * fraction,
-            lateral_rate, speed_rate)
-
-
 def vehicle_condition(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> tuple[bool, bool, bool]:
     """`vehicle_conditions` for one vehicle in plain floats, operation for operation (the same decisions,
     tested)."""
-    station, lateral, speed, _, _ = _motion(traffic, i, ego.time)
+    station, lateral, speed, _, _ = traffic.motion_of(i, ego.time)
     gap = station - ego.station
     gap_rate = -speed - ego.station_rate
     seconds, where = float(traffic.trigger_seconds[i]), int(traffic.where[i])
@@ -269,7 +250,7 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
     """`vehicle_horizons` for one vehicle in plain floats, the same arithmetic operation for operation (equal
     bit for bit, tested). With a few vehicles on the road the array form's cost is NumPy's per-operation
     overhead (about 1 µs for each of some 150 operations on one-element arrays), not the arithmetic."""
-    station, lateral, speed, lateral_rate, speed_rate = _motion(traffic, i, ego.time)
+    station, lateral, speed, lateral_rate, speed_rate = traffic.motion_of(i, ego.time)
     length, width, seconds = float(traffic.length[i]), float(traffic.width[i]), float(traffic.trigger_seconds[i])
     where, in_contact = int(traffic.where[i]), bool(traffic.in_contact[i])
     a = bounds.acceleration

@@ -561,7 +561,6 @@ def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
     reason; only user mistakes (options, FMU, map, results folder) raise InputError."""
     from . import verify as pack
     from .results_folder import ResultsFolderError, check_results_folder
-    from .verify import closed_forms
 
     names = list(pack.MANOEUVRES) if only is None else list(only)
     unknown = [name for name in names if name not in pack.MANOEUVRES]
@@ -581,16 +580,6 @@ def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
                 "map": None if model.map_path is None else str(model.map_path),
                 "friction": None if model.friction is None else model.friction.meaning}
     outcomes = pack.run_pack(model, names)
-    braking = next((o for o in outcomes if o.name == "braking"), None)
-    if braking is not None and model.description.modelName == "EgoVehicleSimple" and model.fmi_version == "2.0":
-        # SPEC section 2's closed forms, held by the Simple FMU: the 60 straight-line cases beside the R13-H stop
-        cases = closed_forms.verify(model.fmu_path)
-        worst = max(max(abs(c.distance_error), abs(c.time_error)) for c in cases)
-        braking.metrics.update(closed_form_cases=len(cases), closed_form_max_relative_error=worst)
-        braking.criteria.append(f"{len(cases)} SPEC section 2 closed-form stops, largest relative error "
-                                f"{worst:.1e} <= 1e-9: {'pass' if worst <= 1e-9 else 'FAIL'}")
-        if braking.passed is not None:
-            braking.passed = braking.passed and worst <= 1e-9
     folder = None
     if out is not None:
         try:

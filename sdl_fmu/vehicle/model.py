@@ -268,6 +268,7 @@ class EgoModel:
         self.drag_factor = self.air_density * self.drag_area / (2 * self.mass)  # rho CdA / (2 m), 1/m
         self.peak_friction_given = values.get("peak_friction")
         self.brk_acts = self.map.flags.get("brk_acts", True)
+        self.spec_closed_forms = self.map.flags.get("spec_closed_forms", False)
         # the trigger prediction's bounds: the map's (m/s2, rad/s), else None: derived per run (cosim.triggers)
         given = "max_acceleration" in values
         self.bounds = {"acceleration": values.get("max_acceleration"), "yaw_rate": values.get("max_yaw_rate"),

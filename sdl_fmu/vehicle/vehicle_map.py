@@ -23,7 +23,7 @@ VEHICLE_GEOMETRY = ("length", "width", "wheelbase", "track", "cg_to_front_axle",
 VEHICLE_NUMBERS = (*VEHICLE_GEOMETRY, "mass", "drive_accel_max", "drive_power_max", "drive_torque_max", "wheel_radius",
                    "brake_decel_max", "rolling_resistance", "drag_area", "air_density", "peak_friction",
                    "max_acceleration", "max_yaw_rate")
-VEHICLE_FLAGS = ("brk_acts",)
+VEHICLE_FLAGS = ("brk_acts", "spec_closed_forms")
 TOP_LEVEL = ("name", "fmu", "inputs", "outputs", "start", "parameters", "vehicle")
 SHIPPED = ("simple", "advanced")  # the shipped maps, scenarios/vehicles/<name>.toml
 

@@ -192,13 +192,13 @@ def test_a_short_name_shadowed_in_the_working_folder_is_one_line(tmp_path, shado
     assert sdl_fmu(["check", "demo"], tmp_path / "clean").returncode == 0
 
 
-def test_the_readme_lists_every_shipped_scenario():
+def test_the_scenario_docs_list_every_shipped_scenario():
     from pathlib import Path
 
     from sdl_fmu import api
 
-    readme = (Path(__file__).parent.parent / "README.md").read_text()
-    section = readme.split("## Scenarios (SDL)")[1].split("\n## ")[0]
+    docs = (Path(__file__).parent.parent / "docs" / "scenarios.md").read_text()
+    section = docs.split("## The shipped examples")[1].split("\n## ")[0]
     assert all(f"`{name}`" in section for name in api.shipped_scenarios()), sorted(api.shipped_scenarios())
 
 

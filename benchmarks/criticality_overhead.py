@@ -3,14 +3,23 @@ against the same master with the measures switched off (a subclass whose critica
 side in one process, alternating, by CPU time (time.process_time: the machine is shared), on the demo and on
 roads with 1 ... N oncoming vehicles (linear in the number of vehicles?).
 
-    python benchmarks/criticality_overhead.py [--repeat N] [--vehicles 1,8,32]
+    python benchmarks/criticality_overhead.py [--repeat N] [--vehicles 1,4,16,32] [--json OUT]
+
+OUT (benchmarks/results/criticality_overhead.json) holds `measured` (when and where), `repeat`, and `cases`: per
+scenario its `name`, `steps`, `located` (instants the measures located), the best CPU times `plain_s` and
+`measured_s`, `overhead_best` (their ratio - 1) and the median, least and largest of the pairwise ratios - 1
+(`overhead_median`, `overhead_min`, `overhead_max`).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import time
+from pathlib import Path
+
+from provenance import stamp
 
 from sdl_fmu.cosim.master import Cosimulation, RunOptions
 from sdl_fmu.fmu.cache import cached_fmus
@@ -56,18 +65,23 @@ def compare(scenario, fmu, table, repeat: int) -> dict:
 def main() -> None:
     arguments = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     arguments.add_argument("--repeat", type=int, default=7)
-    arguments.add_argument("--vehicles", default="1,8,32")
+    arguments.add_argument("--vehicles", default="1,4,16,32")
+    arguments.add_argument("--json")
     args = arguments.parse_args()
     table = load_vehicle_table(default_vehicle_table_path())
     fmu = cached_fmus("simple", (2,))[0]
     cases = [("demo", load_scenario(SCENARIO_DIRECTORY / "demo.sdl"))]
     cases += [(f"{n} oncoming", traffic_scenario(n)) for n in map(int, args.vehicles.split(","))]
+    report = {"repeat": args.repeat, "cases": []}
     for name, scenario in cases:
         r = compare(scenario, fmu, table, args.repeat)
+        report["cases"].append({"name": name, **r})
         print(f"{name:12s} plain {r['plain_s']:.3f} s CPU, measured {r['measured_s']:.3f} s: best-of "
               f"{r['overhead_best'] * 100:+.1f} %, pairwise median {r['overhead_median'] * 100:+.1f} % "
               f"(spread {r['overhead_min'] * 100:+.1f} … {r['overhead_max'] * 100:+.1f} %), "
               f"{r['located']} located instants, {r['steps']} steps")
+    if args.json:
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import stamp
 import fmpy
 from fmpy.fmi2 import FMU2Slave
 
@@ -159,7 +160,7 @@ def main() -> int:
     for name, cost in results.items():
         print(f"{name:<{width}}  " + (f"{cost:9.1f} us CPU per 10 ms step" if isinstance(cost, float) else cost))
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **results}, indent=2) + "\n")
     return 0
 
 

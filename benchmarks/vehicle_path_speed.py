@@ -17,6 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import stamp
 import numpy as np
 
 
@@ -79,7 +80,7 @@ def main() -> int:
     print(f"new / reference: loop {r['loop_wall_s']:.3f}, call {r['call_wall_s']:.3f}, CPU {r['cpu_s']:.3f}; "
           f"ego columns identical: {same}")
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
     return 0
 
 

@@ -208,12 +208,12 @@ def test_foreign_car_through_its_map_speaks_iso_si(foreign_vehicle, fmi_version)
     assert state.y > y0 and not state.stopped
 
 
-def test_readme_shows_the_foreign_car_map_as_it_is():
-    """The README's complete map example for a foreign FMU is the test suite's map, key for key."""
+def test_the_docs_show_the_foreign_car_map_as_it_is():
+    """The vehicle-map document's complete map example for a foreign FMU is the test suite's map, key for key."""
     from conftest import FOREIGN_CAR_MAP
 
-    readme = (FOREIGN_CAR_MAP.parents[2] / "README.md").read_text()
-    section = readme[readme.index("### A vehicle built elsewhere: the test suite's foreign car"):]
+    docs = (FOREIGN_CAR_MAP.parents[2] / "docs" / "vehicle-maps.md").read_text()
+    section = docs[docs.index("## A vehicle built elsewhere: the test suite's foreign car"):]
     block = section[section.index("```toml\n") + len("```toml\n"):]
     block = block[:block.index("```")]
     with open(FOREIGN_CAR_MAP, "rb") as file:

@@ -1,4 +1,4 @@
-"""The vehicle map (SPEC §6): a TOML file telling sdl-fmu how to drive a vehicle FMU, read with tomllib and
+"""The vehicle map (docs/vehicle-maps.md): a TOML file telling sdl-fmu how to drive a vehicle FMU, read with tomllib and
 checked for its shape here (against the FMU in model.py). Every mistake is one VehicleMapError line naming the
 file and the key."""
 

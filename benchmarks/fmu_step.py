@@ -22,9 +22,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from provenance import stamp
 import fmpy
 from fmpy.fmi2 import FMU2Slave
+
+from provenance import stamp
 
 HERE = Path(__file__).resolve().parent
 STEP = 0.01  # s, the communication step measured

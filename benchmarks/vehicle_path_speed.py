@@ -17,8 +17,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from provenance import stamp
 import numpy as np
+
+from provenance import stamp
 
 
 def load_package(name: str, source: Path, folder: Path):

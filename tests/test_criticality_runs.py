@@ -26,6 +26,10 @@ SCENARIOS = {
     # brakes at half pedal from 300 ft (BRK_ONCOMING: drag and rolling resistance 0, a constant deceleration)
     "braking_oncoming": lambda: parse_text("English\n100,A,20,500,-6,1,4,-3,20,1,1.5,-8,20,2\n"
                                            "300,BRK,50,0,20\n700,ES", "braking_oncoming.sdl"),
+    # model 1 oncoming at 20 ft/s in the other lane; within 1 s it starts moving over to the ego's lane centre
+    # (6 ft) over 8 s, entering the ego's lane behind the ego (the ego passes first); the second action, armed
+    # (it fires 30 s apart), keeps it on the road (a vehicle leaves only with no action left that could fire)
+    "ego_first": lambda: parse_text("English\n100,A,20,1000,-6,1,1,6,20,8,-30,-6,20,2\n1500,ES", "ego_first.sdl"),
     "head_on": lambda: load_scenario(SCENARIO_DIRECTORY / "head_on.sdl"),
     "seed_a": lambda: load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl"),
     # the demo to 4700 ft (54 s): three cars pass, one swerving into the ego's lane and back (PET, transitions
@@ -137,6 +141,41 @@ def test_seed_a_post_encroachment_time(run):
     pet = result.criticality["min_pet_s"]
     assert 0 <= pet - (t_reach - t_leave) <= CRITICALITY_TOLERANCE + 1e-9
     assert result.criticality["vehicles"][0]["min_pet_s"] == pet
+
+
+def test_post_encroachment_time_when_the_ego_passes_first(run):
+    # ego_first: PET = t_entry(second, area) - t_exit(first, area) (CommonRoad-CriMe pet.py, case 1: the ego
+    # first; SUMO's "departure of the first from the conflict area to the arrival of the second"). The ego
+    # (L x W, yaw 0) holds 88 ft/s from x_s at t_s (the spawn); the car (model 1, l x w) spawns at
+    # c = x_s + 1000 ft, oncoming at 20 ft/s: c(t) = x_s + 1000 ft - 20 ft/s (t - t_s). Action 1 fires when the
+    # closure time gap / 108 ft/s falls to 1 s: t_a = t_s + (1000 - 108) ft / 108 ft/s. From t_a its centre moves
+    # from -6 ft to 6 ft over 8 s (1.5 ft/s); its footprint enters the ego's lane (lateral 0 ... 12 ft) when the
+    # centre passes -w / 2: t_enter = t_a + (6 ft - w / 2) / 1.5 ft/s, covering stations c(t_enter) -+ l / 2. The
+    # ego left that area when its rear x - L / 2 passed the far end c(t_enter) + l / 2:
+    # t_exit = t_s + (c(t_enter) + l / 2 + L / 2 - x_s) / 88 ft/s. PET = t_enter - t_exit.
+    from sdl_fmu.cosim.master import TIME_TOLERANCE
+
+    result, cosim = run("ego_first")
+    L = cosim.bounds.length
+    model = TABLE[1]
+    spawn = event(result, "spawn")
+    t_s, x_s = spawn["time_s"], spawn["distance"] * FOOT
+    t_a = event(result, "maneuver", index=1)["time_s"]
+    assert 0 <= t_s - 100 / 88 <= TIME_TOLERANCE and 0 <= t_a - (t_s + (1000 - 108) / 108) <= TIME_TOLERANCE + 1e-9
+    t_enter = t_a + (6 * FOOT - model.width / 2) / (1.5 * FOOT)
+    far_end = x_s + 1000 * FOOT - 20 * FOOT * (t_enter - t_s) + model.length / 2
+    t_exit = t_s + (far_end + L / 2 - x_s) / V0
+    expected = t_enter - t_exit
+    assert 0.5 < expected < t_enter - t_a  # the ego left the area after the move began, and before the entry
+    # the ego's distance from its closed form (speed held by the driver), e_x, moves its rear's passage by e_x / v0
+    time, x = column(result, "time"), column(result, "x")
+    e_x = np.abs(x - (x_s + V0 * (time - t_s)))[time >= t_s].max()
+    assert np.abs(column(result, "psi")).max() < 1e-12
+    # the rear's passage bisected to CRITICALITY_TOLERANCE (at or after it); t_enter closed form as the master's
+    pet = result.criticality["vehicles"][0]["min_pet_s"]
+    assert -CRITICALITY_TOLERANCE - e_x / V0 - 1e-12 <= pet - expected <= e_x / V0 + 1e-12
+    assert result.criticality["min_pet_s"] == pet and result.collisions == 0
+    print(f"PET {expected:.9f} s, located {pet - expected:+.2e} s (e_x {e_x:.1e} m)")
 
 
 def test_braking_ego_minimum_distance_at_the_root_of_its_derivative(run):

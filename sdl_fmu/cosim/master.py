@@ -32,7 +32,7 @@ from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, Sur
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
-from .criticality import RANGE, Extremes, Footprint, band_times, distances, ttcs
+from .criticality import RANGE, Extremes, Footprint, band_times, conflict_far_end, distances, ttcs
 from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .ego import step_until_time
@@ -163,6 +163,7 @@ class Cosimulation:
         self.earliest_quiet = NO_LOOK
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
+        self.enters_lane: dict[int, float] = {}  # per vehicle, the instant its footprint will enter the ego's lane
         self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
         self.pet_station = math.inf  # the nearest such area's station
         self.pet_due = NO_LOOK  # a lower bound on when the ego's front can reach it (NO_LOOK: to be computed)
@@ -501,6 +502,8 @@ class Cosimulation:
                     self._lane_left(i, state)
         if self.pet_pending and self._front(state) >= self.pet_station:
             self._reach(state)
+        if self.enters_lane:
+            self._entries(t1)
         if base is not None:
             self.ego.discard(base)
         self.look(state, everyone)
@@ -634,6 +637,12 @@ class Cosimulation:
             look_at(i, at._replace(time=end_time - 1e-9), at)
         for i, leave in leaving:
             self._lane_left(i, probe(leave))
+        rear = self._rear(state)
+        for i, station in zip(*(k.tolist() for k in extremes.rear_stations())):
+            if station <= rear:
+                _, reached = bisect_instant(t0, t1, lambda p, station=station: self._rear(p) >= station)
+                extremes.rear_reached(i, reached.time)
+                self.located += 1
         front = self._front(state)
         for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():
             station = float(extremes.conflict[i])
@@ -661,18 +670,45 @@ class Cosimulation:
         return state.x + self.bounds.length / 2 * abs(math.cos(state.psi)) \
             + self.bounds.width / 2 * abs(math.sin(state.psi))
 
+    def _rear(self, state: EgoState) -> float:
+        """Station of the rear of the ego's footprint."""
+        return state.x - self.bounds.length / 2 * abs(math.cos(state.psi)) \
+            - self.bounds.width / 2 * abs(math.sin(state.psi))
+
     def lane_leave_instant(self, i: int, state: EgoState) -> None:
-        """When an action starts vehicle i's lateral move: the instant its footprint leaves the ego's lane
-        (criticality.band_times, closed form), where the PET's conflict area is set."""
+        """When an action starts vehicle i's lateral move: the instants its footprint leaves and enters the ego's
+        lane (criticality.band_times, closed form), where the PET's conflict areas are set (the vehicle
+        leaving first; the ego leaving first: the far end of the area the vehicle will enter)."""
         traffic, road = self.traffic, self.road
         self.leaves_lane.pop(i, None)
         lane = road.lane_at(-state.y)
         centre = road.lane_center(lane)
-        _, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
-                              float(traffic.duration[i]), float(traffic.width[i]), centre - road.lane_width / 2,
-                              centre + road.lane_width / 2)
+        enter, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
+                                  float(traffic.duration[i]), float(traffic.width[i]), centre - road.lane_width / 2,
+                                  centre + road.lane_width / 2)
         if state.time < leave < math.inf:
             self.leaves_lane[i] = leave
+        if state.time < enter < math.inf:
+            self.enters_lane[i] = enter
+            far_end = conflict_far_end(traffic.motion_of(i, enter)[0], float(traffic.length[i]))
+            self.extremes.path_entering(i, far_end, self._rear(state))
+            self._pending()
+        elif self.enters_lane.pop(i, None) is not None:
+            self.extremes.cancel_entry(i)
+            self._pending()
+
+    def _entries(self, t1: float) -> None:
+        """The vehicles whose footprint entered the ego's lane by t1 (closed-form instants): the PET where the
+        ego's rear had left the area first (criticality.Extremes.path_entered); none for a vehicle that left the
+        road before entering."""
+        for i, enter in list(self.enters_lane.items()):
+            if enter <= t1:
+                del self.enters_lane[i]
+                if self.traffic.present[i]:
+                    self.extremes.path_entered(i, enter)
+                else:
+                    self.extremes.cancel_entry(i)
+        self._pending()
 
     def _lane_left(self, i: int, state: EgoState) -> None:
         del self.leaves_lane[i]
@@ -681,13 +717,22 @@ class Cosimulation:
         self._pending()
 
     def _reach(self, state: EgoState) -> None:
-        self.extremes.reach(state)
+        extremes = self.extremes
+        extremes.reach(state)
+        pending, far = extremes.rear_stations()
+        for i in pending[far <= self._rear(state)].tolist():
+            extremes.rear_reached(i, state.time)
         self._pending()
 
     def _pending(self) -> None:
+        """The nearest station the ego's front must reach for a pending PET: a conflict area's near end, or a
+        far end its rear must pass (the front is then at least min(L, W) further on: front - rear =
+        L |cos psi| + W |sin psi|)."""
         stations = self.extremes.pending_stations()
-        self.pet_pending = bool(len(stations))
-        self.pet_station = float(stations.min()) if len(stations) else math.inf
+        _, far = self.extremes.rear_stations()
+        self.pet_pending = bool(len(stations) or len(far))
+        self.pet_station = min(float(stations.min()) if len(stations) else math.inf,
+                               float(far.min()) + min(self.bounds.length, self.bounds.width) if len(far) else math.inf)
         self.pet_due = NO_LOOK
 
     def pet_horizon(self, state: EgoState) -> float:

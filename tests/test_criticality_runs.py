@@ -394,3 +394,61 @@ def test_an_fmu_that_cannot_roll_back_gives_the_extremes_within_a_step(simple_fm
     start = event(result, "spawn")["time_s"] + (1000 * FOOT - (cosim.bounds.length + 4.2) / 2) / (108 * FOOT)
     assert summary["min_distance"] == pytest.approx(clearance / FOOT, abs=1e-9)
     assert 0 <= summary["min_distance_time_s"] - start <= uncertainty
+
+
+def crowd(n: int):
+    """n cars on the road at once: all spawned at 1 ft, 1000 + 60 k ft ahead, oncoming in the other lane; each
+    passes the ego and leaves the road; the run ends after the last has passed."""
+    lines = ["English"] + [f"1,A,20,{1000 + 60 * k},-6,1" for k in range(n)]
+    return parse_text("\n".join(lines + [f"{int(300 + 0.82 * (1000 + 60 * n))},ES"]), f"crowd{n}.sdl")
+
+
+def counted_run(scenario, fmu) -> tuple[dict, object]:
+    """A run of the real master and FMU with its criticality looks (Extremes.look calls) counted by what made
+    them: `fire` (a spawn, an action, a contact's start or end, a departure: look(only=...) and
+    look_before_change), `due` (a vehicle's own next-look instant came), `ahead` (a bound ending in the
+    coming step looked at its start to spare a snapshot), `located` (an instant located inside a step)."""
+    cosim = Cosimulation(scenario, fmu, RunOptions(), TABLE)
+    counts = dict.fromkeys(("fire", "due", "ahead", "located", "end"), 0)
+    source = ["located"]
+
+    def counting(method, name_of):
+        def wrapped(*args, **kwargs):
+            previous, source[0] = source[0], name_of(*args, **kwargs)
+            try:
+                return method(*args, **kwargs)
+            finally:
+                source[0] = previous
+        return wrapped
+
+    look = cosim.extremes.look
+
+    def count(*args, **kwargs):
+        counts[source[0]] += 1
+        return look(*args, **kwargs)
+
+    cosim.extremes.look = count
+    # a look at every vehicle is the run's end (or start) one, else a fire's
+    cosim.look = counting(cosim.look, lambda state, everyone=False, ahead=None, only=None:
+                          ("end" if cosim.finished or state.time == 0.0 else "fire") if everyone
+                          else "fire" if only is not None else "ahead" if ahead is not None else "due")
+    cosim.look_before_change = counting(cosim.look_before_change, lambda *_: "fire")
+    return counts, cosim.run()
+
+
+def test_a_fire_looks_only_at_the_vehicles_it_concerns_so_looks_grow_linearly(simple_fmu):
+    # With n cars on the road at once, each of the n departures (and the spawn) used to look at every vehicle on
+    # the road: about n^2 looks at fires. A fire now looks only at the vehicles it concerns: the spawned one,
+    # one whose action starts (before and after), one whose contact begins or ends, one leaving (before, unless
+    # looked at at this instant already). So the fire looks are at most 2 per such vehicle event, whatever n;
+    # the looks at a vehicle's own next-look instants and at located instants follow that vehicle's motion, so
+    # per vehicle they do not grow with n either (counted, not timed: the counts are deterministic).
+    per_vehicle = {}
+    for n in (4, 8, 16):
+        counts, result = counted_run(crowd(n), simple_fmu)
+        vehicle_events = sum(e["action"] in ("spawn", "maneuver", "collision", "despawn") for e in result.events)
+        assert sum(e["action"] == "despawn" for e in result.events) == n  # every car passed and left
+        assert counts["fire"] <= 2 * vehicle_events == 4 * n, (n, counts)
+        per_vehicle[n] = (counts["fire"] + counts["due"] + counts["located"]) / n
+        print(n, counts, f"{per_vehicle[n]:.2f} per vehicle")
+    assert per_vehicle[16] <= per_vehicle[8] <= per_vehicle[4], per_vehicle

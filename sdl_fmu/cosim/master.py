@@ -170,6 +170,7 @@ class Cosimulation:
         self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
+        self.touched: set[int] = set()  # the vehicles something fired for at this instant (looked at after)
 
     # ---- scenario units at the results boundary -------------------------------------------------
 
@@ -376,6 +377,7 @@ class Cosimulation:
         action, overlap, away = self.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
+                self.look_before_change(int(i), state)
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
@@ -392,7 +394,9 @@ class Cosimulation:
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
+        self.touched.update(changed.tolist())
         for i in active[away & ~overlap]:
+            self.look_before_change(int(i), state)
             traffic.remove(i)
             self.leave_sample[i] = self.sample_count
             self.log("A", "despawn", state, vehicle=self.vehicle_ids[i])
@@ -402,6 +406,7 @@ class Cosimulation:
             model_number = choose_model(event, self.rng)
             model = self.vehicle_table[model_number]
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
+            self.touched.add(index)
             self.vehicle_ids.append(index + 1)
             self.spawn_sample.append(self.sample_count)
             self.leave_sample.append(-1)
@@ -455,13 +460,17 @@ class Cosimulation:
             or (self.pet_pending and self.pet_due <= limit) \
             or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
 
-    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None) -> None:
+    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None, only=None) -> None:
         """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
         communication point, keeps their rates (the next step's start) and their next-look instants. With
         `ahead` (a step's end), also the vehicles last looked at before now whose located instants could
-        come by then: a look now moves that bound on, and the step may then need no FMU snapshot."""
+        come by then: a look now moves that bound on, and the step may then need no FMU snapshot. With
+        `only` (the vehicles something fired for: spawned, started an action, began or ended a contact), those
+        still on the road and no other: the others' bounds still hold (they rest on the ego's bounds, which
+        hold whatever its inputs, and on the vehicles' own motions), so the cost of a fire does not grow with
+        the number of vehicles."""
         t = state.time
-        if not everyone and t < self.earliest_look and ahead is None:
+        if not everyone and t < self.earliest_look and ahead is None and only is None:
             return
         traffic, bounds = self.traffic, self.bounds
         if len(self.next_look) < traffic.size:
@@ -471,7 +480,12 @@ class Cosimulation:
         earliest = earliest_quiet = math.inf
         evaluated, self.evaluated = self.evaluated, {}
         extremes = self.extremes
-        for i in traffic.active.tolist():
+        if only is not None:
+            # the others' instants are kept: the earliest so far stays a bound (at worst early: then a look
+            # finds nothing due and recomputes it over every vehicle)
+            earliest, earliest_quiet = self.earliest_look, self.earliest_quiet
+            everyone = True
+        for i in (traffic.active.tolist() if only is None else sorted(i for i in only if traffic.present[i])):
             instant = float(self.next_look[i])
             if everyone or instant <= t or (ahead is not None and self.quiet_until[i] <= ahead
                                             and self.look_time[i] < t):
@@ -485,6 +499,15 @@ class Cosimulation:
             earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
         self.earliest_look = earliest
         self.earliest_quiet = earliest_quiet
+
+    def look_before_change(self, i: int, state: EgoState) -> None:
+        """Vehicle i at this instant with the motion it had until now, before an action changes it or it leaves
+        the road (an extreme at the end of that motion), unless it was looked at here already; it is looked at
+        again with its new motion after the fire."""
+        if i >= len(self.look_time) or self.look_time[i] != state.time:
+            bounds = self.bounds
+            self.extremes.look(self.traffic, i, state, bounds.acceleration, bounds.yaw_rate, bounds.radius)
+        self.touched.add(i)
 
     def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
         """After a step from t0 to state.time: locates the extremes inside it (from the snapshot `base` at t0;
@@ -800,6 +823,7 @@ class Cosimulation:
             state = self.ego.read()
             self.fire_due(state)
             self.look(state, everyone=True)
+            self.touched.clear()
             self.sample_driver(state, None)
             self.apply_inputs(state, True)
             self.record(state)
@@ -851,13 +875,14 @@ class Cosimulation:
                 self.steps += 1
                 driver_sample = state.time >= next_sample
                 if base is not None or fired or state.time >= self.earliest_look or not self.exact:
-                    self.follow_criticality(base, t, state, everyone=fired)
+                    self.follow_criticality(base, t, state, everyone=False)
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
                     self.cached_bounds.clear()  # the next event, a BRK on or off
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
-                    self.look(state, everyone=True)  # the motions from this instant on
+                    self.look(state, only=self.touched)  # the changed motions from this instant on
+                    self.touched.clear()
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:

@@ -28,7 +28,10 @@ class WithoutCriticality(Cosimulation):
     def follow_criticality(self, base, t0, state, everyone):
         pass
 
-    def look(self, state, everyone=False, ahead=None):
+    def look(self, state, everyone=False, ahead=None, only=None):
+        pass
+
+    def look_before_change(self, i, state):
         pass
 
 

@@ -515,6 +515,27 @@ def conflict_far_end(station: float, length: float) -> float:
     return station + length / 2
 
 
+def passage_known(middle: float, low: float, low_position: float | None, low_rate: float, high: float,
+                  high_position: float, high_rate: float, station: float, turn: float,
+                  acceleration: float) -> bool | None:
+    """Whether a point of the ego's footprint moving along the road (its front or rear: the reference point's
+    station plus an offset turning with the yaw) is at or past `station` at `middle`, where its positions at
+    low (None: unknown) and high and the reference point's station rates there say so for certain; None where
+    only a probe can tell. The point's station rate is the reference point's (which changes at most at the
+    acceleration bound A) plus at most R r_max (`turn`: the offset turning), so over d = middle - low it moves
+    at most (rate + turn) d + A d^2 / 2 on from low, and over d = high - middle it moved at most as much to
+    high. The master's bisection of a PET passage skips the probes this decides: the same brackets, the
+    same instant, fewer FMU probes."""
+    if low_position is not None:
+        d = middle - low
+        if low_position + (low_rate + turn) * d + 0.5 * acceleration * d * d < station:
+            return False
+    d = high - middle
+    if high_position - (high_rate + turn) * d - 0.5 * acceleration * d * d >= station:
+        return True
+    return None
+
+
 def post_encroachment_time(first_leaves: float, second_enters: float) -> float:
     """PET (s) = t_second_enters - t_first_leaves (the vehicle first: the ego's front reaching the area it
     left; the ego first: the vehicle entering the area the ego's rear left); nan when the second entered

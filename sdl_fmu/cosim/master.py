@@ -32,7 +32,7 @@ from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, Sur
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
-from .criticality import RANGE, Extremes, Footprint, band_times, conflict_far_end, distances, ttcs
+from .criticality import RANGE, Extremes, Footprint, band_times, conflict_far_end, distances, passage_known, ttcs
 from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .ego import step_until_time
@@ -570,17 +570,43 @@ class Cosimulation:
             ego.step_to(t)
             return ego.read()
 
-        def bisect_instant(low, high, condition) -> tuple[EgoState, EgoState]:
-            """(state before, state at) the instant condition turns true in (low, high], true at high."""
+        def bisect_instant(low, high, condition, known=None) -> tuple[EgoState, EgoState]:
+            """(state before, state at) the instant condition turns true in (low, high], true at high. With
+            `known(middle, (instant, state) probed last below, (instant, state) probed last above)`, a test that
+            is True or False where it can tell the condition without a probe (None: a probe): the same
+            midpoints and outcomes, fewer probes, and the state at the final high probed once if it was not
+            (the state before is then that of the last probe below)."""
             low_state, high_state = None, state
+            below, above = (low, None), (high, state)
             while high - low > CRITICALITY_TOLERANCE:
                 middle = 0.5 * (low + high)
-                probed = probe(middle)
-                if condition(probed):
+                outcome = None if known is None else known(middle, below, above)
+                probed = None
+                if outcome is None:
+                    probed = probe(middle)
+                    outcome = condition(probed)
+                if outcome:
                     high, high_state = middle, probed
+                    if probed is not None:
+                        above = (middle, probed)
                 else:
                     low, low_state = middle, probed
-            return low_state, high_state
+                    if probed is not None:
+                        below = (middle, probed)
+            if high_state is None:
+                high_state = probe(high)
+            return below[1] if known is not None else low_state, high_state
+
+        turn, acceleration = bounds.radius * bounds.yaw_rate, bounds.acceleration
+
+        def passage(position, station: float):
+            """`known` for `position(p) >= station`, position the station of the ego's front or rear."""
+            def known(middle, below, above):
+                (low, low_state), (high, high_state) = below, above
+                return passage_known(middle, low, None if low_state is None else position(low_state),
+                                     0.0 if low_state is None else _station_rate(low_state), high,
+                                     position(high_state), _station_rate(high_state), station, turn, acceleration)
+            return known
 
         def root_instant(low, high, value, low_value, high_value) -> tuple[EgoState, EgoState]:
             """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
@@ -663,14 +689,15 @@ class Cosimulation:
         rear = self._rear(state)
         for i, station in zip(*(k.tolist() for k in extremes.rear_stations())):
             if station <= rear:
-                _, reached = bisect_instant(t0, t1, lambda p, station=station: self._rear(p) >= station)
+                _, reached = bisect_instant(t0, t1, lambda p, station=station: self._rear(p) >= station,
+                                            passage(self._rear, station))
                 extremes.rear_reached(i, reached.time)
                 self.located += 1
         front = self._front(state)
         for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():
             station = float(extremes.conflict[i])
             start = max(t0, float(extremes.left_path[i]))
-            _, reached = bisect_instant(start, t1, lambda p: self._front(p) >= station)
+            _, reached = bisect_instant(start, t1, lambda p: self._front(p) >= station, passage(self._front, station))
             self._reach(reached)
             self.located += 1
         ego.restore(end)
@@ -950,6 +977,11 @@ class Cosimulation:
         offsets = np.concatenate([[0], np.cumsum(last - first)])
         return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), self.traffic.models,
                              first, offsets)
+
+
+def _station_rate(state: EgoState) -> float:
+    """The ego's reference point's station rate (m/s): its body-frame velocity turned by psi."""
+    return state.vx * math.cos(state.psi) - state.vy * math.sin(state.psi)
 
 
 def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds, columns: dict) -> np.ndarray:

@@ -24,7 +24,9 @@ distance/hw.py; https://criticality-metrics.readthedocs.io):
   t_entry(second) - t_exit(first)). Here, for a vehicle crossing the ego's path (a lateral action into the
   ego's lane and back): the conflict area is where the vehicle's footprint stood when it left the ego's path
   band (`band_times`), and the ego reaches it when its front reaches that area's near end
-  (`conflict_station`). PET = t_ego_reaches - t_vehicle_left.
+  (`conflict_station`). PET = t_ego_reaches - t_vehicle_left. The ego first (a vehicle moving into the ego's
+  lane behind it): the area is where the vehicle's footprint stands when it enters the band, the ego left it
+  when its rear passed that area's far end (`conflict_far_end`); PET = t_vehicle_enters - t_ego_left.
 - time headway (SUMO's TGAP = space gap / follower speed; CriMe thw.py for a constant ego speed): the
   bumper-to-bumper gap to a vehicle ahead in the ego's path (the footprints overlap laterally) moving the same
   way, divided by the ego's speed along the road.
@@ -506,10 +508,40 @@ def conflict_station(station: float, length: float) -> float:
     return station - length / 2
 
 
-def post_encroachment_time(vehicle_leaves: float, ego_reaches: float) -> float:
-    """PET (s) = t_ego_reaches - t_vehicle_leaves; nan when the ego reached the area first (then the two
-    occupied it together: a contact or a near miss, measured by distance and TTC, not PET)."""
-    return ego_reaches - vehicle_leaves if ego_reaches >= vehicle_leaves else math.nan
+def conflict_far_end(station: float, length: float) -> float:
+    """The far (higher-station) end of the area where a vehicle's footprint enters the ego's path: its front
+    in the ego's direction of travel, the station the ego's rear must have passed for the ego to have left
+    the area before the vehicle entered it (the ego passing first)."""
+    return station + length / 2
+
+
+def passage_known(middle: float, low: float, low_position: float | None, low_rate: float, high: float,
+                  high_position: float, high_rate: float, station: float, turn: float,
+                  acceleration: float) -> bool | None:
+    """Whether a point of the ego's footprint moving along the road (its front or rear: the reference point's
+    station plus an offset turning with the yaw) is at or past `station` at `middle`, where its positions at
+    low (None: unknown) and high and the reference point's station rates there say so for certain; None where
+    only a probe can tell. The point's station rate is the reference point's (which changes at most at the
+    acceleration bound A) plus at most R r_max (`turn`: the offset turning), so over d = middle - low it moves
+    at most (rate + turn) d + A d^2 / 2 on from low, and over d = high - middle it moved at most as much to
+    high. The master's bisection of a PET passage skips the probes this decides: the same brackets, the
+    same instant, fewer FMU probes."""
+    if low_position is not None:
+        d = middle - low
+        if low_position + (low_rate + turn) * d + 0.5 * acceleration * d * d < station:
+            return False
+    d = high - middle
+    if high_position - (high_rate + turn) * d - 0.5 * acceleration * d * d >= station:
+        return True
+    return None
+
+
+def post_encroachment_time(first_leaves: float, second_enters: float) -> float:
+    """PET (s) = t_second_enters - t_first_leaves (the vehicle first: the ego's front reaching the area it
+    left; the ego first: the vehicle entering the area the ego's rear left); nan when the second entered
+    before the first left (then the two occupied it together: a contact or a near miss, measured by distance
+    and TTC, not PET)."""
+    return second_enters - first_leaves if second_enters >= first_leaves else math.nan
 
 
 # ---- horizons -------------------------------------------------------------------------------------------
@@ -697,6 +729,10 @@ class Extremes:
         self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
         self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
         self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
+        # the ego passing first (PET): the far end of the area where the vehicle's footprint will enter the ego's
+        # path, while the ego's rear has yet to pass it (m), and the instant it did (s)
+        self.far_end = np.full(capacity, np.nan)
+        self.rear_left = np.full(capacity, np.nan)
         # s from the last look: a lower bound on when that vehicle's next located instant (a closest
         # approach, a collision course's start or end, a transition's end) can be (0: any time)
         self.quiet = 0.0
@@ -708,6 +744,8 @@ class Extremes:
                     table[name] = np.concatenate([values, np.full(len(values), np.nan)])
             self.left_path = np.concatenate([self.left_path, np.full(len(self.left_path), np.nan)])
             self.conflict = np.concatenate([self.conflict, np.full(len(self.conflict), np.nan)])
+            self.far_end = np.concatenate([self.far_end, np.full(len(self.far_end), np.nan)])
+            self.rear_left = np.concatenate([self.rear_left, np.full(len(self.rear_left), np.nan)])
         self.size = max(self.size, size)
 
     # -- offering values
@@ -904,6 +942,42 @@ class Extremes:
             self.left_path[i], self.conflict[i] = t, near_end
         else:
             self.left_path[i] = self.conflict[i] = np.nan
+
+    def path_entering(self, i: int, far_end: float, ego_rear: float) -> None:
+        """Vehicle i's footprint will enter the ego's path (`band_times`' enter instant, closed form as its move
+        starts), reaching then up to `far_end` (`conflict_far_end`). If the ego's rear has yet to pass that
+        station, the ego may leave the area first: its rear's passage (`rear_stations`, `rear_reached`) and the
+        entry (`path_entered`) give the PET. If the rear has passed it already (the ego left the area before
+        the move began), no PET is measured for this entry (README)."""
+        if i >= self.size:
+            self._grow(i + 1)
+        self.rear_left[i] = np.nan
+        self.far_end[i] = far_end if ego_rear < far_end else np.nan
+
+    def cancel_entry(self, i: int) -> None:
+        """Vehicle i's motion changed before it entered the ego's path: its pending entry is void."""
+        if i < self.size:
+            self.far_end[i] = self.rear_left[i] = np.nan
+
+    def rear_stations(self) -> np.ndarray:
+        """(vehicle indices, far ends) whose passage by the ego's rear is pending."""
+        far = self.far_end[:self.size]
+        pending = np.flatnonzero((far == far) & (self.rear_left[:self.size] != self.rear_left[:self.size]))
+        return pending, far[pending]
+
+    def rear_reached(self, i: int, t: float) -> None:
+        """The ego's rear passed vehicle i's entry area's far end at t."""
+        self.rear_left[i] = t
+
+    def path_entered(self, i: int, t: float) -> None:
+        """Vehicle i's footprint entered the ego's path at t: if the ego's rear had left the area by then, the
+        PET (ego first) = t - that instant; either way the entry is done."""
+        if i >= self.size:
+            return
+        left = float(self.rear_left[i])
+        if left == left and self.far_end[i] == self.far_end[i]:
+            self.offer("min_pet", i, t, post_encroachment_time(left, t))
+        self.far_end[i] = self.rear_left[i] = np.nan
 
     def pending_stations(self) -> np.ndarray:
         """The conflict stations the ego's front has yet to reach (the master's PET trigger: a station, like

@@ -32,7 +32,7 @@ from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, Sur
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from .brake import BrakeHold
-from .criticality import RANGE, Extremes, Footprint, band_times, distances, ttcs
+from .criticality import RANGE, Extremes, Footprint, band_times, conflict_far_end, distances, passage_known, ttcs
 from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .ego import step_until_time
@@ -163,12 +163,14 @@ class Cosimulation:
         self.earliest_quiet = NO_LOOK
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
+        self.enters_lane: dict[int, float] = {}  # per vehicle, the instant its footprint will enter the ego's lane
         self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
         self.pet_station = math.inf  # the nearest such area's station
         self.pet_due = NO_LOOK  # a lower bound on when the ego's front can reach it (NO_LOOK: to be computed)
         self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
+        self.touched: set[int] = set()  # the vehicles something fired for at this instant (looked at after)
 
     # ---- scenario units at the results boundary -------------------------------------------------
 
@@ -375,6 +377,7 @@ class Cosimulation:
         action, overlap, away = self.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
+                self.look_before_change(int(i), state)
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
@@ -391,7 +394,9 @@ class Cosimulation:
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
+        self.touched.update(changed.tolist())
         for i in active[away & ~overlap]:
+            self.look_before_change(int(i), state)
             traffic.remove(i)
             self.leave_sample[i] = self.sample_count
             self.log("A", "despawn", state, vehicle=self.vehicle_ids[i])
@@ -401,6 +406,7 @@ class Cosimulation:
             model_number = choose_model(event, self.rng)
             model = self.vehicle_table[model_number]
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
+            self.touched.add(index)
             self.vehicle_ids.append(index + 1)
             self.spawn_sample.append(self.sample_count)
             self.leave_sample.append(-1)
@@ -454,13 +460,17 @@ class Cosimulation:
             or (self.pet_pending and self.pet_due <= limit) \
             or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
 
-    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None) -> None:
+    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None, only=None) -> None:
         """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
         communication point, keeps their rates (the next step's start) and their next-look instants. With
         `ahead` (a step's end), also the vehicles last looked at before now whose located instants could
-        come by then: a look now moves that bound on, and the step may then need no FMU snapshot."""
+        come by then: a look now moves that bound on, and the step may then need no FMU snapshot. With
+        `only` (the vehicles something fired for: spawned, started an action, began or ended a contact), those
+        still on the road and no other: the others' bounds still hold (they rest on the ego's bounds, which
+        hold whatever its inputs, and on the vehicles' own motions), so the cost of a fire does not grow with
+        the number of vehicles."""
         t = state.time
-        if not everyone and t < self.earliest_look and ahead is None:
+        if not everyone and t < self.earliest_look and ahead is None and only is None:
             return
         traffic, bounds = self.traffic, self.bounds
         if len(self.next_look) < traffic.size:
@@ -470,7 +480,12 @@ class Cosimulation:
         earliest = earliest_quiet = math.inf
         evaluated, self.evaluated = self.evaluated, {}
         extremes = self.extremes
-        for i in traffic.active.tolist():
+        if only is not None:
+            # the others' instants are kept: the earliest so far stays a bound (at worst early: then a look
+            # finds nothing due and recomputes it over every vehicle)
+            earliest, earliest_quiet = self.earliest_look, self.earliest_quiet
+            everyone = True
+        for i in (traffic.active.tolist() if only is None else sorted(i for i in only if traffic.present[i])):
             instant = float(self.next_look[i])
             if everyone or instant <= t or (ahead is not None and self.quiet_until[i] <= ahead
                                             and self.look_time[i] < t):
@@ -484,6 +499,15 @@ class Cosimulation:
             earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
         self.earliest_look = earliest
         self.earliest_quiet = earliest_quiet
+
+    def look_before_change(self, i: int, state: EgoState) -> None:
+        """Vehicle i at this instant with the motion it had until now, before an action changes it or it leaves
+        the road (an extreme at the end of that motion), unless it was looked at here already; it is looked at
+        again with its new motion after the fire."""
+        if i >= len(self.look_time) or self.look_time[i] != state.time:
+            bounds = self.bounds
+            self.extremes.look(self.traffic, i, state, bounds.acceleration, bounds.yaw_rate, bounds.radius)
+        self.touched.add(i)
 
     def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
         """After a step from t0 to state.time: locates the extremes inside it (from the snapshot `base` at t0;
@@ -501,6 +525,8 @@ class Cosimulation:
                     self._lane_left(i, state)
         if self.pet_pending and self._front(state) >= self.pet_station:
             self._reach(state)
+        if self.enters_lane:
+            self._entries(t1)
         if base is not None:
             self.ego.discard(base)
         self.look(state, everyone)
@@ -544,17 +570,43 @@ class Cosimulation:
             ego.step_to(t)
             return ego.read()
 
-        def bisect_instant(low, high, condition) -> tuple[EgoState, EgoState]:
-            """(state before, state at) the instant condition turns true in (low, high], true at high."""
+        def bisect_instant(low, high, condition, known=None) -> tuple[EgoState, EgoState]:
+            """(state before, state at) the instant condition turns true in (low, high], true at high. With
+            `known(middle, (instant, state) probed last below, (instant, state) probed last above)`, a test that
+            is True or False where it can tell the condition without a probe (None: a probe): the same
+            midpoints and outcomes, fewer probes, and the state at the final high probed once if it was not
+            (the state before is then that of the last probe below)."""
             low_state, high_state = None, state
+            below, above = (low, None), (high, state)
             while high - low > CRITICALITY_TOLERANCE:
                 middle = 0.5 * (low + high)
-                probed = probe(middle)
-                if condition(probed):
+                outcome = None if known is None else known(middle, below, above)
+                probed = None
+                if outcome is None:
+                    probed = probe(middle)
+                    outcome = condition(probed)
+                if outcome:
                     high, high_state = middle, probed
+                    if probed is not None:
+                        above = (middle, probed)
                 else:
                     low, low_state = middle, probed
-            return low_state, high_state
+                    if probed is not None:
+                        below = (middle, probed)
+            if high_state is None:
+                high_state = probe(high)
+            return below[1] if known is not None else low_state, high_state
+
+        turn, acceleration = bounds.radius * bounds.yaw_rate, bounds.acceleration
+
+        def passage(position, station: float):
+            """`known` for `position(p) >= station`, position the station of the ego's front or rear."""
+            def known(middle, below, above):
+                (low, low_state), (high, high_state) = below, above
+                return passage_known(middle, low, None if low_state is None else position(low_state),
+                                     0.0 if low_state is None else _station_rate(low_state), high,
+                                     position(high_state), _station_rate(high_state), station, turn, acceleration)
+            return known
 
         def root_instant(low, high, value, low_value, high_value) -> tuple[EgoState, EgoState]:
             """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
@@ -634,11 +686,18 @@ class Cosimulation:
             look_at(i, at._replace(time=end_time - 1e-9), at)
         for i, leave in leaving:
             self._lane_left(i, probe(leave))
+        rear = self._rear(state)
+        for i, station in zip(*(k.tolist() for k in extremes.rear_stations())):
+            if station <= rear:
+                _, reached = bisect_instant(t0, t1, lambda p, station=station: self._rear(p) >= station,
+                                            passage(self._rear, station))
+                extremes.rear_reached(i, reached.time)
+                self.located += 1
         front = self._front(state)
         for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():
             station = float(extremes.conflict[i])
             start = max(t0, float(extremes.left_path[i]))
-            _, reached = bisect_instant(start, t1, lambda p: self._front(p) >= station)
+            _, reached = bisect_instant(start, t1, lambda p: self._front(p) >= station, passage(self._front, station))
             self._reach(reached)
             self.located += 1
         ego.restore(end)
@@ -661,18 +720,45 @@ class Cosimulation:
         return state.x + self.bounds.length / 2 * abs(math.cos(state.psi)) \
             + self.bounds.width / 2 * abs(math.sin(state.psi))
 
+    def _rear(self, state: EgoState) -> float:
+        """Station of the rear of the ego's footprint."""
+        return state.x - self.bounds.length / 2 * abs(math.cos(state.psi)) \
+            - self.bounds.width / 2 * abs(math.sin(state.psi))
+
     def lane_leave_instant(self, i: int, state: EgoState) -> None:
-        """When an action starts vehicle i's lateral move: the instant its footprint leaves the ego's lane
-        (criticality.band_times, closed form), where the PET's conflict area is set."""
+        """When an action starts vehicle i's lateral move: the instants its footprint leaves and enters the ego's
+        lane (criticality.band_times, closed form), where the PET's conflict areas are set (the vehicle
+        leaving first; the ego leaving first: the far end of the area the vehicle will enter)."""
         traffic, road = self.traffic, self.road
         self.leaves_lane.pop(i, None)
         lane = road.lane_at(-state.y)
         centre = road.lane_center(lane)
-        _, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
-                              float(traffic.duration[i]), float(traffic.width[i]), centre - road.lane_width / 2,
-                              centre + road.lane_width / 2)
+        enter, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
+                                  float(traffic.duration[i]), float(traffic.width[i]), centre - road.lane_width / 2,
+                                  centre + road.lane_width / 2)
         if state.time < leave < math.inf:
             self.leaves_lane[i] = leave
+        if state.time < enter < math.inf:
+            self.enters_lane[i] = enter
+            far_end = conflict_far_end(traffic.motion_of(i, enter)[0], float(traffic.length[i]))
+            self.extremes.path_entering(i, far_end, self._rear(state))
+            self._pending()
+        elif self.enters_lane.pop(i, None) is not None:
+            self.extremes.cancel_entry(i)
+            self._pending()
+
+    def _entries(self, t1: float) -> None:
+        """The vehicles whose footprint entered the ego's lane by t1 (closed-form instants): the PET where the
+        ego's rear had left the area first (criticality.Extremes.path_entered); none for a vehicle that left the
+        road before entering."""
+        for i, enter in list(self.enters_lane.items()):
+            if enter <= t1:
+                del self.enters_lane[i]
+                if self.traffic.present[i]:
+                    self.extremes.path_entered(i, enter)
+                else:
+                    self.extremes.cancel_entry(i)
+        self._pending()
 
     def _lane_left(self, i: int, state: EgoState) -> None:
         del self.leaves_lane[i]
@@ -681,13 +767,22 @@ class Cosimulation:
         self._pending()
 
     def _reach(self, state: EgoState) -> None:
-        self.extremes.reach(state)
+        extremes = self.extremes
+        extremes.reach(state)
+        pending, far = extremes.rear_stations()
+        for i in pending[far <= self._rear(state)].tolist():
+            extremes.rear_reached(i, state.time)
         self._pending()
 
     def _pending(self) -> None:
+        """The nearest station the ego's front must reach for a pending PET: a conflict area's near end, or a
+        far end its rear must pass (the front is then at least min(L, W) further on: front - rear =
+        L |cos psi| + W |sin psi|)."""
         stations = self.extremes.pending_stations()
-        self.pet_pending = bool(len(stations))
-        self.pet_station = float(stations.min()) if len(stations) else math.inf
+        _, far = self.extremes.rear_stations()
+        self.pet_pending = bool(len(stations) or len(far))
+        self.pet_station = min(float(stations.min()) if len(stations) else math.inf,
+                               float(far.min()) + min(self.bounds.length, self.bounds.width) if len(far) else math.inf)
         self.pet_due = NO_LOOK
 
     def pet_horizon(self, state: EgoState) -> float:
@@ -755,6 +850,7 @@ class Cosimulation:
             state = self.ego.read()
             self.fire_due(state)
             self.look(state, everyone=True)
+            self.touched.clear()
             self.sample_driver(state, None)
             self.apply_inputs(state, True)
             self.record(state)
@@ -806,13 +902,14 @@ class Cosimulation:
                 self.steps += 1
                 driver_sample = state.time >= next_sample
                 if base is not None or fired or state.time >= self.earliest_look or not self.exact:
-                    self.follow_criticality(base, t, state, everyone=fired)
+                    self.follow_criticality(base, t, state, everyone=False)
                 if fired:
                     self.fire_due(state)
                     self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
                     self.cached_bounds.clear()  # the next event, a BRK on or off
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
-                    self.look(state, everyone=True)  # the motions from this instant on
+                    self.look(state, only=self.touched)  # the changed motions from this instant on
+                    self.touched.clear()
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:
@@ -880,6 +977,11 @@ class Cosimulation:
         offsets = np.concatenate([[0], np.cumsum(last - first)])
         return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), self.traffic.models,
                              first, offsets)
+
+
+def _station_rate(state: EgoState) -> float:
+    """The ego's reference point's station rate (m/s): its body-frame velocity turned by psi."""
+    return state.vx * math.cos(state.psi) - state.vy * math.sin(state.psi)
 
 
 def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds, columns: dict) -> np.ndarray:

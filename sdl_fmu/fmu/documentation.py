@@ -9,7 +9,8 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
-from ..interface import INPUT, OUTPUT, PARAMETER, Interface, INTERFACE_DIRECTORY
+from ..interface import INPUT, OUTPUT, PARAMETER, Interface
+from ..paths import MODEL_DESCRIPTION_DIRECTORY
 from .codegen import TableEntry
 
 # the modelDescription's author, copyright and license attributes (pyproject.toml: license = MIT)
@@ -39,7 +40,7 @@ def license_text() -> str:
 
 def references(model_name: str) -> list[str]:
     """The literature a model is built on (the "references" of its interface data)."""
-    data = json.loads((INTERFACE_DIRECTORY / f"{model_name}.json").read_text(encoding="utf-8"))
+    data = json.loads((MODEL_DESCRIPTION_DIRECTORY / f"{model_name}.json").read_text(encoding="utf-8"))
     return data.get("references", [])
 
 

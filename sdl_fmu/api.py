@@ -27,7 +27,8 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .paths import SCENARIO_DIRECTORY
-from .results import RunResult, summary, timeseries_table, write_results
+from .results import summary, timeseries_table, write_results
+from .run_result import RunResult
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",

@@ -22,7 +22,7 @@ def _data_directory(name: str) -> Path:
     inside, beside = PACKAGE_DIRECTORY / name, PACKAGE_DIRECTORY.parent / name  # a wheel's, a checkout's
     try:
         found = resources.files(f"{__package__}.{name}")
-    except ModuleNotFoundError:
+    except (ImportError, OSError):  # not installed; or a stale editable install's map to a folder now gone
         return beside
     if isinstance(found, Path) and found.resolve() in (inside.resolve(), beside.resolve()):
         return found

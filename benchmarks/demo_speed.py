@@ -19,7 +19,7 @@ from pathlib import Path
 from provenance import stamp
 from sdl_fmu.cosim.master import RunOptions, run_scenario
 from sdl_fmu.fmu.package import build_fmu
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
 from sdl_fmu.vehicle import EgoInstance
 

@@ -24,6 +24,9 @@ from provenance import stamp
 
 def load_package(name: str, source: Path, folder: Path):
     shutil.copytree(source / "sdl_fmu", folder / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for data in ("scenarios", "modelDescription"):  # a checkout of the top-level layout: its data, as a wheel has it
+        if (source / data).is_dir():
+            shutil.copytree(source / data, folder / name / data, ignore=shutil.ignore_patterns("__pycache__"))
     sys.path.insert(0, str(folder))
     return importlib.import_module(name)
 
@@ -32,8 +35,9 @@ def runner(package_name: str, fmu: Path):
     """A function running the demo once through this package's master; returns (result, whole-call wall, CPU)."""
     master = importlib.import_module(f"{package_name}.cosim.master")
     sdl = importlib.import_module(f"{package_name}.sdl")
-    interface = importlib.import_module(f"{package_name}.interface")
-    scenario = sdl.load_scenario(interface.SCENARIO_DIRECTORY / "demo.sdl")
+    from sdl_fmu.paths import SCENARIO_DIRECTORY
+
+    scenario = sdl.load_scenario(SCENARIO_DIRECTORY / "demo.sdl")  # the same file for both
     table = sdl.load_vehicle_table(sdl.default_vehicle_table_path())
 
     def run():

@@ -1,5 +1,5 @@
 """The Advanced ego FMU (two-track vehicle on Magic Formula tires), loaded through fmpy, against analytic
-references computed here from the FMU's own parameters (its tire slots come from sdl_fmu/scenarios/tires/)."""
+references computed here from the FMU's own parameters (its tire slots come from scenarios/tires/)."""
 
 import math
 
@@ -12,7 +12,7 @@ from sdl_fmu.dynamics import advanced
 from sdl_fmu.units import STANDARD_GRAVITY as G
 
 WHEELS = ("fl", "fr", "rl", "rr")
-ICE = 3  # attribute of ice in sdl_fmu/scenarios/tires/attributes.txt
+ICE = 3  # attribute of ice in scenarios/tires/attributes.txt
 NO_RESISTANCES = {"drag_area": 0.0, "rolling_resistance": 0.0}
 
 

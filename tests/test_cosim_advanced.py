@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT

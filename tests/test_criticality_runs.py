@@ -8,7 +8,7 @@ import pytest
 
 from sdl_fmu.cosim.criticality import RANGE, Footprint, distances, drac
 from sdl_fmu.cosim.master import CRITICALITY_TOLERANCE, Cosimulation, RunOptions
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT
 

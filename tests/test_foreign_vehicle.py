@@ -22,11 +22,12 @@ RK4_TOLERANCE = 1e-9
 def shipped_names() -> set[str]:
     """Every variable name of sdl-fmu's two FMUs (their interface files; tire slots as tire0_.., tire7_..)."""
     import json
-    from importlib import resources
+
+    from sdl_fmu.paths import MODEL_DESCRIPTION_DIRECTORY
 
     names = set()
     for model in ("EgoVehicleSimple", "EgoVehicleAdvanced"):
-        interface = json.loads((resources.files("sdl_fmu") / "interfaces" / f"{model}.json").read_text())
+        interface = json.loads((MODEL_DESCRIPTION_DIRECTORY / f"{model}.json").read_text())
         for entry in interface["variables"]:
             if "repeat" in entry:
                 repeat = entry["repeat"]

@@ -82,7 +82,8 @@ def test_a_run_keeps_no_object_per_line_or_event(tmp_path, simple_fmu, monkeypat
 def test_summary_json_streams_the_events(tmp_path):
     """Writing summary.json holds one event at a time, not the list and the whole text."""
     from sdl_fmu.cosim.recorder import EventLog
-    from sdl_fmu.results import RunResult, summary, write_summary_json
+    from sdl_fmu.results import summary, write_summary_json
+    from sdl_fmu.run_result import RunResult
     from sdl_fmu.sdl.events import DEFAULT_ROAD
 
     def result(events: int) -> RunResult:
@@ -113,7 +114,8 @@ def resident_bytes() -> int:
 def test_read_sample_pages_leave_resident_memory(monkeypatch):
     """The disk-backed sample tables: pages read (as the CSV writers do) and released leave the resident
     memory again, so writing a long run's files does not hold them all (the data stays in the file)."""
-    from sdl_fmu.cosim.recorder import ChunkedTable, release_pages
+    from sdl_fmu.cosim.recorder import ChunkedTable
+    from sdl_fmu.storage import release_pages
 
     rows, columns = 100_000, 25  # 20 MB
     table = ChunkedTable(columns)

@@ -1,4 +1,4 @@
-"""The seed's BRK use case as a scenario (sdl_fmu/scenarios/spin.sdl): BRK on split friction (RSA) makes the
+"""The seed's BRK use case as a scenario (scenarios/spin.sdl): BRK on split friction (RSA) makes the
 Simple-dynamics car begin to spin; the driver model counter-steers and brings it back to its lane."""
 
 import csv
@@ -9,7 +9,7 @@ import pytest
 
 from sdl_fmu.cosim import driver
 from sdl_fmu.cosim.master import RunOptions, run_scenario
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.results import write_results
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
 from sdl_fmu.units import FOOT

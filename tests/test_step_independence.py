@@ -4,7 +4,7 @@ same times and the same collisions at --step 0.001 ... 10 s (issue 11). Runs the
 import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT
 

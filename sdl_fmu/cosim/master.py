@@ -27,7 +27,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..results import RunResult, VehicleTracks
+from ..run_result import RunResult, VehicleTracks
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
@@ -36,7 +36,8 @@ from .criticality import RANGE, Extremes, Footprint, band_times, conflict_far_en
 from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .ego import step_until_time
-from .recorder import ChunkedTable, EventLog, release_pages
+from ..storage import release_pages
+from .recorder import ChunkedTable, EventLog
 from .road import surface_map, surface_sections, wheel_geometry, wheel_surfaces
 from .traffic import Traffic, choose_model
 from .triggers import (EgoKinematics, ego_bounds, reach_time_scalar, vehicle_condition,

@@ -2,7 +2,7 @@
 per event in Python objects: memory stays bounded however long the run and however many vehicles pass.
 
 The sample arrays handed to the results are read-only maps of those files (or plain arrays for a run that
-fits in one chunk); whoever reads through a long one in order (the CSV writers) calls `release_pages`
+fits in one chunk); whoever reads through a long one in order (the CSV writers) calls `storage.release_pages`
 now and then, so that the pages already read leave the process's resident memory again."""
 
 from __future__ import annotations
@@ -68,19 +68,6 @@ class ChunkedTable:
         pages = mmap.mmap(self.file.fileno(), 0, access=mmap.ACCESS_READ)
         self.file.close()
         return np.frombuffer(pages, dtype=float).reshape(self.rows, self.columns)
-
-
-def release_pages(array) -> None:
-    """Drops the pages of the file map behind `array` (a `ChunkedTable.finish` table or a view of one) from
-    the process's resident memory; the data stays in the file and is read back if used again. A plain
-    array is left alone."""
-    base = array
-    while isinstance(base, np.ndarray):
-        base = base.base
-    if isinstance(base, memoryview):  # np.frombuffer's view of the map
-        base = base.obj
-    if isinstance(base, mmap.mmap) and not base.closed and hasattr(mmap, "MADV_DONTNEED"):
-        base.madvise(mmap.MADV_DONTNEED)
 
 
 EVENT_BATCH = 1024  # events pickled to the file at a time

@@ -7,9 +7,10 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Literal
+
+from ..paths import VEHICLE_MAP_DIRECTORY
 
 FrictionMeaning = Literal["mu", "attribute"]
 
@@ -75,7 +76,7 @@ def shipped_map_path(name: str) -> Path:
     """The shipped map of the shipped model `name` ("simple" or "advanced")."""
     if name not in SHIPPED:
         raise VehicleMapError(f"--dynamics {name}: must be one of {', '.join(SHIPPED)}")
-    return Path(str(resources.files("sdl_fmu") / "scenarios" / "vehicles" / f"{name}.toml"))
+    return VEHICLE_MAP_DIRECTORY / f"{name}.toml"
 
 
 def load_vehicle_map(path: str | Path) -> VehicleMap:

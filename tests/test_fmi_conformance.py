@@ -5,7 +5,7 @@ fmi3GetNumberOf* and fmi3SetTime; a refused null output argument is explained by
 
 import ctypes
 
-from sdl_fmu.fmu import fuzz
+import fmi_fuzz as fuzz
 from sdl_fmu.fmu.xml import LOG_CATEGORIES
 
 from test_runtime_hardening import ERROR, OK, Raw, Raw3

@@ -1,4 +1,4 @@
-"""The in-tree fuzzer (sdl_fmu/fmu/fuzz.py) in CI: a fixed seed, 1000 random FMI 2.0 and FMI 3.0 call sequences
+"""The FMI call-sequence fuzzer (tools/fmi_fuzz.py) in CI: a fixed seed, 1000 random FMI 2.0 and FMI 3.0 call sequences
 per FMU; no crash, no hang, no OK where the standard (or the modelDescription) requires an error.
 
 A hang is a call that does not return within HANG_GUARD: far beyond any call whose work is bounded (the
@@ -6,7 +6,7 @@ runtime's step budget, tests/test_runtime_hardening.py), so a busy or slow machi
 
 import pytest
 
-from sdl_fmu.fmu.fuzz import fuzz
+from fmi_fuzz import fuzz
 
 HANG_GUARD = 120.0  # s
 

@@ -106,7 +106,11 @@ SIGNATURES = {
     "fmi2GetContinuousStates": (Status, [Component, P(Real), ctypes.c_size_t]),
     "fmi2GetNominalsOfContinuousStates": (Status, [Component, P(Real), ctypes.c_size_t]),
     "fmi2DoStep": (Status, [Component, Real, Real, Boolean]),
+    "fmi2GetStatus": (Status, [Component, ctypes.c_int, P(Status)]),
     "fmi2GetRealStatus": (Status, [Component, ctypes.c_int, P(Real)]),
+    "fmi2GetIntegerStatus": (Status, [Component, ctypes.c_int, P(Integer)]),
+    "fmi2GetBooleanStatus": (Status, [Component, ctypes.c_int, P(Boolean)]),
+    "fmi2GetStringStatus": (Status, [Component, ctypes.c_int, P(ctypes.c_char_p)]),
 }
 
 Instance3 = ctypes.c_void_p
@@ -177,7 +181,7 @@ ALLOWED = {  # function -> {interface type: states where the standard allows it}
     "fmi2Reset": {CS: "any", ME: "any"},
     "get": {CS: {"init", "step", "terminated"}, ME: {"init", "event", "cont", "terminated"}},
     "fmi2DoStep": {CS: {"step"}, ME: set()},
-    "fmi2GetRealStatus": {CS: {"step", "terminated"}, ME: set()},
+    "fmi2GetXXXStatus": {CS: {"step", "terminated"}, ME: set()},
     "fmi2EnterEventMode": {CS: set(), ME: {"event", "cont"}},
     "fmi2NewDiscreteStates": {CS: set(), ME: {"event"}},
     "fmi2EnterContinuousTimeMode": {CS: set(), ME: {"event"}},
@@ -614,10 +618,16 @@ class Worker:
         ])()
 
     def do_status(self) -> None:
-        if self.version == 3:  # FMI 3.0 has no fmi3GetRealStatus
+        """One of the five fmi2Get*Status functions with a kind of fmi2StatusKind (0..3) or outside it; a kind the
+        FMU does not report may give Discard, which (like every non-OK return) needs a log message."""
+        if self.version == 3:  # FMI 3.0 has no fmi3Get*Status
             return
-        must, uncertain = self.state_rule("fmi2GetRealStatus")
-        self.call("fmi2GetRealStatus", must, True, self.component, 2, ctypes.byref(Real()))  # fmi2LastSuccessfulTime
+        name, value = self.rng.choice([("fmi2GetStatus", Status()), ("fmi2GetRealStatus", Real()),
+                                       ("fmi2GetIntegerStatus", Integer()), ("fmi2GetBooleanStatus", Boolean()),
+                                       ("fmi2GetStringStatus", ctypes.c_char_p())])
+        kind = self.rng.choice([0, 1, 2, 3, 3, -1, 7])
+        must, _ = self.state_rule("fmi2GetXXXStatus")
+        self.call(name, must, True, self.component, kind, ctypes.byref(value))
 
     def sequence(self, index: int) -> None:
         self.rng = r = random.Random(self.seed * 1_000_003 + index)

@@ -4,11 +4,26 @@ per FMU; no crash, no hang, no OK where the standard (or the modelDescription) r
 A hang is a call that does not return within HANG_GUARD: far beyond any call whose work is bounded (the
 runtime's step budget, tests/test_runtime_hardening.py), so a busy or slow machine is never taken for a hang."""
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from fmi_fuzz import fuzz
 
 HANG_GUARD = 120.0  # s
+TOOL = Path(__file__).resolve().parents[1] / "tools" / "fmi_fuzz.py"
+
+
+def test_the_fuzzer_runs_as_a_script_from_a_checkout(tmp_path):
+    """`python tools/fmi_fuzz.py --help` from any folder, with neither the checkout nor tools/ on the path."""
+    environment = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
+    completed = subprocess.run([sys.executable, TOOL, "--help"], cwd=tmp_path, env=environment,
+                               capture_output=True, text=True, timeout=120)
+    assert completed.returncode == 0, completed.stderr
+    assert completed.stdout.startswith("usage: python tools/fmi_fuzz.py") and "--sanitize" in completed.stdout
 
 
 def count(statuses, function, status):

@@ -111,6 +111,8 @@ def test_a_wheel_installed_in_a_fresh_venv_ships_the_data_and_runs_the_demo_from
     names = zipfile.ZipFile(wheel).namelist()
     assert {f"sdl_fmu/{name}" for name in shipped_data_files()} <= set(names)
     assert not [name for name in names if name.split("/")[0] in SHIPPED_DATA]  # nothing at site-packages' top
+    # development tools stay in the checkout (tools/): the FMI call-sequence fuzzer is not installed
+    assert [name for name in names if "fuzz" in name] == []
 
     venv = tmp_path / "venv"
     python, site_packages = fresh_venv(venv)

@@ -10,7 +10,7 @@ import zipfile
 import pytest
 from fmpy import read_model_description
 
-from sdl_fmu.fmu import fuzz
+import fmi_fuzz as fuzz
 from sdl_fmu.units import STANDARD_GRAVITY as G
 
 OK, ERROR = fuzz.OK, fuzz.ERROR

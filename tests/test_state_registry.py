@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from sdl_fmu.fmu import fuzz
+import fmi_fuzz as fuzz
 from sdl_fmu.fmu.package import fmi_headers
 
 from test_importers import HOST_SOURCE, SIMPLE_START, extract_binary, host_arguments

@@ -1,6 +1,7 @@
 """The command line as a user meets it: real subprocesses, exit codes, messages, files written."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -122,11 +123,15 @@ def test_every_option_of_every_command_has_help_text():
 
 
 def test_a_closed_pipe_ends_quietly_with_141(tmp_path):
-    # the reader's end is closed before sdl-fmu writes, so its first write meets EPIPE: what `| head -1` does
-    # to a writer that is still writing, without depending on which process is faster
-    process = subprocess.Popen([sys.executable, "-m", "sdl_fmu", "check", "demo"], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, cwd=tmp_path)
-    process.stdout.close()
+    # sdl-fmu's stdout is a pipe whose only reading end is closed before sdl-fmu starts, so its first write meets
+    # EPIPE whatever the timing: what `| head -1` does to a writer that is still writing
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        process = subprocess.Popen([sys.executable, "-m", "sdl_fmu", "check", "demo"], stdout=write_end,
+                                   stderr=subprocess.PIPE, cwd=tmp_path)
+    finally:
+        os.close(write_end)
     error = process.stderr.read().decode()
     assert process.wait(timeout=120) == 141
     assert "Traceback" not in error and "BrokenPipe" not in error and "Exception ignored" not in error

@@ -7,16 +7,13 @@ import sys
 
 import pytest
 
+from helpers import sdl_fmu
+
 BAD_SCENARIO = """English
 100,A,20,1000,-6,*8~1
 200,BRK,150,0,3
 300,XYZ,1
 """
-
-
-def sdl_fmu(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=300)
 
 
 def test_run_on_malformed_input_names_each_line_and_writes_nothing(tmp_path, simple_fmu):

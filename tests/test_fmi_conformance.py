@@ -8,7 +8,7 @@ import ctypes
 from sdl_fmu.fmu import fuzz
 from sdl_fmu.fmu.xml import LOG_CATEGORIES
 
-from test_runtime_hardening import ERROR, OK, Raw, Raw3
+from helpers import ERROR, OK, Raw, Raw3
 
 
 def declare(library, name, argtypes):

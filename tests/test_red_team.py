@@ -19,6 +19,8 @@ import pytest
 
 from sdl_fmu.sdl.parser import MAX_LANES, MAX_NUMBER_CHARS, MAX_PARAMETERS, MAX_SHOWN_CHARS
 
+import helpers
+
 MEMORY_CAP = 1 << 30  # bytes of address space per sdl-fmu process; a run needs ~0.3 GiB, the old reproducers > 1
 HANG_LIMIT = 900  # s: only a hang gets near it (the longest case, a 3600 s run, takes ~10 s alone)
 MAX_ERROR_LINE = 300  # characters: "one short line"
@@ -85,8 +87,8 @@ def failures(cases, outcomes, check) -> list[str]:
 
 
 def sdl_fmu(arguments, cwd):
-    return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, arguments)], cwd=cwd, capture_output=True,
-                          text=True, timeout=HANG_LIMIT, preexec_fn=_capped, env={**os.environ, "PYTHONWARNINGS": ""})
+    return helpers.sdl_fmu(*arguments, cwd=cwd, timeout=HANG_LIMIT, preexec_fn=_capped,
+                           env={**os.environ, "PYTHONWARNINGS": ""})
 
 
 def run_case(tmp_path, fmu, text, extra=(), name="case.sdl"):

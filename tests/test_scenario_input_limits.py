@@ -1,4 +1,4 @@
-"""Red team (issue 21, item 4): the inputs that once crashed or exhausted a run, and generated inputs of the same
+"""Scenario inputs at and beyond the format's limits (issue 21, item 4): the inputs that once crashed or exhausted a run, and generated inputs of the same
 families (huge model ranges, long digit strings, extreme but legal magnitudes of every numeric field, many lanes,
 long lines, non-ASCII digits). The set is meant to grow: add a case to a list below.
 

@@ -1,6 +1,7 @@
-"""Scenario inputs at and beyond the format's limits (issue 21, item 4): the inputs that once crashed or exhausted a run, and generated inputs of the same
-families (huge model ranges, long digit strings, extreme but legal magnitudes of every numeric field, many lanes,
-long lines, non-ASCII digits). The set is meant to grow: add a case to a list below.
+"""Scenario inputs at and beyond the format's limits (issue 21, item 4): the inputs that once crashed or exhausted
+a run, and generated inputs of the same families (huge model ranges, long digit strings, extreme but legal
+magnitudes of every numeric field, many lanes, long lines, non-ASCII digits). The set is meant to grow: add a case
+to a list below.
 
 Each case runs the real command line in a subprocess under a memory cap (resource.setrlimit on the address space)
 and a wall-clock limit that only catches hangs (never a speed assertion), and has one of two outcomes, which

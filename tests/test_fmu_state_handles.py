@@ -100,6 +100,7 @@ def test_c_host_misusing_handles_as_fmusim_does(simple_fmus, c_host, tmp_path, v
     assert len(logged) >= MISUSES, completed.stderr
 
 
+@pytest.mark.slow  # rebuilds the FMU from its sources with the sanitizers
 @pytest.mark.parametrize("version", [2, 3], ids=["fmi2", "fmi3"])
 def test_c_host_misuse_is_clean_under_asan_and_ubsan(simple_fmus, c_host, tmp_path, version):
     """The same misuse against the FMU's own sources built with AddressSanitizer + UBSan (abort on the first

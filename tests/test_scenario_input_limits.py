@@ -242,6 +242,7 @@ def _metric(text: str) -> str:
     return text.replace(L_MAX, "1000000").replace(S_MAX, "1000").replace("328,", "100,")
 
 
+@pytest.mark.slow  # 27 whole runs of up to 600 s with their plots
 def test_extreme_legal_values_run_and_plot(tmp_path, simple_fmu):
     assert EXTREMES["long RSA line"].split("\n")[1].count(",") - 1 == MAX_PARAMETERS  # the most a line may hold
     cases = [(f"English {name}", f"English\n{text}\n", ["--until-time", "600"]) for name, text in EXTREMES.items()]

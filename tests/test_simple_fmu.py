@@ -279,6 +279,7 @@ LIBCOSIM_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("step", [0.01, 0.1])
 def test_libcosim_gets_the_same_stopping_distance(simple_fmu, defaults_simple, step):
     # libcosim is an independent C++ master; it runs in a subprocess because it aborts the process

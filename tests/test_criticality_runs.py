@@ -380,7 +380,7 @@ def test_an_fmu_that_cannot_roll_back_gives_the_extremes_within_a_step(simple_fm
     # communication point in the overlap, within time_uncertainty_s after its start t*.
     import re
 
-    from conftest import rewritten_fmu
+    from helpers import rewritten_fmu
 
     no_state = rewritten_fmu(simple_fmu, tmp_path / "NoState.fmu", lambda text: re.sub(
         r'canGetAndSetFMUstate="true"', 'canGetAndSetFMUstate="false"', text, flags=re.I))

@@ -8,7 +8,7 @@ import ctypes
 import fmi_fuzz as fuzz
 from sdl_fmu.fmu.xml import LOG_CATEGORIES
 
-from test_runtime_hardening import ERROR, OK, Raw, Raw3
+from helpers import ERROR, OK, Raw, Raw3
 
 DISCARD = fuzz.DISCARD
 

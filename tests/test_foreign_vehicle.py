@@ -9,7 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from conftest import WEAK_PARAMETERS, FmpyCar, foreign_parameters
+from helpers import WEAK_PARAMETERS, FmpyCar, foreign_parameters
 
 G = 9.80665  # the car's own g (foreign_car_dynamics.G), the standard value
 OUTPUTS = {"earth_x", "earth_y", "heading_angle", "veh_speed", "yaw_velocity", "long_accel"}
@@ -172,7 +172,7 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
         car.close()
     assert np.all(np.diff(speeds) > 0) and max(speeds) < v_top
     assert speeds[-1] >= v_top * (1 - math.exp(-lam * 400.0)) - RK4_TOLERANCE
-    assert v_top * 3.6 == pytest.approx(84.7, abs=0.05)  # the figure conftest.WEAK_PARAMETERS quotes
+    assert v_top * 3.6 == pytest.approx(84.7, abs=0.05)  # the figure helpers.WEAK_PARAMETERS quotes
 
 
 @pytest.mark.slow
@@ -211,7 +211,7 @@ def test_foreign_car_through_its_map_speaks_iso_si(foreign_vehicle, fmi_version)
 
 def test_the_docs_show_the_foreign_car_map_as_it_is():
     """The vehicle-map document's complete map example for a foreign FMU is the test suite's map, key for key."""
-    from conftest import FOREIGN_CAR_MAP
+    from helpers import FOREIGN_CAR_MAP
 
     docs = (FOREIGN_CAR_MAP.parents[2] / "docs" / "vehicle-maps.md").read_text()
     section = docs[docs.index("## A vehicle built elsewhere: the test suite's foreign car"):]

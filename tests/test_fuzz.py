@@ -2,7 +2,7 @@
 per FMU; no crash, no hang, no OK where the standard (or the modelDescription) requires an error.
 
 A hang is a call that does not return within HANG_GUARD: far beyond any call whose work is bounded (the
-runtime's step budget, tests/test_runtime_hardening.py), so a busy or slow machine is never taken for a hang."""
+runtime's step budget, tests/test_fmu_misuse.py), so a busy or slow machine is never taken for a hang."""
 
 import os
 import subprocess

@@ -209,8 +209,10 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
     look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0.
 
     The per-look path, so written out: `penetration` and `_corners` inline (the same operations in the same
-    order, so the same bits); the eight corner distances first, then the rates of the closest corners only
-    (in corner order: the first sets them, later equally close ones can only lower them)."""
+    order, so the same bits); the eight corners unrolled, their squared gaps first and one square root, the
+    least's (sqrt is correctly rounded, so monotonic: sqrt(min) = min(sqrt)), then the rates of the closest
+    corners only: those whose gap's square root equals it (in corner order: the first sets them, later
+    equally close ones can only lower them)."""
     a, b, c, s = ego
     ac = c if c >= 0.0 else -c
     as_ = s if s >= 0.0 else -s
@@ -222,38 +224,56 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
         return 0.0, 0.0, 0.0  # penetration >= 0: in contact or touching
     acs, as_s, bc, bs = a * c, a * s, b * c, b * s
     lc, ls, wc, ws = hl * c, hl * s, hw * c, hw * s
-    corners = (
-        # ego corner (sign_l a, sign_w b) turned by psi, minus the vehicle's centre, against the vehicle's box
-        (acs - bs - dx, as_s + bc - dy, hl, hw),
-        (acs + bs - dx, as_s - bc - dy, hl, hw),
-        (-acs - bs - dx, -as_s + bc - dy, hl, hw),
-        (-acs + bs - dx, -as_s - bc - dy, hl, hw),
-        # vehicle corner (sign_l hl, sign_w hw) turned by -psi, plus the centre in the body frame, against the ego's
-        (du + lc + ws, dv - ls + wc, a, b),
-        (du + lc - ws, dv - ls - wc, a, b),
-        (du - lc + ws, dv + ls + wc, a, b),
-        (du - lc - ws, dv + ls - wc, a, b),
-    )
+    # the corners (x, y): ego corner (sign_l a, sign_w b) turned by psi minus the vehicle's centre, against the
+    # vehicle's box (hl, hw); vehicle corner (sign_l hl, sign_w hw) turned by -psi plus the centre in the body
+    # frame, against the ego's (a, b); per corner the squared gap max(|x| - half_x, 0)^2 + max(|y| - half_y, 0)^2
+    x0, y0 = acs - bs - dx, as_s + bc - dy
+    x1, y1 = acs + bs - dx, as_s - bc - dy
+    x2, y2 = -acs - bs - dx, -as_s + bc - dy
+    x3, y3 = -acs + bs - dx, -as_s - bc - dy
+    x4, y4 = du + lc + ws, dv - ls + wc
+    x5, y5 = du + lc - ws, dv - ls - wc
+    x6, y6 = du - lc + ws, dv + ls + wc
+    x7, y7 = du - lc - ws, dv + ls - wc
+    ex = (x0 if x0 >= 0.0 else -x0) - hl
+    ey = (y0 if y0 >= 0.0 else -y0) - hw
+    q0 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x1 if x1 >= 0.0 else -x1) - hl
+    ey = (y1 if y1 >= 0.0 else -y1) - hw
+    q1 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x2 if x2 >= 0.0 else -x2) - hl
+    ey = (y2 if y2 >= 0.0 else -y2) - hw
+    q2 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x3 if x3 >= 0.0 else -x3) - hl
+    ey = (y3 if y3 >= 0.0 else -y3) - hw
+    q3 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x4 if x4 >= 0.0 else -x4) - a
+    ey = (y4 if y4 >= 0.0 else -y4) - b
+    q4 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x5 if x5 >= 0.0 else -x5) - a
+    ey = (y5 if y5 >= 0.0 else -y5) - b
+    q5 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x6 if x6 >= 0.0 else -x6) - a
+    ey = (y6 if y6 >= 0.0 else -y6) - b
+    q6 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x7 if x7 >= 0.0 else -x7) - a
+    ey = (y7 if y7 >= 0.0 else -y7) - b
+    q7 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    least = min(q0, q1, q2, q3, q4, q5, q6, q7)
     sqrt = math.sqrt
-    gaps = []
-    for x, y, half_x, half_y in corners:
-        # max(|x| - half_x, 0) without the calls; the same value as np.maximum
-        ex = (x if x >= 0.0 else -x) - half_x
-        if ex < 0.0:
-            ex = 0.0
-        ey = (y if y >= 0.0 else -y) - half_y
-        if ey < 0.0:
-            ey = 0.0
-        gaps.append(sqrt(ex * ex + ey * ey))
-    best = min(gaps)
+    best = sqrt(least)
+    near = least * (1.0 + 1e-15)  # sqrt(q) == best needs q / least < (1 + 2^-52)^2
     vu, vv = vx * c + vy * s, -vx * s + vy * c
     rate = frozen = INF
     first = True
-    for k in range(8):
-        d = gaps[k]
-        if d != best:
+    for k, q, x, y in ((0, q0, x0, y0), (1, q1, x1, y1), (2, q2, x2, y2), (3, q3, x3, y3),
+                       (4, q4, x4, y4), (5, q5, x5, y5), (6, q6, x6, y6), (7, q7, x7, y7)):
+        if q > near or (q != least and sqrt(q) != best):
             continue
-        x, y, half_x, half_y = corners[k]
+        if k < 4:
+            half_x, half_y = hl, hw
+        else:
+            half_x, half_y = a, b
         ex = (x if x >= 0.0 else -x) - half_x
         if ex < 0.0:
             ex = 0.0
@@ -262,13 +282,13 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
             ey = 0.0
         gx = ex if x >= 0.0 else -ex
         gy = ey if y >= 0.0 else -ey
-        if k < 4:  # ego corner: e = p + d
+        if k < 4:
             px_rate, py_rate = -yaw_rate * (y + dy) - vx, yaw_rate * (x + dx) - vy
-            r_frozen = (gx * -vx + gy * -vy) / d
+            r_frozen = (gx * -vx + gy * -vy) / best
         else:
             px_rate, py_rate = vu + yaw_rate * y, vv - yaw_rate * x
-            r_frozen = (gx * vu + gy * vv) / d
-        r = (gx * px_rate + gy * py_rate) / d
+            r_frozen = (gx * vu + gy * vv) / best
+        r = (gx * px_rate + gy * py_rate) / best
         if first:
             rate, frozen, first = r, r_frozen, False
         else:

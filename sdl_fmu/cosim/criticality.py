@@ -920,33 +920,44 @@ class Extremes:
         if near and (rates[1] == rates[1] or rates[3] == rates[3]):
             self.quiet = 0.0
             return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
+        # the per-look path: min(x, y) written as `y if y < x else x` and max(x, y) as `y if y > x else x`
+        # (what the builtins return, nan included), without their calls
         turn = radius * yaw_rate_bound
-        relative = acceleration + abs(speed_rate)
-        new_minimum = distance_horizon(d, frozen, float(self.value["min_distance"][i]) - FLAT, turn, relative)
+        relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
+        new_minimum = _reach_time(d - (float(self.value["min_distance"][i]) - FLAT), turn - frozen, relative)
         # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
         approach_end = INF if rates[0] >= 0.0 else 0.0
         if frozen < -turn:
             vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
-            approach_end = max(approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
-                                                yaw_rate_bound),
-                               heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
-            new_minimum = max(new_minimum, approach_end)
+            approach_end = approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative, yaw_rate_bound)
+            heading = heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative)
+            if heading > approach_end:
+                approach_end = heading
+            if approach_end > new_minimum:
+                new_minimum = approach_end
         if not near:
             # a collision course can be seen only within RANGE
-            entering = distance_horizon(d, frozen, RANGE, turn, relative)
-            self.quiet = min(min(entering, approach_end), transition_left)
-            return rates, min(min(entering, new_minimum), transition_left)
+            entering = _reach_time(d - RANGE, turn - frozen, relative)
+            quiet = approach_end if approach_end < entering else entering
+            self.quiet = transition_left if transition_left < quiet else quiet
+            horizon = new_minimum if new_minimum < entering else entering
+            return rates, transition_left if transition_left < horizon else horizon
         # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
-        longest = min(max(new_minimum, approach_end), transition_left)
+        longest = approach_end if approach_end > new_minimum else new_minimum
+        if transition_left < longest:
+            longest = transition_left
         if not longest > 0.0:
             self.quiet = 0.0
             return rates, 0.0
         a, b, c, s = ego
-        ac, as_ = abs(c), abs(s)
+        ac = c if c >= 0.0 else -c
+        as_ = s if s >= 0.0 else -s
         course = course_horizon(dx, dy, vx, vy, a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2,
                                 longest, turn, relative)
-        self.quiet = min(min(approach_end, transition_left), course)
-        return rates, min(min(new_minimum, transition_left), course)
+        quiet = transition_left if transition_left < approach_end else approach_end
+        self.quiet = course if course < quiet else quiet
+        horizon = transition_left if transition_left < new_minimum else new_minimum
+        return rates, course if course < horizon else horizon
 
     # -- post-encroachment time
 

@@ -756,6 +756,10 @@ class Extremes:
         # s from the last look: a lower bound on when that vehicle's next located instant (a closest
         # approach, a collision course's start or end, a transition's end) can be (0: any time)
         self.quiet = 0.0
+        # the last ego state evaluated at and (footprint, cos, sin, inertial velocity) there; per vehicle its
+        # (length, width) in floats (fixed from its spawn, a vehicle's index is never reused)
+        self._at = (None, None)
+        self._sizes: dict[int, tuple[float, float]] = {}
 
     def _grow(self, size: int) -> None:
         while size > len(self.left_path):
@@ -845,14 +849,22 @@ class Extremes:
         """Vehicle i at the ego's state, in one pass: (values to offer {measure: value}, rates, what the horizon
         needs). Beyond RANGE only the distance and its rates."""
         t = state.time
-        c, s = math.cos(state.psi), math.sin(state.psi)
-        ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+        at = self._at
+        if at[0] is state:  # another vehicle at the same ego state: its footprint and velocity as computed
+            ego, c, s, ego_vx, ego_vy = at[1]
+        else:
+            c, s = math.cos(state.psi), math.sin(state.psi)
+            ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+            ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+            self._at = (state, (ego, c, s, ego_vx, ego_vy))
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         elapsed, duration = t - float(traffic.t0[i]), float(traffic.duration[i])
         moving = elapsed < duration
         speed_rate = (float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration if moving else 0.0
-        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
-        length, width = float(traffic.length[i]), float(traffic.width[i])
+        size = self._sizes.get(i)
+        if size is None:
+            size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
+        length, width = size
         dx, dy = station - state.x, -lateral - state.y
         vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
         d, rate, frozen = _distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)

@@ -571,7 +571,10 @@ def _reach_time(distance: float, rate: float, acceleration: float) -> float:
     if distance <= 0.0:
         return 0.0
     root = math.sqrt(rate * rate + 2 * acceleration * distance)
-    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
+    if rate > 0:
+        closing = rate + root  # max(rate + root, 1e-300) without the call (the same value)
+        return 2 * distance / (1e-300 if 1e-300 > closing else closing)
+    return (root - rate) / acceleration
 
 
 def distance_horizon(distance: float, frozen_rate: float, floor: float, turn: float, acceleration: float) -> float:
@@ -606,7 +609,8 @@ def approach_horizon(distance: float, frozen_rate: float, relative_speed: float,
     half = _reach_time(distance / 2, relative_speed + turn, acceleration)
     speed = relative_speed + acceleration * half
     growth = acceleration + speed * (4 * (speed + turn) / distance + yaw_rate_bound)
-    return min(half, closing / growth)
+    bound = closing / growth
+    return bound if bound < half else half  # min(half, bound)
 
 
 def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: float, turn: float,
@@ -627,13 +631,18 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
     if speed <= 2 * turn or rho <= 2 * radius_sum:
         return 0.0
     cos_alpha = -(dx * vx + dy * vy) / (rho * speed)
-    alpha = math.acos(min(1.0, max(-1.0, cos_alpha)))
+    cos_alpha = cos_alpha if cos_alpha > -1.0 else -1.0  # clipped to [-1, 1] as min(1, max(-1, .)) does
+    alpha = math.acos(cos_alpha if cos_alpha < 1.0 else 1.0)
     margin = math.acos(2 * turn / speed) - math.asin(2 * radius_sum / rho) - alpha
     if margin <= 0.0:
         return 0.0
-    within = min(_reach_time(rho / 2, speed, acceleration), speed / (2 * acceleration))
+    within = _reach_time(rho / 2, speed, acceleration)
+    slowing = speed / (2 * acceleration)
+    if slowing < within:
+        within = slowing
     fastest = speed + acceleration * within
-    return min(within, margin / (2 * fastest / rho + 2 * acceleration / speed))
+    bound = margin / (2 * fastest / rho + 2 * acceleration / speed)
+    return bound if bound < within else within
 
 
 def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,

@@ -197,7 +197,8 @@ def criticality_overhead(results: Path) -> list[str]:
                            if c.get(k) is not None)
         rows.append([c["name"] + (f" ({detail})" if detail else ""), f"{c['plain_s']:.3f}", f"{c['measured_s']:.3f}",
                      _pct(c["overhead_best"]), f"**{_pct(c['overhead_median'])}** "
-                     f"({_pct(c['overhead_min'])} … {_pct(c['overhead_max'])})"])
+                     f"({_pct(c['overhead_min'])} … {_pct(c['overhead_max'])})",
+                     "" if c.get("added_per_vehicle_s") is None else f"{c['added_per_vehicle_s'] * 1e3:.2f}"])
     demo = next((c for c in data["cases"] if c["name"] == "demo"), None)
     verdict = []
     if demo:
@@ -212,7 +213,7 @@ def criticality_overhead(results: Path) -> list[str]:
         "default settings: the best of each kind, and the median and spread of the pairwise ratios. The scenarios: "
         "the demo, and a straight road with N cars oncoming in the next lane, one spawned every 100 ft.", "",
         *_table(["scenario", "plain CPU s (best)", "with the measures (best)", "best-of ratio",
-                 "pairwise median (spread)"], rows), "",
+                 "pairwise median (spread)", "added CPU per vehicle, ms (median)"], rows), "",
         _measured(data["measured"]), "",
         *verdict,
         "- Linear in the vehicles: the added CPU per passing vehicle should stay about constant as N grows.", ""]

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cosim.recorder import release_pages
+from .storage import release_pages
 from .lazy_sequence import LazySequence
 from .results_folder import write_results_folder
 from .sdl.events import Road
@@ -264,7 +264,7 @@ def write_traffic_csv(result: RunResult, path: Path) -> None:
 
 
 def _release_samples(result: RunResult) -> None:
-    """Drops the disk-backed sample pages read so far from resident memory (`recorder.release_pages`), so
+    """Drops the disk-backed sample pages read so far from resident memory (`storage.release_pages`), so
     that writing a long run's files does not hold them all."""
     release_pages(_ego_column(result, "time"))
     table = getattr(result.vehicles, "table", None)

@@ -2,24 +2,28 @@
 controller, the driver model and the traffic model, and fires every trigger at its true instant,
 whatever the communication step.
 
-Before each step the master bounds, from the ego's kinematics and its acceleration and yaw-rate limits
-(triggers.py), the earliest instant at which any trigger (an event distance, a BRK threshold, a closure
-time, a contact starting or ending, a departure, a wheel crossing onto another surface) could become
-true. Where nothing can happen it steps long: to the next driver sample, the `step` limit or that
-instant, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
-and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate /
-fmi2SetFMUstate) until the instant is known within TIME_TOLERANCE. Traffic motion is closed-form in
-time, so it needs no rollback of its own. The driver model is a sampled controller with its own period
-(`driver_period`): its samples are instants the master steps to, independent of `step`.
+The run is a loop (`Cosimulation.run`) over four helpers, each in its own module:
+- `TriggerSchedule` (schedule.py): before each step, lower bounds from the ego's kinematics and its
+  acceleration and yaw-rate limits (triggers.py) on the earliest instant at which any trigger (an event
+  distance, a BRK threshold, a closure time, a contact starting or ending, a departure, a wheel crossing onto
+  another surface) could become true, and whether one is true at a state;
+- `Inputs` (inputs.py): the driver's (or BRK's) pedals, the steer and the surfaces under the wheels;
+- `Recorder` (recorder.py): the samples;
+- the criticality record (criticality.py), fed by the hooks `look`, `criticality_due` and
+  `follow_criticality` below.
+Where nothing can happen the loop steps long: to the next driver sample, the `step` limit or the earliest
+trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
+and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
+until the instant is known within TIME_TOLERANCE; then it fires what is due (`fire_due`). Traffic motion is
+closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
+own period (`driver_period`): its samples are instants the master steps to, independent of `step`.
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 import random
 import time as wall_clock
-from array import array
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -27,20 +31,22 @@ from typing import Callable
 
 import numpy as np
 
-from ..results import RunResult, VehicleTracks
+from ..results import RunResult
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
-from .brake import BrakeHold
-from .criticality import RANGE, Extremes, Footprint, band_times, distances, ttcs
-from .driver import MAX_STEER, make_driver
 from ..vehicle import EgoModel, EgoState, shipped_map_path
+from .brake import BrakeHold
+from .criticality import Extremes, band_times
+from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
-from .recorder import ChunkedTable, EventLog, release_pages
-from .road import surface_map, surface_sections, wheel_geometry, wheel_surfaces
+from .inputs import Inputs
+from .recorder import Recorder, ttc_series
+from .road import surface_map, surface_sections, wheel_geometry
+from .schedule import TriggerSchedule
+from ..storage import EventLog
 from .traffic import Traffic, choose_model
-from .triggers import (EgoKinematics, ego_bounds, reach_time_scalar, vehicle_condition,
-                       vehicle_conditions, vehicle_horizon, vehicle_horizons, vehicle_triggered)
+from .triggers import EgoKinematics, ego_bounds, reach_time_scalar
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
@@ -57,17 +63,8 @@ CRITICALITY_TOLERANCE = TIME_TOLERANCE / 4
 # the probes approach it from below, where the rate is known
 FLAT_STEP = 0.98
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
-SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
-# up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
-# vehicles NumPy's per-operation overhead (about 1 µs on small arrays) costs more than the arithmetic
-SCALAR_VEHICLES = 4
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
-RELEASE_ROWS = 20_000  # sample rows read from a disk-backed table between releases of its pages (~3.5 MB)
-
-# record() copies the state's fields in their order, then these, then the model's wheel columns
-EGO_COLUMNS = (*EgoState._fields, "station", "lateral", "throttle", "brake", "steer", "brk")
-STOPPED = EgoState._fields.index("stopped")
 
 
 @dataclass
@@ -104,30 +101,20 @@ class Cosimulation:
         self.exact = model.can_roll_back  # triggers bisected to TIME_TOLERANCE, else located within MIN_LOOKAHEAD
         self.time_uncertainty = 0.0  # s, how exactly the instant of what fires now is known
         self.surfaces = surface_map(scenario, model.default_surface)
-        self.surface_changes = _surface_changes(self.surfaces)
-        self.surface_next = -math.inf  # cached lower bound on the next surface change under a wheel
-        self.traffic_earliest = -math.inf  # cached min of the vehicles' bounds (valid until something fires)
-        self.cached_bounds: dict[str, float] = {}  # event, end, brake: bounds kept until something fires
-        self._differing: dict[tuple[int, int], tuple[list[float], list[float]]] = {}
-        self._edges: dict[tuple[int, int], list] = {}  # see _lane_edges
-        self.speed = DEFAULT_SPEED if options.speed is None else options.speed
+        speed = DEFAULT_SPEED if options.speed is None else options.speed
         start_lateral = self.road.lane_center(1)
-        self.ego = model.instantiate(start={"speed": self.speed, "x": 0.0, "y": -start_lateral, "yaw": 0.0})
-        self.geometry = wheel_geometry(model)
-        self.driver = make_driver(self.speed, start_lateral, model)
-        self.wheel_columns = model.wheel_columns
+        self.ego = model.instantiate(start={"speed": speed, "x": 0.0, "y": -start_lateral, "yaw": 0.0})
+        geometry = wheel_geometry(model)
         mu_max = model.peak_friction([v for values in self.surfaces.values.values() for v in values])
         wheel_arm = max(math.hypot(x, y) for x, y in model.wheels)
-        self.bounds = ego_bounds(model, mu_max, self.speed, wheel_arm, MAX_STEER)
-        self.events_in_order = scenario.events
-        self.next_event = 0  # index of the first event not yet fired
+        self.bounds = ego_bounds(model, mu_max, speed, wheel_arm, MAX_STEER)
         self.traffic = Traffic()
-        self.vehicle_ids = array("q")  # per vehicle (index = id - 1), its id
-        self.brake_hold: BrakeHold | None = None
-        self.applied_surfaces: tuple[float, ...] | None = None
-        self.wheel_values: tuple[float, ...] = ()  # the FMU's wheel inputs for the applied surfaces
-        self.controls = (0.0, 0.0, 0.0)
-        self.sent_controls: tuple | None = None
+        self.inputs = Inputs(self.ego, model, make_driver(speed, start_lateral, model), self.road, self.surfaces,
+                             geometry)
+        self.end_distance, self.end_reason = self._end_distance()
+        self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
+                                        self.bounds, self.traffic, self.inputs)
+        self.recorder = Recorder(model.wheel_columns)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
         if not self.exact:
@@ -138,17 +125,10 @@ class Cosimulation:
             self.warnings += [f"line {event.line}: RSA has no effect: the vehicle map of {model.name} has no friction "
                               "input, so the road surface cannot act on the vehicle"
                               for event in scenario.events if isinstance(event, SurfaceAttribute)]
-        self.bounds_exceeded = False  # whether the ego ever left the bounds of the trigger prediction
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
-        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(self.wheel_columns))
-        # per vehicle, its first sample and the sample it left at (-1 while on the road); compact arrays
-        self.spawn_sample = array("q")
-        self.leave_sample = array("q")
-        self.sample_count = 0
         self.steps = 0
         self.finished = False
-        self.end_distance, self.end_reason = self._end_distance()
         # criticality (criticality.py): the record, per vehicle the instant it next needs a look and its rates
         # at its last look, the instant its footprint will leave the ego's lane (PET), and how exactly the
         # extremes' instants are known (0: bisected to CRITICALITY_TOLERANCE)
@@ -170,17 +150,8 @@ class Cosimulation:
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
 
-    # ---- scenario units at the results boundary -------------------------------------------------
-
     def _scenario_units(self, value: float) -> float:
         return from_si(value, self.scenario.units)
-
-    def log(self, code: str, action: str, state: EgoState, **extra) -> None:
-        entry = {"code": code, "action": action, "time_s": state.time, "distance": self._scenario_units(state.s),
-                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y), **extra}
-        if not self.exact:
-            entry["time_uncertainty_s"] = self.time_uncertainty
-        self.events.append(entry)
 
     def _end_distance(self) -> tuple[float, str]:
         """Where the run ends by distance, and why: ES, --until-distance, or a runout past the last event."""
@@ -194,166 +165,114 @@ class Cosimulation:
         last = max((e.distance for e in self.scenario.events), default=0.0)
         return last + RUNOUT, "runout"
 
-    # ---- the ego's surroundings at an instant ---------------------------------------------------
+    # ---- the loop -------------------------------------------------------------------------------
 
-    def surfaces_under_wheels(self, state: EgoState) -> tuple[float, ...]:
-        return wheel_surfaces(self.road, self.surfaces, self.geometry.contact_points(state.x, state.y, state.psi))
+    def run(self) -> RunResult:
+        started = wall_clock.perf_counter()
+        try:
+            ego, inputs, schedule = self.ego, self.inputs, self.schedule
+            state = ego.read()
+            self.fire_due(state)
+            self.look(state, everyone=True)
+            inputs.sample_driver(state, None)
+            inputs.apply(state, True)
+            self.record(state)
+            step, progress = self.options.step, self.options.progress
+            period = self.options.driver_period
+            sample = 1  # index of the next driver sample, at next_sample = sample * period
+            next_sample = sample * period
+            until_time = self.options.until_time
+            stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
+            # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
+            # horizons() would return them unchanged, so it is called only when one could bind (or after a fire)
+            horizons, earliest = {}, -math.inf
+            while not self.finished:
+                t = state.time
+                if t >= MAX_TIME:
+                    self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
+                    self.finish(state, "time_limit")
+                    break
+                limit = min(t + step, next_sample, stop_time)
+                if earliest < limit:
+                    horizons = schedule.horizons(state, limit)
+                    earliest = min(horizons.values()) if horizons else math.inf
+                if self.pet_pending and self.pet_due <= limit:
+                    self.pet_due = self.pet_horizon(state)
+                if self.exact and self.earliest_quiet <= limit:
+                    self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
+                # a snapshot at the step's start, from which extremes inside the step are located
+                base = ego.save() if self.exact and (self.earliest_quiet <= limit or self.pet_pending
+                                                     or self.leaves_lane) and self.criticality_due(t, limit) else None
+                if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
+                    # nothing can become true before `end`; something may be true exactly at it (then at no
+                    # other instant: its instant is known exactly)
+                    end = min(limit, earliest)
+                    ego.step_to(end)
+                    state = ego.read()
+                    fired = earliest <= end and schedule.triggered(
+                        state, [kind for kind, instant in horizons.items() if instant <= end])
+                    self.time_uncertainty = 0.0
+                else:
+                    end = min(t + MIN_LOOKAHEAD, limit)
+                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
+                    if self.exact:
+                        fired = step_until_time(ego, end, lambda probe: schedule.triggered(probe, kinds),
+                                                TIME_TOLERANCE)
+                    else:  # what became true did so somewhere in (t, end]
+                        ego.step_to(end)
+                        fired = schedule.triggered(ego.read(), kinds)
+                        self.time_uncertainty = end - t
+                    state = ego.read()
+                self.steps += 1
+                driver_sample = state.time >= next_sample
+                if base is not None or fired or state.time >= self.earliest_look or not self.exact:
+                    self.follow_criticality(base, t, state, everyone=fired)
+                if fired:
+                    self.fire_due(state)
+                    schedule.forget()  # spawns, actions, contacts, departures, the next event, BRK: bounds changed
+                    earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
+                    self.look(state, everyone=True)  # the motions from this instant on
+                if until_time is not None and state.time >= until_time:
+                    self.finish(state, "until_time")
+                if driver_sample:
+                    inputs.sample_driver(state, period)
+                    while next_sample <= state.time:
+                        sample += 1
+                        next_sample = sample * period
+                inputs.apply(state, fired)  # the inputs from this instant on, as recorded with it
+                self.record(state)
+                if progress is not None:
+                    progress(self, state)
+            self.look(state, everyone=True)  # an extreme at the end of the run
+            wall = wall_clock.perf_counter() - started
+            return self.result(state, wall)
+        finally:
+            self.ego.close()
 
-    def pending_distance(self) -> float:
-        if self.next_event < len(self.events_in_order):
-            return self.events_in_order[self.next_event].distance
-        return math.inf
-
-    # ---- when the next trigger could be ---------------------------------------------------------
-
-    def horizons(self, state: EgoState, limit: float) -> dict[str, float]:
-        """Per kind of trigger, a lower bound on the instant it could become true (absolute time). A bound
-        holds until it is reached or something fires (the bounds on the ego hold at all times), so each is
-        kept and recomputed only when it could bind before `limit`."""
-        a = self.bounds.acceleration
-        t = state.time
-        cached = self.cached_bounds
-        near = {}
-        if self.next_event < len(self.events_in_order):
-            bound = cached.get("event", -math.inf)
-            if bound < limit:
-                distance = self.events_in_order[self.next_event].distance
-                bound = cached["event"] = t + reach_time_scalar(distance - state.s, state.v, a)
-            near["event"] = bound
-        if self.end_distance < math.inf:
-            bound = cached.get("end", -math.inf)
-            if bound < limit:
-                bound = cached["end"] = t + reach_time_scalar(self.end_distance - state.s, state.v, a)
-            near["end"] = bound
-        if self.brake_hold is not None:
-            bound = cached.get("brake", -math.inf)
-            if bound < limit:
-                bound = cached["brake"] = self.brake_hold.earliest_release(state, a)
-            near["brake"] = bound
-        if self.surface_changes:
-            if self.surface_next < limit:
-                self.surface_next = t + self.surface_horizon(state)
-            near["surface"] = self.surface_next
-        if len(self.traffic.active):
-            near["traffic"] = self.traffic_horizon(state, limit)
-        return near
-
-    def surface_horizon(self, state: EgoState) -> float:
-        """How long every wheel surely stays on its surface: the nearest station in its lane where the value
-        changes, and its lane's edges where the lane beyond differs within the reach of SURFACE_WINDOW (a
-        bound then valid for that window only), each reached at the ego's bounded rates."""
-        kin = EgoKinematics.of(state)
-        station_rate, lateral_rate = kin.station_rate, kin.lateral_rate
-        bounds, road = self.bounds, self.road
-        a = bounds.acceleration
-        turn = bounds.wheel_arm * bounds.yaw_rate
-        width = road.lane_width
-        reach = (abs(station_rate) + turn) * SURFACE_WINDOW + a * SURFACE_WINDOW**2 / 2
-        horizon = SURFACE_WINDOW
-        for station, lateral in self.geometry.contact_points(state.x, state.y, state.psi):
-            lane = road.lane_at(lateral)
-            changes = self.surface_changes.get(lane)
-            if changes:
-                k = bisect.bisect_right(changes, station)
-                if k < len(changes):
-                    horizon = min(horizon, reach_time_scalar(changes[k] - station, station_rate + turn, a))
-                if k > 0:
-                    horizon = min(horizon, reach_time_scalar(station - changes[k - 1], -station_rate + turn, a))
-            for edge, side, (starts, ends) in self._lane_edges(math.floor(lateral / width), lane):
-                # the lanes differ somewhere between station -+ reach: a stretch starts at or before the
-                # upper end and ends after the lower
-                k = bisect.bisect_right(starts, station + reach)
-                if k > 0 and ends[k - 1] > station - reach:
-                    horizon = min(horizon, reach_time_scalar(abs(edge - lateral), side * lateral_rate + turn, a))
-        return horizon
-
-    def _lane_edges(self, k: int, lane: int) -> list:
-        """For a wheel in `lane` between the lines k w and (k + 1) w: those of the two lines whose lane beyond
-        differs from `lane` somewhere, as (line, side toward it, (starts, ends) of the stretches where the
-        two lanes differ). Worked out once per (k, lane) and per pair of lanes."""
-        edges = self._edges.get((k, lane))
-        if edges is None:
-            road, width = self.road, self.road.lane_width
-            edges = []
-            for edge, side in ((k * width, -1.0), ((k + 1) * width, 1.0)):
-                if not road.left_edge <= edge <= road.right_edge:
-                    continue  # beyond the shoulders' outer edges nothing changes
-                beyond = road.lane_at(edge + side * width / 2)
-                if beyond != lane:
-                    key = (min(lane, beyond), max(lane, beyond))
-                    if key not in self._differing:
-                        self._differing[key] = _differing_stretches(self.surfaces, *key)
-                    if self._differing[key][0]:
-                        edges.append((edge, side, self._differing[key]))
-            self._edges[(k, lane)] = edges
-        return edges
-
-    def traffic_horizon(self, state: EgoState, limit: float) -> float:
-        """The earliest instant any vehicle on the road could trigger something. Each vehicle's bound is
-        kept until it could bind (it holds while the vehicle's own motion is unchanged); only those are
-        recomputed, vectorised (a few vehicles in plain floats, see SCALAR_VEHICLES)."""
-        if self.traffic_earliest >= limit:  # no vehicle's bound can bind before the limit: nothing to redo
-            return self.traffic_earliest
-        traffic = self.traffic
-        active = traffic.active
-        if len(active) <= SCALAR_VEHICLES:
-            checks = traffic.next_check[active].tolist()
-            kinematics = None
-            for k, i in enumerate(active.tolist()):
-                if checks[k] < limit:
-                    if kinematics is None:
-                        kinematics = EgoKinematics.of(state)
-                    checks[k] = state.time + vehicle_horizon(traffic, i, kinematics, self.bounds)
-                    traffic.next_check[i] = checks[k]
-            self.traffic_earliest = min(checks)
-            return self.traffic_earliest
-        stale = active[traffic.next_check[active] < limit]
-        if 0 < len(stale) <= SCALAR_VEHICLES:
-            kinematics = EgoKinematics.of(state)
-            for i in stale.tolist():
-                traffic.next_check[i] = state.time + vehicle_horizon(traffic, i, kinematics, self.bounds)
-        elif len(stale):
-            traffic.next_check[stale] = state.time + vehicle_horizons(traffic, stale, EgoKinematics.of(state),
-                                                                      self.bounds)
-        self.traffic_earliest = float(traffic.next_check[active].min())
-        return self.traffic_earliest
-
-    def triggered(self, state: EgoState, kinds) -> bool:
-        """Whether a trigger of the given kinds is true at this state (all are false at a step's start)."""
-        if "event" in kinds and self.pending_distance() <= state.s:
-            return True
-        if "end" in kinds and state.s >= self.end_distance:
-            return True
-        if "brake" in kinds and self.brake_hold.release_reason(state):
-            return True
-        if "surface" in kinds and self.surfaces_under_wheels(state) != self.applied_surfaces:
-            return True
-        if "traffic" in kinds:
-            traffic = self.traffic
-            active = traffic.active
-            if len(active) <= SCALAR_VEHICLES:  # (the bisection's probes: a NumPy selection costs more here)
-                due = [i for i, check in zip(active.tolist(), traffic.next_check[active].tolist()) if check <= state.time]
-            else:
-                due = active[traffic.next_check[active] <= state.time]
-            if 0 < len(due) <= SCALAR_VEHICLES:
-                kinematics = EgoKinematics.of(state)
-                return any(vehicle_triggered(traffic, int(i), kinematics, self.bounds) for i in due)
-            if len(due):
-                action, overlap, away = vehicle_conditions(traffic, due, EgoKinematics.of(state), self.bounds)
-                in_contact = traffic.in_contact[due]
-                return bool((action | (overlap != in_contact) | (away & ~in_contact)).any())
-        return False
+    def record(self, state: EgoState) -> None:
+        warning = self.schedule.exceeded(state)
+        if warning is not None:
+            self.warnings.append(warning)
+        inputs = self.inputs
+        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values)
 
     # ---- what happens at an instant -------------------------------------------------------------
 
+    def log(self, code: str, action: str, state: EgoState, **extra) -> None:
+        entry = {"code": code, "action": action, "time_s": state.time, "distance": self._scenario_units(state.s),
+                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y), **extra}
+        if not self.exact:
+            entry["time_uncertainty_s"] = self.time_uncertainty
+        self.events.append(entry)
+
     def fire_due(self, state: EgoState) -> None:
         """Fires everything due at this state, in file order, until nothing more is due."""
-        while self.next_event < len(self.events_in_order) and self.pending_distance() <= state.s \
-                and not self.finished:
-            self.next_event += 1
-            self.fire_event(self.events_in_order[self.next_event - 1], state)
-        if self.brake_hold is not None:
-            reason = self.brake_hold.release_reason(state)
+        schedule = self.schedule
+        while not self.finished and (event := schedule.pop_due_event(state)) is not None:
+            self.fire_event(event, state)
+        brake_hold = self.inputs.brake_hold
+        if brake_hold is not None:
+            reason = brake_hold.release_reason(state)
             if reason:
                 self.release_brakes(state, reason)
         if len(self.traffic.active):
@@ -361,59 +280,51 @@ class Cosimulation:
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
-    def vehicle_conditions(self, idx: np.ndarray, kinematics: EgoKinematics):
-        """(action due, overlap, may leave) of vehicles idx as boolean arrays; a few in plain floats."""
-        if len(idx) > SCALAR_VEHICLES:
-            return vehicle_conditions(self.traffic, idx, kinematics, self.bounds)
-        rows = [vehicle_condition(self.traffic, i, kinematics, self.bounds) for i in idx.tolist()]
-        return tuple(np.array([row[k] for row in rows], dtype=bool) for k in range(3))
-
     def fire_traffic(self, state: EgoState) -> None:
-        traffic = self.traffic
+        traffic, schedule, recorder = self.traffic, self.schedule, self.recorder
         kinematics = EgoKinematics.of(state)
         active = traffic.active
-        action, overlap, away = self.vehicle_conditions(active, kinematics)
+        action, overlap, away = schedule.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
-                    self.log("A", "maneuver", state, vehicle=self.vehicle_ids[i], index=index)
+                    self.log("A", "maneuver", state, vehicle=recorder.vehicle_ids[i], index=index)
                     self.lane_leave_instant(int(i), state)
-                    if not vehicle_condition(traffic, int(i), kinematics, self.bounds)[0]:
+                    if not schedule.action_due(int(i), kinematics):
                         break
-            _, overlap, away = self.vehicle_conditions(active, kinematics)
+            _, overlap, away = schedule.vehicle_conditions(active, kinematics)
         for i in active[overlap & ~traffic.in_contact[active]]:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)
             self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
-            self.log("A", "collision", state, vehicle=self.vehicle_ids[i])
+            self.log("A", "collision", state, vehicle=recorder.vehicle_ids[i])
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
         for i in active[away & ~overlap]:
             traffic.remove(i)
-            self.leave_sample[i] = self.sample_count
-            self.log("A", "despawn", state, vehicle=self.vehicle_ids[i])
+            recorder.left(i)
+            self.log("A", "despawn", state, vehicle=recorder.vehicle_ids[i])
 
     def fire_event(self, event, state: EgoState) -> None:
         if isinstance(event, ApproachingVehicle):
             model_number = choose_model(event, self.rng)
             model = self.vehicle_table[model_number]
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
-            self.vehicle_ids.append(index + 1)
-            self.spawn_sample.append(self.sample_count)
-            self.leave_sample.append(-1)
+            self.recorder.spawned(index + 1)
             self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
+            brake_hold = self.inputs.brake_hold
             if not self.model.brk_acts:
                 self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics "
                                      "(seed text)")
-            elif self.brake_hold is not None:
+            elif brake_hold is not None:
                 self.warnings.append(f"line {event.line}: BRK ignored: the brake event of line "
-                                     f"{self.brake_hold.event.line} is still on")
+                                     f"{brake_hold.event.line} is still on")
             else:
-                self.brake_hold = BrakeHold(event, state.time, state.s, state.v)
+                self.inputs.brake_hold = BrakeHold(event, state.time, state.s, state.v)
                 magnitude = event.magnitude if event.threshold == "time" else self._scenario_units(event.magnitude)
                 self.log("BRK", "on", state, pedal=event.pedal * 100, threshold=event.threshold,
                          magnitude=magnitude, line=event.line)
@@ -428,17 +339,14 @@ class Cosimulation:
 
     def release_brakes(self, state: EgoState, reason: str) -> None:
         """Control returns to the driver model at this instant, its speed integral reset."""
-        self.log("BRK", "off", state, reason=reason, line=self.brake_hold.event.line)
-        self.brake_hold = None
-        self.driver.reset_integral()
-        throttle, brake = self.driver.pedals(state)
-        self.controls = (throttle, brake, self.controls[2])
+        self.log("BRK", "off", state, reason=reason, line=self.inputs.brake_hold.event.line)
+        self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: str) -> None:
         """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
         if self.finished:
             return
-        if self.brake_hold is not None:
+        if self.inputs.brake_hold is not None:
             self.release_brakes(state, "end")
         self.log("ES", "end", state, reason=reason)
         self.finished = True
@@ -699,145 +607,15 @@ class Cosimulation:
         return state.time + reach_time_scalar(self.pet_station - self._front(state),
                                               station_rate + bounds.radius * bounds.yaw_rate, bounds.acceleration)
 
-    # ---- inputs and records ---------------------------------------------------------------------
-
-    def sample_driver(self, state: EgoState, period: float | None) -> None:
-        """A driver sample: integrate the speed error over the period (not while BRK holds the pedals),
-        then new steer and, unless BRK holds them, new pedals."""
-        driver, controls = self.driver, self.controls
-        if self.brake_hold is None:
-            if period is not None:
-                driver.update(state, period, controls[0])
-            throttle, brake = driver.pedals(state)
-        else:
-            throttle, brake = controls[0], controls[1]
-        self.controls = (throttle, brake, driver.steer(state))
-
-    def apply_inputs(self, state: EgoState, surfaces_may_change: bool) -> None:
-        """Pedals (BRK's while it holds them), steer and the surfaces under the wheels, sent if changed."""
-        if self.brake_hold is not None:
-            self.controls = (0.0, self.brake_hold.event.pedal, self.controls[2])
-        if surfaces_may_change or self.applied_surfaces is None:
-            surfaces = self.surfaces_under_wheels(state)
-            if surfaces != self.applied_surfaces:
-                self.applied_surfaces = surfaces
-                values = self.model.wheel_values(surfaces)
-                if values != self.wheel_values:
-                    self.ego.set_friction(values)
-                    self.wheel_values = values
-        controls = self.controls
-        if controls != self.sent_controls:
-            self.ego.set_controls(*controls)
-            self.sent_controls = controls
-
-    def record(self, state: EgoState) -> None:
-        bounds = self.bounds
-        if not self.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
-                                         or math.hypot(state.ax, state.ay) > bounds.acceleration):
-            # the trigger predictions rest on these bounds: say so rather than silently risk a late trigger
-            self.bounds_exceeded = True
-            self.warnings.append(
-                f"at t = {state.time:.3f} s the ego's yaw rate ({state.yaw_rate:.3g} rad/s) or acceleration "
-                f"({math.hypot(state.ax, state.ay):.3g} m/s2) exceeded the bounds the trigger prediction assumes "
-                f"({self.bounds.yaw_rate:.3g} rad/s, {self.bounds.acceleration:.3g} m/s2): later triggers may be "
-                "located late; rerun with a shorter --step")
-        # EGO_COLUMNS: the state's fields in their order (time ... yaw_rate, stopped), station, lateral, the
-        # controls, brk, then the wheel inputs
-        self.ego_rows.append((*state[:STOPPED], float(state.stopped), state.x, -state.y, *self.controls,
-                              float(self.brake_hold is not None), *self.wheel_values))
-        self.sample_count += 1  # traffic is closed-form in time: its samples are computed at the end
-
-    # ---- the loop -------------------------------------------------------------------------------
-
-    def run(self) -> RunResult:
-        started = wall_clock.perf_counter()
-        try:
-            state = self.ego.read()
-            self.fire_due(state)
-            self.look(state, everyone=True)
-            self.sample_driver(state, None)
-            self.apply_inputs(state, True)
-            self.record(state)
-            ego, step, progress = self.ego, self.options.step, self.options.progress
-            period = self.options.driver_period
-            sample = 1  # index of the next driver sample, at next_sample = sample * period
-            next_sample = sample * period
-            until_time = self.options.until_time
-            stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
-            # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
-            # horizons() would return them unchanged, so it is called only when one could bind (or after a fire)
-            horizons, earliest = {}, -math.inf
-            while not self.finished:
-                t = state.time
-                if t >= MAX_TIME:
-                    self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
-                    self.finish(state, "time_limit")
-                    break
-                limit = min(t + step, next_sample, stop_time)
-                if earliest < limit:
-                    horizons = self.horizons(state, limit)
-                    earliest = min(horizons.values()) if horizons else math.inf
-                if self.pet_pending and self.pet_due <= limit:
-                    self.pet_due = self.pet_horizon(state)
-                if self.exact and self.earliest_quiet <= limit:
-                    self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
-                # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (self.earliest_quiet <= limit or self.pet_pending
-                                                     or self.leaves_lane) and self.criticality_due(t, limit) else None
-                if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
-                    # nothing can become true before `end`; something may be true exactly at it (then at no
-                    # other instant: its instant is known exactly)
-                    end = min(limit, earliest)
-                    ego.step_to(end)
-                    state = ego.read()
-                    fired = earliest <= end and self.triggered(
-                        state, [kind for kind, instant in horizons.items() if instant <= end])
-                    self.time_uncertainty = 0.0
-                else:
-                    end = min(t + MIN_LOOKAHEAD, limit)
-                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    if self.exact:
-                        fired = step_until_time(ego, end, lambda probe: self.triggered(probe, kinds), TIME_TOLERANCE)
-                    else:  # what became true did so somewhere in (t, end]
-                        ego.step_to(end)
-                        fired = self.triggered(ego.read(), kinds)
-                        self.time_uncertainty = end - t
-                    state = ego.read()
-                self.steps += 1
-                driver_sample = state.time >= next_sample
-                if base is not None or fired or state.time >= self.earliest_look or not self.exact:
-                    self.follow_criticality(base, t, state, everyone=fired)
-                if fired:
-                    self.fire_due(state)
-                    self.traffic_earliest = -math.inf  # spawns, actions, contacts, departures: bounds changed
-                    self.cached_bounds.clear()  # the next event, a BRK on or off
-                    earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
-                    self.look(state, everyone=True)  # the motions from this instant on
-                if until_time is not None and state.time >= until_time:
-                    self.finish(state, "until_time")
-                if driver_sample:
-                    self.sample_driver(state, period)
-                    while next_sample <= state.time:
-                        sample += 1
-                        next_sample = sample * period
-                self.apply_inputs(state, fired)  # the inputs from this instant on, as recorded with it
-                self.record(state)
-                if progress is not None:
-                    progress(self, state)
-            self.look(state, everyone=True)  # an extreme at the end of the run
-            wall = wall_clock.perf_counter() - started
-            return self.result(state, wall)
-        finally:
-            self.ego.close()
+    # ---- the result -----------------------------------------------------------------------------
 
     def result(self, state: EgoState, wall: float) -> RunResult:
-        names = [*EGO_COLUMNS, *self.wheel_columns]
-        table = self.ego_rows.finish()
-        columns = {name: table[:, i] for i, name in enumerate(names)}
+        recorder = self.recorder
+        columns = recorder.columns()
         final = {"time_s": state.time, "distance": self._scenario_units(state.s),
                  "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
-                  "steps": self.steps, "samples": self.sample_count}
+                  "steps": self.steps, "samples": recorder.sample_count}
         model, bounds = self.model, self.bounds
         vehicle = {**model.summary(), "bounds": {
             "acceleration_m/s2": bounds.acceleration, "yaw_rate_rad/s": bounds.yaw_rate,
@@ -845,109 +623,21 @@ class Cosimulation:
         return RunResult(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
             friction_meaning=model.surface_meaning,
-            seed=self.options.seed, road=self.road, columns=columns, vehicles=self.vehicle_tracks(columns["time"]),
+            seed=self.options.seed, road=self.road, columns=columns,
+            vehicles=recorder.vehicle_tracks(self.traffic, columns["time"]),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
             criticality=self.criticality_summary(),
-            ttc_series=partial(ttc_series, self.traffic, np.array(self.spawn_sample, dtype=np.int64),
-                               np.array(self.leave_sample, dtype=np.int64), self.bounds, columns),
+            ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
 
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
         back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
-        summary = self.extremes.summary(self.vehicle_ids, self._scenario_units)
+        summary = self.extremes.summary(self.recorder.vehicle_ids, self._scenario_units)
         if not self.exact:
             summary["time_uncertainty_s"] = self.criticality_uncertainty
         return summary
-
-    def vehicle_tracks(self, times: np.ndarray) -> VehicleTracks:
-        """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, into
-        one disk-backed table; the sample times are read in order and their pages released as it goes
-        (memory stays bounded)."""
-        first = np.array(self.spawn_sample, dtype=np.int64)
-        last = np.array(self.leave_sample, dtype=np.int64)
-        last[last < 0] = self.sample_count  # still on the road at the end
-        track_rows = ChunkedTable(3)
-        unreleased = 0
-        for i in range(len(first)):
-            track_rows.extend(np.column_stack(self.traffic.track(i, np.asarray(times[first[i]:last[i]]))))
-            unreleased += last[i] - first[i]
-            if unreleased > RELEASE_ROWS:
-                release_pages(times)
-                unreleased = 0
-        release_pages(times)
-        offsets = np.concatenate([[0], np.cumsum(last - first)])
-        return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), self.traffic.models,
-                             first, offsets)
-
-
-def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds, columns: dict) -> np.ndarray:
-    """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle is on
-    a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions (each
-    vehicle from its first sample to the one it left at, -1: still on the road), computed when asked for
-    (RunResult.ttc_series), not during the run; not part of timeseries.csv."""
-    times = np.asarray(columns["time"])
-    series = np.full(len(times), np.inf)
-    last = np.where(last < 0, len(times), last)
-    for i in range(len(first)):
-        rows = slice(first[i], last[i])
-        t = times[rows]
-        motions = traffic.history(i)
-        k = np.maximum(np.searchsorted(motions[:, 0], t, side="right") - 1, 0)
-        t0, _, lateral0, _, lateral1, _, duration = motions[k].T
-        moving = t - t0 < duration
-        lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
-        station, lateral, speed = traffic.track(i, t)
-        dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
-        length, width = float(traffic.length[i]), float(traffic.width[i])
-        # only where the centres are within RANGE plus both footprints' radii can the footprints be
-        near = np.flatnonzero(np.sqrt(dx * dx + dy * dy) <= RANGE + bounds.radius
-                              + 0.5 * math.sqrt(length * length + width * width))
-        if not len(near):
-            continue
-        dx, dy = dx[near], dy[near]
-        psi = np.asarray(columns["psi"][rows])[near]
-        c, s = np.cos(psi), np.sin(psi)
-        vx, vy = np.asarray(columns["vx"][rows])[near], np.asarray(columns["vy"][rows])[near]
-        ego = Footprint(bounds.length / 2, bounds.width / 2, c, s)
-        value = ttcs(ego, dx, dy, -speed[near] - (vx * c - vy * s), -lateral_rate[near] - (vx * s + vy * c),
-                     length, width)
-        value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
-        index = near + first[i]
-        series[index] = np.minimum(series[index], value)
-    series[~np.isfinite(series)] = np.nan
-    return series
-
-
-def _differing_stretches(surfaces, lane: int, other: int) -> tuple[list[float], list[float]]:
-    """(starts, ends) of the stretches of road where two lanes' surface values differ, in station order,
-    disjoint (adjacent ones merged); an end may be inf."""
-    stations = sorted({*surfaces.starts.get(lane, []), *surfaces.starts.get(other, [])})
-    starts, ends = [], []
-    for k, station in enumerate(stations):
-        end = stations[k + 1] if k + 1 < len(stations) else math.inf
-        if surfaces.value(lane, station) != surfaces.value(other, station):
-            if ends and ends[-1] == station:
-                ends[-1] = end
-            else:
-                starts.append(station)
-                ends.append(end)
-    return starts, ends
-
-
-def _surface_changes(surfaces) -> dict[int, list[float]]:
-    """Per lane, the stations where its surface value actually changes (a value set again is no change)."""
-    changes = {}
-    for lane, starts in surfaces.starts.items():
-        previous, stations = surfaces.default, []
-        for start, value in zip(starts, surfaces.values[lane]):
-            if value != previous:
-                stations.append(start)
-            previous = value
-        if stations:
-            changes[lane] = stations
-    return changes
 
 
 def run_scenario(scenario: Scenario, model: EgoModel | Path, options: RunOptions,

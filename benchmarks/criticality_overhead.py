@@ -50,7 +50,7 @@ def compare(scenario, fmu, table, repeat: int) -> dict:
     ratios = [b / a - 1 for a, b in zip(plain, measured)]
     return {"plain_s": min(plain), "measured_s": min(measured), "overhead_best": min(measured) / min(plain) - 1,
             "overhead_median": statistics.median(ratios), "overhead_min": min(ratios), "overhead_max": max(ratios),
-            "located": run.located, "steps": run.steps}
+            "located": run.follower.located, "steps": run.steps}
 
 
 def main() -> None:

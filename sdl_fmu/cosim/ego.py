@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..vehicle import EgoInstance, EgoModel, EgoState, FmuError, parameter_defaults, read_description
 from ..vehicle.vehicle_map import parse_vehicle_map
+from .locate import first_instant
 
 __all__ = ["EgoFMU", "EgoState", "FmuError", "parameter_defaults", "step_until", "step_until_time"]
 
@@ -61,24 +62,27 @@ def step_until(ego: EgoInstance, h: float, condition, tolerance: float = 1e-9) -
 
 
 def step_until_time(ego: EgoInstance, end: float, condition, tolerance: float = 1e-9) -> bool:
-    """step_until to the absolute time `end`, every probe stepped to an absolute time."""
-    base = ego.save()  # the snapshot sits at time `low`
+    """step_until to the absolute time `end`, every probe stepped to an absolute time from a snapshot at the
+    bracket's low end (locate.first_instant)."""
+    snapshot = ego.save()  # the snapshot sits at the bracket's low end
     low = ego.time
     ego.step_to(end)
     if not condition(ego.read()):
-        ego.discard(base)
+        ego.discard(snapshot)
         return False
-    high = end
-    while high - low > tolerance:
-        middle = 0.5 * (low + high)
-        ego.restore(base)
-        ego.step_to(middle)
-        if condition(ego.read()):
-            high = middle
-        else:
-            ego.discard(base)
-            base, low = ego.save(), middle
-    ego.restore(base)
+
+    def probe(t: float) -> EgoState:
+        ego.restore(snapshot)
+        ego.step_to(t)
+        return ego.read()
+
+    def below(t: float) -> None:  # the condition is false at t, where the instance now is: the snapshot moves here
+        nonlocal snapshot
+        ego.discard(snapshot)
+        snapshot = ego.save()
+
+    high, _, _ = first_instant(probe, low, end, condition, tolerance, below=below)
+    ego.restore(snapshot)
     ego.step_to(high)
-    ego.discard(base)
+    ego.discard(snapshot)
     return True

@@ -29,7 +29,6 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 
 from ..results import RunResult
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
@@ -37,32 +36,25 @@ from ..sdl.vehicles import VehicleModel
 from ..units import FOOT, from_si
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .brake import BrakeHold
-from .criticality import Extremes, band_times
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
+from .follower import CriticalityFollower
 from .inputs import Inputs
+from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICALITY_TOLERANCE: the master's API)
 from .recorder import Recorder, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
 from ..storage import EventLog
 from .traffic import Traffic, choose_model
-from .triggers import EgoKinematics, ego_bounds, reach_time_scalar
+from .triggers import EgoKinematics, ego_bounds
 
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
 MAX_TIME = 3600.0  # s, a run never goes beyond
-TIME_TOLERANCE = 1e-6  # s, how exactly a trigger's instant is located
 # s: closer than this to a possible trigger the master steps this far from a saved state and bisects;
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
-# s, how exactly a criticality extreme's instant is located (a bracket this wide holds the root, so that two
-# runs at different steps agree within TIME_TOLERANCE)
-CRITICALITY_TOLERANCE = TIME_TOLERANCE / 4
-# the fraction of the way to a flat extreme's extended root a probe goes (root_instant): short of it, so that
-# the probes approach it from below, where the rate is known
-FLAT_STEP = 0.98
-NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
@@ -129,26 +121,7 @@ class Cosimulation:
         self.collision_points: list[tuple[float, float]] = []
         self.steps = 0
         self.finished = False
-        # criticality (criticality.py): the record, per vehicle the instant it next needs a look and its rates
-        # at its last look, the instant its footprint will leave the ego's lane (PET), and how exactly the
-        # extremes' instants are known (0: bisected to CRITICALITY_TOLERANCE)
-        self.extremes = Extremes(self.bounds.length, self.bounds.width)
-        self.next_look = np.full(16, NO_LOOK)
-        self.earliest_look = NO_LOOK
-        # per vehicle, the instant before which its located instants cannot be (Extremes.quiet), and the
-        # earliest step end at which one can be found (at its next look and not before that instant): a step
-        # ending before that needs no FMU snapshot to locate it from
-        self.quiet_until = np.full(16, NO_LOOK)
-        self.look_time = np.full(16, NO_LOOK)  # per vehicle, its last look at a communication point
-        self.earliest_quiet = NO_LOOK
-        self.look_rates: dict[int, tuple] = {}
-        self.leaves_lane: dict[int, float] = {}
-        self.pet_pending = False  # whether a PET waits for the ego's front to reach its conflict area
-        self.pet_station = math.inf  # the nearest such area's station
-        self.pet_due = NO_LOOK  # a lower bound on when the ego's front can reach it (NO_LOOK: to be computed)
-        self.evaluated: dict[int, tuple] = {}  # per vehicle, its evaluation at the step's end (rates read)
-        self.criticality_uncertainty = 0.0
-        self.located = 0  # instants located inside steps (probed from a saved FMU state)
+        self.follower = CriticalityFollower(self.ego, self.traffic, self.bounds, self.road, self.exact)
 
     def _scenario_units(self, value: float) -> float:
         return from_si(value, self.scenario.units)
@@ -170,7 +143,7 @@ class Cosimulation:
     def run(self) -> RunResult:
         started = wall_clock.perf_counter()
         try:
-            ego, inputs, schedule = self.ego, self.inputs, self.schedule
+            ego, inputs, schedule, follower = self.ego, self.inputs, self.schedule, self.follower
             state = ego.read()
             self.fire_due(state)
             self.look(state, everyone=True)
@@ -196,13 +169,13 @@ class Cosimulation:
                 if earliest < limit:
                     horizons = schedule.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
-                if self.pet_pending and self.pet_due <= limit:
-                    self.pet_due = self.pet_horizon(state)
-                if self.exact and self.earliest_quiet <= limit:
+                if follower.pet_pending and follower.pet_due <= limit:
+                    follower.pet_due = follower.pet_horizon(state)
+                if self.exact and follower.earliest_quiet <= limit:
                     self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
                 # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (self.earliest_quiet <= limit or self.pet_pending
-                                                     or self.leaves_lane) and self.criticality_due(t, limit) else None
+                base = ego.save() if self.exact and (follower.earliest_quiet <= limit or follower.pet_pending
+                                                     or follower.leaves_lane) and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no
                     # other instant: its instant is known exactly)
@@ -225,7 +198,7 @@ class Cosimulation:
                     state = ego.read()
                 self.steps += 1
                 driver_sample = state.time >= next_sample
-                if base is not None or fired or state.time >= self.earliest_look or not self.exact:
+                if base is not None or fired or state.time >= follower.earliest_look or not self.exact:
                     self.follow_criticality(base, t, state, everyone=fired)
                 if fired:
                     self.fire_due(state)
@@ -291,7 +264,7 @@ class Cosimulation:
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
                     self.log("A", "maneuver", state, vehicle=recorder.vehicle_ids[i], index=index)
-                    self.lane_leave_instant(int(i), state)
+                    self.follower.lane_leave_instant(int(i), state)
                     if not schedule.action_due(int(i), kinematics):
                         break
             _, overlap, away = schedule.vehicle_conditions(active, kinematics)
@@ -351,261 +324,16 @@ class Cosimulation:
         self.log("ES", "end", state, reason=reason)
         self.finished = True
 
-    # ---- criticality ------------------------------------------------------------------------------
-
-    def criticality_due(self, t: float, limit: float) -> bool:
-        """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU
-        snapshot): a vehicle's look comes due after the instant before which none of its located instants can
-        be (Extremes.quiet), a vehicle's footprint leaves the ego's lane, or the ego's front can reach a
-        pending PET's conflict area (`pet_horizon`)."""
-        return (self.earliest_quiet <= limit and bool(len(self.traffic.active))) \
-            or (self.pet_pending and self.pet_due <= limit) \
-            or bool(self.leaves_lane) and any(t < leave <= limit for leave in self.leaves_lane.values())
+    # ---- criticality hooks (follower.py) ---------------------------------------------------------
 
     def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None) -> None:
-        """Offers the vehicles whose look has come (all of them: `everyone`) to the record at this
-        communication point, keeps their rates (the next step's start) and their next-look instants. With
-        `ahead` (a step's end), also the vehicles last looked at before now whose located instants could
-        come by then: a look now moves that bound on, and the step may then need no FMU snapshot."""
-        t = state.time
-        if not everyone and t < self.earliest_look and ahead is None:
-            return
-        traffic, bounds = self.traffic, self.bounds
-        if len(self.next_look) < traffic.size:
-            self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
-            self.quiet_until = np.concatenate([self.quiet_until, np.full(traffic.size, NO_LOOK)])
-            self.look_time = np.concatenate([self.look_time, np.full(traffic.size, NO_LOOK)])
-        earliest = earliest_quiet = math.inf
-        evaluated, self.evaluated = self.evaluated, {}
-        extremes = self.extremes
-        for i in traffic.active.tolist():
-            instant = float(self.next_look[i])
-            if everyone or instant <= t or (ahead is not None and self.quiet_until[i] <= ahead
-                                            and self.look_time[i] < t):
-                rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
-                                               bounds.radius, evaluated.get(i))
-                self.look_rates[i] = rates
-                instant = self.next_look[i] = t + horizon
-                self.quiet_until[i] = t + extremes.quiet
-                self.look_time[i] = t
-            earliest = min(earliest, instant)
-            earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
-        self.earliest_look = earliest
-        self.earliest_quiet = earliest_quiet
+        self.follower.look(state, everyone, ahead)
+
+    def criticality_due(self, t: float, limit: float) -> bool:
+        return self.follower.criticality_due(t, limit)
 
     def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
-        """After a step from t0 to state.time: locates the extremes inside it (from the snapshot `base` at t0;
-        without one, an FMU that cannot roll back, they are taken at this communication point, known within
-        the step), then looks at the vehicles due (all of them: `everyone`, before something fires)."""
-        t1 = state.time
-        if base is not None:
-            self._locate_in_step(base, t0, state)
-        elif not self.exact and (self._changes_in_step(t0, state) or self.pet_pending
-                                 or any(leave <= t1 for leave in self.leaves_lane.values())):
-            self.criticality_uncertainty = max(self.criticality_uncertainty, t1 - t0)
-        if self.leaves_lane:
-            for i, leave in list(self.leaves_lane.items()):
-                if leave <= t1:  # at this instant, or (no snapshot) within this step
-                    self._lane_left(i, state)
-        if self.pet_pending and self._front(state) >= self.pet_station:
-            self._reach(state)
-        if base is not None:
-            self.ego.discard(base)
-        self.look(state, everyone)
-
-    def _changes_in_step(self, t0: float, state: EgoState) -> list:
-        """What changed inside the step for the vehicles looked at now: (vehicle, rate index) where that rate
-        turned from < 0 to >= 0 (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), and
-        (vehicle, None) where a collision course began or ended (TTC's rate turned nan or back)."""
-        t1 = state.time
-        changes = []
-        if t1 < self.earliest_look:
-            return changes
-        for i in self.traffic.active.tolist():
-            previous = self.look_rates.get(i)
-            if previous is None or self.next_look[i] > t1:
-                continue
-            evaluated = self.evaluated[i] = self.extremes.evaluate(self.traffic, i, state)
-            now = evaluated[1]
-            changes += [(i, k) for k in range(4) if previous[k] < 0 <= now[k]]
-            if math.isnan(previous[1]) != math.isnan(now[1]):
-                changes.append((i, None))
-        return changes
-
-    def _locate_in_step(self, base, t0: float, state: EgoState) -> None:
-        """Each extreme inside the step bisected from the snapshot at t0 (the FMU's state at t1 saved and
-        restored after: the run goes on exactly as without the probes), and the vehicle looked at on both
-        sides of the located instant (the first instant an extreme is reached is kept)."""
-        t1 = state.time
-        changes = self._changes_in_step(t0, state)
-        leaving = [(i, leave) for i, leave in self.leaves_lane.items() if t0 < leave < t1]
-        extremes = self.extremes
-        reaching = self.pet_pending and self._front(state) >= self.pet_station
-        ending = self._transitions_ending(t0, t1) if t1 >= self.earliest_look else []
-        if not (changes or leaving or reaching or ending):
-            return
-        ego, traffic, bounds = self.ego, self.traffic, self.bounds
-        end = ego.save()
-
-        def probe(t: float) -> EgoState:
-            ego.restore(base)
-            ego.step_to(t)
-            return ego.read()
-
-        def bisect_instant(low, high, condition) -> tuple[EgoState, EgoState]:
-            """(state before, state at) the instant condition turns true in (low, high], true at high."""
-            low_state, high_state = None, state
-            while high - low > CRITICALITY_TOLERANCE:
-                middle = 0.5 * (low + high)
-                probed = probe(middle)
-                if condition(probed):
-                    high, high_state = middle, probed
-                else:
-                    low, low_state = middle, probed
-            return low_state, high_state
-
-        def root_instant(low, high, value, low_value, high_value) -> tuple[EgoState, EgoState]:
-            """bisect_instant for `value(state) >= 0` of a rate turning from < 0 at low to >= 0 at high: the
-            same bracket to CRITICALITY_TOLERANCE, with fewer probes where the rate is smooth (regula falsi,
-            Illinois variant; each estimate kept tolerance / 2 inside the bracket, so that once near the root
-            the next probe closes the bracket from the other side; bisection whenever a probe did not halve
-            it). While the rate at high is exactly 0 (a flat extreme: the distance to a car passing in the next
-            lane, whose rate rises continuously to 0 at the root and stays 0 after it) the secant to high only
-            ever points at high: the estimate is then the secant through the last two probes below the root,
-            extended to 0, taken FLAT_STEP of the way (or bisection before there are two, and after a probe
-            past the root that did not halve the bracket)."""
-            low_state, high_state = None, state
-            side, halve = 0, False
-            rising, earlier = low_value, None  # the rate at low (unscaled), and (instant, rate) of the low before
-            while high - low > CRITICALITY_TOLERANCE:
-                width = high - low
-                slope = high_value - low_value
-                guess = 0.5 * (low + high)
-                flat = high_value == 0.0
-                if halve:
-                    pass
-                elif flat:
-                    if earlier is not None and rising > earlier[1]:
-                        extended = low - rising * (low - earlier[0]) / (rising - earlier[1])
-                        if extended < high:
-                            # FLAT_STEP of the way, to stay below the root (then the next extension is
-                            # nearer), and once it is within tolerance / 2, a probe there to close the bracket
-                            guess = low + FLAT_STEP * (extended - low)
-                elif slope > 0.0 and math.isfinite(slope):
-                    guess = low - low_value * width / slope
-                guess = min(max(guess, low + 0.5 * CRITICALITY_TOLERANCE), high - 0.5 * CRITICALITY_TOLERANCE)
-                probed = probe(guess)
-                rate = value(probed)
-                if rate >= 0:
-                    high, high_state, high_value = guess, probed, rate
-                    if side > 0:
-                        low_value *= 0.5
-                    side = 1
-                else:
-                    earlier = (low, rising)
-                    low, low_state, low_value, rising = guess, probed, rate, rate
-                    if side < 0:
-                        high_value *= 0.5
-                    side = -1
-                halve = high - low > 0.5 * width and not (flat and rate < 0)
-            return low_state, high_state
-
-        def look_at(i: int, *states) -> None:
-            for probed in states:
-                if probed is not None:
-                    extremes.look(traffic, i, probed, bounds.acceleration, bounds.yaw_rate, bounds.radius)
-            self.located += 1
-
-        for i, k in changes:
-            if k is None:
-                off_course = math.isnan(self.look_rates[i][1])
-                before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
-                                            math.isnan(extremes.rates(traffic, i, p)[1]) != was)
-            else:
-                rate_of = (lambda p, i=i: extremes.distance_rate(traffic, i, p)) if k == 0 else \
-                    (lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k])
-                before, at = root_instant(t0, t1, rate_of,
-                                          self.look_rates[i][k], self.evaluated[i][1][k])
-            # a contact's start (the master's contact trigger locates it: distance and TTC 0 there): the
-            # instant before it is not offered, DRAC growing without bound toward a contact
-            evaluated = extremes.evaluate(traffic, i, at)
-            rates = evaluated[1]
-            contact = rates[0] == 0.0 and math.isnan(rates[1])
-            if not contact and before is not None:
-                extremes.look(traffic, i, before, bounds.acceleration, bounds.yaw_rate, bounds.radius)
-            extremes.look(traffic, i, at, bounds.acceleration, bounds.yaw_rate, bounds.radius, evaluated)
-            self.located += 1
-        for i, end_time in ending:
-            # the vehicle's velocity jumps at its transition's end (TTC, DRAC and headway with it): looked at
-            # with the motion just before (1e-9 s earlier for the vehicle: < 1e-7 m) and at the instant
-            at = state if end_time == t1 else probe(end_time)
-            look_at(i, at._replace(time=end_time - 1e-9), at)
-        for i, leave in leaving:
-            self._lane_left(i, probe(leave))
-        front = self._front(state)
-        for i in np.flatnonzero(extremes.conflict[:extremes.size] <= front).tolist():
-            station = float(extremes.conflict[i])
-            start = max(t0, float(extremes.left_path[i]))
-            _, reached = bisect_instant(start, t1, lambda p: self._front(p) >= station)
-            self._reach(reached)
-            self.located += 1
-        ego.restore(end)
-        ego.discard(end)
-
-    def _transitions_ending(self, t0: float, t1: float) -> list[tuple[int, float]]:
-        """(vehicle, instant) of the lateral or speed transitions ending inside (t0, t1], for the vehicles
-        followed at every communication point (within criticality.RANGE)."""
-        traffic = self.traffic
-        ending = []
-        for i in self.traffic.active.tolist():
-            if self.next_look[i] <= t1 and traffic.duration[i] > 0.0:
-                end_time = float(traffic.t0[i] + traffic.duration[i])
-                if t0 < end_time <= t1:
-                    ending.append((i, end_time))
-        return ending
-
-    def _front(self, state: EgoState) -> float:
-        """Station of the front of the ego's footprint (criticality.Extremes.reach's)."""
-        return state.x + self.bounds.length / 2 * abs(math.cos(state.psi)) \
-            + self.bounds.width / 2 * abs(math.sin(state.psi))
-
-    def lane_leave_instant(self, i: int, state: EgoState) -> None:
-        """When an action starts vehicle i's lateral move: the instant its footprint leaves the ego's lane
-        (criticality.band_times, closed form), where the PET's conflict area is set."""
-        traffic, road = self.traffic, self.road
-        self.leaves_lane.pop(i, None)
-        lane = road.lane_at(-state.y)
-        centre = road.lane_center(lane)
-        _, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
-                              float(traffic.duration[i]), float(traffic.width[i]), centre - road.lane_width / 2,
-                              centre + road.lane_width / 2)
-        if state.time < leave < math.inf:
-            self.leaves_lane[i] = leave
-
-    def _lane_left(self, i: int, state: EgoState) -> None:
-        del self.leaves_lane[i]
-        station, _, _ = self.traffic.at(i, state.time)
-        self.extremes.path_left(i, state.time, station, float(self.traffic.length[i]), self._front(state))
-        self._pending()
-
-    def _reach(self, state: EgoState) -> None:
-        self.extremes.reach(state)
-        self._pending()
-
-    def _pending(self) -> None:
-        stations = self.extremes.pending_stations()
-        self.pet_pending = bool(len(stations))
-        self.pet_station = float(stations.min()) if len(stations) else math.inf
-        self.pet_due = NO_LOOK
-
-    def pet_horizon(self, state: EgoState) -> float:
-        """When the ego's front can first reach the pending conflict station: the front's station rate is at
-        most the reference point's (which grows at most at the acceleration bound A) plus R r_max (the
-        footprint turning), so reach_time(station - front, station rate + R r_max, A) as for event distances."""
-        bounds = self.bounds
-        station_rate = state.vx * math.cos(state.psi) - state.vy * math.sin(state.psi)
-        return state.time + reach_time_scalar(self.pet_station - self._front(state),
-                                              station_rate + bounds.radius * bounds.yaw_rate, bounds.acceleration)
+        self.follower.follow_criticality(base, t0, state, everyone)
 
     # ---- the result -----------------------------------------------------------------------------
 
@@ -634,10 +362,7 @@ class Cosimulation:
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
         back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
-        summary = self.extremes.summary(self.recorder.vehicle_ids, self._scenario_units)
-        if not self.exact:
-            summary["time_uncertainty_s"] = self.criticality_uncertainty
-        return summary
+        return self.follower.summary(self.recorder.vehicle_ids, self._scenario_units)
 
 
 def run_scenario(scenario: Scenario, model: EgoModel | Path, options: RunOptions,

@@ -2,19 +2,20 @@
 controller, the driver model and the traffic model, and fires every trigger at its true instant,
 whatever the communication step.
 
-The run is a loop (`Cosimulation.run`) over four helpers, each in its own module:
+The run is a loop (`Cosimulation.run`, in the shape of FMPy's simulateCS) over four helpers, each in its
+own module:
 - `TriggerSchedule` (schedule.py): before each step, lower bounds from the ego's kinematics and its
   acceleration and yaw-rate limits (triggers.py) on the earliest instant at which any trigger (an event
   distance, a BRK threshold, a closure time, a contact starting or ending, a departure, a wheel crossing onto
   another surface) could become true, and whether one is true at a state;
 - `Inputs` (inputs.py): the driver's (or BRK's) pedals, the steer and the surfaces under the wheels;
 - `Recorder` (recorder.py): the samples;
-- the criticality record (criticality.py), fed by the hooks `look`, `criticality_due` and
-  `follow_criticality` below.
+- `CriticalityFollower` (follower.py): the criticality record (criticality.py), fed through the hooks `look`,
+  `criticality_due` and `follow_criticality` below, and the extremes located inside steps.
 Where nothing can happen the loop steps long: to the next driver sample, the `step` limit or the earliest
 trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
 and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
-until the instant is known within TIME_TOLERANCE; then it fires what is due (`fire_due`). Traffic motion is
+until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire_due`). Traffic motion is
 closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
 own period (`driver_period`): its samples are instants the master steps to, independent of `step`.
 """
@@ -29,10 +30,10 @@ from functools import partial
 from pathlib import Path
 from typing import Callable
 
-
 from ..results import RunResult
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
+from ..storage import EventLog
 from ..units import FOOT, from_si
 from ..vehicle import EgoModel, EgoState, shipped_map_path
 from .brake import BrakeHold
@@ -44,7 +45,6 @@ from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICA
 from .recorder import Recorder, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
-from ..storage import EventLog
 from .traffic import Traffic, choose_model
 from .triggers import EgoKinematics, ego_bounds
 

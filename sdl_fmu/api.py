@@ -31,7 +31,7 @@ from .results import RunResult, summary, timeseries_table, write_results
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
-           "ego_fmu", "ego_model", "LIMITS"]
+           "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -147,11 +147,9 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamic
     if problems:
         raise ScenarioError(problems)
     if dynamics is not None:
-        from .vehicle import SHIPPED, load_vehicle_map, shipped_map_path
+        from .vehicle import load_vehicle_map
 
-        if dynamics not in SHIPPED:
-            raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
-        friction = load_vehicle_map(shipped_map_path(dynamics)).friction
+        friction = load_vehicle_map(_shipped_map(dynamics)).friction
         if friction is not None and friction.meaning == "attribute":
             _whole_attributes(loaded)
     return loaded
@@ -210,24 +208,32 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0]
 
 
+def _shipped_map(dynamics: str) -> Path:
+    """The shipped vehicle map of `dynamics`; InputError naming `dynamics` for a name that is not shipped."""
+    from .vehicle import SHIPPED, shipped_map_path
+
+    if dynamics not in SHIPPED:
+        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
+    return shipped_map_path(dynamics)
+
+
 def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
               vehicle: str | os.PathLike | None = None):
     """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
     the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use).
     Raises InputError naming the map file and key, or the FMU."""
-    from .vehicle import SHIPPED, EgoModel, VehicleMapError, shipped_map_path
+    from .vehicle import EgoModel, VehicleMapError
 
     if vehicle is not None and dynamics is not None:
         raise _option_error("dynamics", dynamics, "give either a shipped model (dynamics) or a vehicle map "
                             "(vehicle), not both")
     dynamics = "simple" if dynamics is None else dynamics
-    if dynamics not in SHIPPED:
-        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
+    shipped_map = _shipped_map(dynamics)
     try:
         if vehicle is not None:
             return EgoModel.open(fmu, _regular_file("vehicle", vehicle))
         if fmu is not None:
-            return EgoModel.open(_regular_file("fmu", fmu), shipped_map_path(dynamics))
+            return EgoModel.open(_regular_file("fmu", fmu), shipped_map)
     except VehicleMapError as error:
         text = str(error)
         if vehicle is None and not text.startswith("--fmu"):  # the FMU does not fit the shipped map
@@ -240,7 +246,7 @@ def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
 
     path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
                                                             f"{path.parent.parent} (first use)", file=sys.stderr))
-    return EgoModel.open(path, shipped_map_path(dynamics))
+    return EgoModel.open(path, shipped_map)
 
 
 def _parameters(params: dict | None, model) -> dict[str, float]:
@@ -283,8 +289,12 @@ def ego_fmu(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
     return ego_model(dynamics, fmu, vehicle).fmu_path
 
 
-def _tire_starts(tires, model):
-    """The tire slots' start values from a Tire Attribute File, for a vehicle whose map declares tire slots."""
+def tire_slot_starts(tires: str | os.PathLike | None,
+                     model) -> tuple[dict[str, float], dict[int, int] | None, list[str]]:
+    """(the tire slots' start values, attribute -> slot for the attributes the file gives, its warnings) from a
+    Tire Attribute File (None: the shipped one), for a vehicle whose map declares tire slots; for any other
+    vehicle ({}, None, []). Raises InputError naming `tires` for a bad file, or for `tires` given to a vehicle
+    without tire slots."""
     if model.friction is None or model.friction.tire_slots is None:
         if tires is not None:
             raise _option_error("tires", tires, "applies to the advanced dynamics only (a vehicle map whose friction "
@@ -511,7 +521,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, 
     model = ego_model(dynamics, fmu, vehicle)
     if model.surface_meaning == "attribute":
         _whole_attributes(scenario)
-    tire_starts, known_attributes, tire_warnings = _tire_starts(tires, model)
+    tire_starts, known_attributes, tire_warnings = tire_slot_starts(tires, model)
     if out is not None:
         try:
             check_results_folder(out)

@@ -460,7 +460,7 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
-        api._tire_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
+        api.tire_slot_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
         fixed["tires"] = str(Path(fixed["tires"]).absolute())
     if fixed.get("vehicle") is not None:
         fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())

@@ -158,8 +158,9 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamic
 # --- options -----------------------------------------------------------------------------------
 
 
-def _number(option: str, value, units: str | None = None, low_open: bool = False):
-    """A finite number within LIMITS[option] (given in scenario units when `units`); returns SI."""
+def _checked_option(option: str, value, units: str | None = None, low_open: bool = False):
+    """A numeric option's value checked: a finite number within LIMITS[option] (given in scenario units when
+    `units`); returns SI."""
     from .units import from_si, length_label, speed_label, to_si
 
     if value is None:
@@ -510,14 +511,14 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, 
     seed = _seed(seed)
     from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
 
-    step = DEFAULT_STEP if step is None else _number("step", step)
-    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _number("driver_period", driver_period)
-    until_time = _number("until_time", until_time, low_open=True)
+    step = DEFAULT_STEP if step is None else _checked_option("step", step)
+    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _checked_option("driver_period", driver_period)
+    until_time = _checked_option("until_time", until_time, low_open=True)
     if not isinstance(scenario, Scenario):
         scenario = load(scenario, skip_unsupported=skip_unsupported)
     units = scenario.units
-    speed = _number("speed", speed, units)
-    until_distance = _number("until_distance", until_distance, units, low_open=True)
+    speed = _checked_option("speed", speed, units)
+    until_distance = _checked_option("until_distance", until_distance, units, low_open=True)
     model = ego_model(dynamics, fmu, vehicle)
     if model.surface_meaning == "attribute":
         _whole_attributes(scenario)

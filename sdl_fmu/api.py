@@ -29,6 +29,8 @@ import numpy as np
 
 from .results import RunResult, summary, timeseries_table, write_results
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
+from .units import Units
+from .vehicle.vehicle_map import Dynamics
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
            "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
@@ -133,7 +135,7 @@ def _vehicle_table():
     return load_vehicle_table(default_vehicle_table_path())
 
 
-def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: str | None = None) -> Scenario:
+def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None) -> Scenario:
     """Reads and checks a scenario file (or a shipped example by name); raises ScenarioError listing every
     problem. skip_unsupported: lines sdl-fmu does not simulate become warnings (one per code). dynamics:
     also apply that model's rules (advanced: RSA values are whole attribute numbers), as `run` does."""
@@ -158,7 +160,7 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamic
 # --- options -----------------------------------------------------------------------------------
 
 
-def _checked_option(option: str, value, units: str | None = None, low_open: bool = False):
+def _checked_option(option: str, value, units: Units | None = None, low_open: bool = False):
     """A numeric option's value checked: a finite number within LIMITS[option] (given in scenario units when
     `units`); returns SI."""
     from .units import from_si, length_label, speed_label, to_si
@@ -209,7 +211,7 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0]
 
 
-def _shipped_map(dynamics: str) -> Path:
+def _shipped_map(dynamics: Dynamics) -> Path:
     """The shipped vehicle map of `dynamics`; InputError naming `dynamics` for a name that is not shipped."""
     from .vehicle import SHIPPED, shipped_map_path
 
@@ -218,7 +220,7 @@ def _shipped_map(dynamics: str) -> Path:
     return shipped_map_path(dynamics)
 
 
-def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
               vehicle: str | os.PathLike | None = None):
     """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
     the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use).
@@ -283,7 +285,7 @@ def _parameters(params: dict | None, model) -> dict[str, float]:
     return checked
 
 
-def ego_fmu(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def ego_fmu(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
             vehicle: str | os.PathLike | None = None) -> Path:
     """The ego FMU's path: `fmu` if given (checked against the vehicle map, or the shipped map of `dynamics`), else
     the map's own FMU or the cached build for `dynamics` (built on first use)."""
@@ -486,7 +488,7 @@ def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
     return check
 
 
-def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
         vehicle: str | os.PathLike | None = None,
         speed: float | None = None, seed: int = 1, step: float | None = None,
         driver_period: float | None = None, until_distance: float | None = None,
@@ -564,7 +566,7 @@ class VerifyResult:
     folder: Path | None
 
 
-def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
            vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
            out: str | os.PathLike | None = None) -> VerifyResult:
     """Runs the vehicle test pack (SPEC section 7) against one vehicle: a shipped model (`dynamics`), or `fmu`

@@ -14,7 +14,7 @@ from .storage import release_pages
 from .lazy_sequence import LazySequence
 from .results_folder import write_results_folder
 from .sdl.events import Road
-from .units import from_si, length_label, speed_label
+from .units import Units, from_si, length_label, speed_label
 from .vehicle.model import WHEELS
 
 
@@ -83,7 +83,7 @@ class RunResult:
     """Everything a run produced, in SI; converted to the scenario's units only when written."""
 
     scenario_path: str
-    units: str  # "English" or "Metric"
+    units: Units
     dynamics: str  # the vehicle's name: "simple" or "advanced" for the shipped maps, else its map's or FMU's
     seed: int
     road: Road
@@ -295,7 +295,7 @@ def _json_ready(value):
 LATERAL_SIGN = "positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: lateral = -y)"
 
 
-def key_units(units: str) -> dict[str, str]:
+def key_units(units: Units) -> dict[str, str]:
     """summary.json's "key_units": the unit of each key of "final" and the events that carries one (the keys
     themselves stay as SPEC names them), and the sign of lateral."""
     length, speed = length_label(units), speed_label(units)

@@ -28,14 +28,14 @@ import time as wall_clock
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Literal
 
 from ..results import RunResult
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..storage import EventLog
 from ..units import FOOT, from_si
-from ..vehicle import EgoModel, EgoState, shipped_map_path
+from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from .brake import BrakeHold
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
@@ -55,13 +55,14 @@ MAX_TIME = 3600.0  # s, a run never goes beyond
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit"]  # summary.json's ES reason
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
 
 @dataclass
 class RunOptions:
-    dynamics: str = "simple"  # the shipped map run_scenario drives an FMU given as a path with
+    dynamics: Dynamics = "simple"  # the shipped map run_scenario drives an FMU given as a path with
     speed: float | None = None  # m/s
     seed: int = 1
     step: float = DEFAULT_STEP  # s, longest communication step; results do not depend on it
@@ -126,7 +127,7 @@ class Cosimulation:
     def _scenario_units(self, value: float) -> float:
         return from_si(value, self.scenario.units)
 
-    def _end_distance(self) -> tuple[float, str]:
+    def _end_distance(self) -> tuple[float, EndReason]:
         """Where the run ends by distance, and why: ES, --until-distance, or a runout past the last event."""
         candidates = [(d, reason) for d, reason in ((self.scenario.end_distance, "scenario"),
                                                     (self.options.until_distance, "until_distance"))
@@ -175,7 +176,8 @@ class Cosimulation:
                     self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
                 # a snapshot at the step's start, from which extremes inside the step are located
                 base = ego.save() if self.exact and (follower.earliest_quiet <= limit or follower.pet_pending
-                                                     or follower.leaves_lane) and self.criticality_due(t, limit) else None
+                                                     or follower.leaves_lane) \
+                    and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no
                     # other instant: its instant is known exactly)
@@ -315,7 +317,7 @@ class Cosimulation:
         self.log("BRK", "off", state, reason=reason, line=self.inputs.brake_hold.event.line)
         self.inputs.release_brakes(state)
 
-    def finish(self, state: EgoState, reason: str) -> None:
+    def finish(self, state: EgoState, reason: EndReason) -> None:
         """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
         if self.finished:
             return

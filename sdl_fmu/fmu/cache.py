@@ -17,10 +17,14 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .. import __version__
 from ..interface import PACKAGE_DIRECTORY
-from .package import MODELS, build_fmus, fmu_path, mingw_compiler
+from .package import MODELS, FmiVersion, build_fmus, fmu_path, mingw_compiler
+
+if TYPE_CHECKING:
+    from ..vehicle.vehicle_map import Dynamics
 
 CACHE_VARIABLE = "SDL_FMU_CACHE"
 # Everything a build reads, relative to the package: the model and build code, interface data, the tire
@@ -56,7 +60,7 @@ def _input_files() -> list[Path]:
     return files
 
 
-def build_key(dynamics: str, fmi_version: int = 2) -> str:
+def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     """SHA-256 of every input of one FMU build: sources, data, compiler identity and flags, versions."""
     import casadi
     import fmpy
@@ -89,11 +93,12 @@ def _remove_abandoned_builds(root: Path) -> None:
             pass  # alive, someone else's
 
 
-def _cache_folder(dynamics: str, fmi_version: int) -> Path:
+def _cache_folder(dynamics: Dynamics, fmi_version: FmiVersion) -> Path:
     return cache_directory() / f"{MODELS[dynamics][0]}-fmi{fmi_version}-{build_key(dynamics, fmi_version)[:24]}"
 
 
-def cached_fmus(dynamics: str = "simple", fmi_versions: tuple[int, ...] = (2,), announce=None) -> list[Path]:
+def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, ...] = (2,),
+                announce=None) -> list[Path]:
     """The FMUs of these dynamics in these FMI versions from the cache; the missing ones are built together
     (one code generation, announced through `announce(path)`) and each is renamed into its own folder."""
     folders = {version: _cache_folder(dynamics, version) for version in fmi_versions}
@@ -122,6 +127,6 @@ def cached_fmus(dynamics: str = "simple", fmi_versions: tuple[int, ...] = (2,), 
     return [targets[version] for version in fmi_versions]
 
 
-def cached_fmu(dynamics: str = "simple", fmi_version: int = 2, announce=None) -> Path:
+def cached_fmu(dynamics: Dynamics = "simple", fmi_version: FmiVersion = 2, announce=None) -> Path:
     """The FMU for these dynamics from the cache, built (and announced through `announce(path)`) if missing."""
     return cached_fmus(dynamics, (fmi_version,), announce)[0]

@@ -11,7 +11,7 @@ import re
 from dataclasses import dataclass
 from typing import Callable
 
-from ..units import ENGLISH, METRIC, from_si, length_label, speed_label, to_si
+from ..units import ENGLISH, METRIC, Units, from_si, length_label, speed_label, to_si
 from .events import (
     BRAKE_THRESHOLDS,
     DEFAULT_ROAD,
@@ -105,7 +105,7 @@ def _short_enough(text: str) -> None:
                        "format reads")
 
 
-def _limit_text(kind: str, units: str) -> str:
+def _limit_text(kind: str, units: Units) -> str:
     if kind == "time":
         return f"{MAX_DURATION:g} s"
     label = length_label(units) if kind == "length" else speed_label(units)
@@ -148,7 +148,7 @@ def _whole(text: str) -> int:
     return int(text)
 
 
-def _within(value: float, kind: str, units: str, text: str) -> float:
+def _within(value: float, kind: str, units: Units, text: str) -> float:
     """value (SI) if its magnitude is within the format's limit for its kind, else _Invalid."""
     if abs(value) > _LIMITS[kind]:
         raise _Invalid(f"{_shown(text)} is beyond the format's limit of {_limit_text(kind, units)} in magnitude")
@@ -156,14 +156,14 @@ def _within(value: float, kind: str, units: str, text: str) -> float:
 
 
 @_shared
-def _quantity(text: str, units: str, kind: str) -> float:
+def _quantity(text: str, units: Units, kind: str) -> float:
     """A plain number that is a length, speed (converted to SI) or time, within the format's limit."""
     value = _plain_number(text)
     return _within(value if kind == "time" else to_si(value, units), kind, units, text)
 
 
 @_shared
-def _relative(text: str, units: str, kind: str) -> Relative:
+def _relative(text: str, units: Units, kind: str) -> Relative:
     """A distance or speed, '*' meaning the ego's current value plus this one."""
     if text == "":
         raise _Invalid("empty; expected a number or '*number'")
@@ -260,7 +260,7 @@ def _a_field(number: int) -> str:
     return f"A parameter {number} (action {action} {_ACTION_FIELDS[(number - 5) % 4]})"
 
 
-def _approaching_vehicle(line: int, distance: float, params: list[str], units: str, report: Report):
+def _approaching_vehicle(line: int, distance: float, params: list[str], units: Units, report: Report):
     """A: speed, gap, lateral, model, then 0..5 sets of (closure time, lateral, speed, transition time)."""
     if len(params) < 4 or len(params) > 24 or len(params) % 4:
         report("A parameters", "A takes 4 parameters plus 0 to 5 action sets of 4 (4, 8, 12, 16, 20 or 24 "
@@ -294,7 +294,7 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: s
     )
 
 
-def _brake(line: int, distance: float, params: list[str], units: str, report: Report):
+def _brake(line: int, distance: float, params: list[str], units: Units, report: Report):
     """BRK: pedal %, threshold type 0..3, magnitude (s, distance or speed)."""
     if len(params) != 3:
         report("BRK parameters", f"BRK takes 3 parameters (pedal %, threshold type, magnitude); got {len(params)}")
@@ -317,7 +317,7 @@ def _brake(line: int, distance: float, params: list[str], units: str, report: Re
     return Brake(line=line, distance=distance, pedal=pedal / 100, threshold=name, magnitude=magnitude)
 
 
-def _surface_attribute(line: int, distance: float, params: list[str], units: str, report: Report):
+def _surface_attribute(line: int, distance: float, params: list[str], units: Units, report: Report):
     """RSA: (lane, value) pairs; lanes are checked against the road once the whole file is read."""
     if not params or len(params) % 2:
         report("RSA parameters", f"RSA takes pairs of (lane, value), at least one pair; got {len(params)} parameters")
@@ -340,7 +340,7 @@ def _surface_attribute(line: int, distance: float, params: list[str], units: str
         else None
 
 
-def _road(line: int, distance: float, params: list[str], units: str, report: Report):
+def _road(line: int, distance: float, params: list[str], units: Units, report: Report):
     """ROAD: lane width, number of lanes, lanes right of the dividing line."""
     if len(params) != 3:
         report("ROAD parameters", "ROAD takes 3 parameters (lane width, lanes, lanes right of the dividing line); "
@@ -370,7 +370,7 @@ def _road(line: int, distance: float, params: list[str], units: str, report: Rep
     return Road(line=line, distance=distance, lane_width=to_si(width, units), lanes=lanes, lanes_right=lanes_right)
 
 
-def _end_of_scenario(line: int, distance: float, params: list[str], units: str, report: Report):
+def _end_of_scenario(line: int, distance: float, params: list[str], units: Units, report: Report):
     """ES: no parameters."""
     if params:
         report("ES parameters", f"ES takes no parameters; got {len(params)}")
@@ -651,15 +651,15 @@ def _number_text(value: float) -> str:
     return f"{value:.10g}"
 
 
-def _length_text(value: float, units: str) -> str:
+def _length_text(value: float, units: Units) -> str:
     return f"{_number_text(from_si(value, units))} {length_label(units)}"
 
 
-def _speed_text(value: float, units: str) -> str:
+def _speed_text(value: float, units: Units) -> str:
     return f"{_number_text(from_si(value, units))} {speed_label(units)}"
 
 
-def _relative_text(value: Relative, units: str, label: str) -> str:
+def _relative_text(value: Relative, units: Units, label: str) -> str:
     shown = _number_text(from_si(value.value, units))
     if value.relative:
         return f"ego{'' if shown.startswith('-') else '+'}{shown} {label}"
@@ -674,7 +674,7 @@ def _trigger_text(trigger: ClosureTrigger) -> str:
     return text + {"F": " (vehicle in front)", "B": " (vehicle behind)", None: ""}[trigger.where]
 
 
-def _event_text(event: Event, units: str) -> list[str]:
+def _event_text(event: Event, units: Units) -> list[str]:
     """One line (A: plus one per action) describing an event in the file's units."""
     if isinstance(event, ApproachingVehicle):
         model = event.model

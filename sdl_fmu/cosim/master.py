@@ -175,9 +175,8 @@ class Cosimulation:
                 if self.exact and follower.earliest_quiet <= limit:
                     self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
                 # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (follower.earliest_quiet <= limit or follower.pet_pending
-                                                     or follower.leaves_lane) \
-                    and self.criticality_due(t, limit) else None
+                may_locate = follower.earliest_quiet <= limit or follower.pet_pending or follower.leaves_lane
+                base = ego.save() if self.exact and may_locate and self.criticality_due(t, limit) else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no
                     # other instant: its instant is known exactly)

@@ -175,8 +175,9 @@ class Cosimulation:
                 if self.exact and follower.earliest_quiet <= limit:
                     self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
                 # a snapshot at the step's start, from which extremes inside the step are located
-                may_locate = follower.earliest_quiet <= limit or follower.pet_pending or follower.leaves_lane
-                base = ego.save() if self.exact and may_locate and self.criticality_due(t, limit) else None
+                base = ego.save() if self.exact and (follower.earliest_quiet <= limit or follower.pet_pending
+                                                     or follower.leaves_lane) and self.criticality_due(t, limit) \
+                    else None
                 if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
                     # nothing can become true before `end`; something may be true exactly at it (then at no
                     # other instant: its instant is known exactly)
@@ -224,10 +225,12 @@ class Cosimulation:
             self.ego.close()
 
     def record(self, state: EgoState) -> None:
-        warning = self.schedule.exceeded(state)
-        if warning is not None:
-            self.warnings.append(warning)
-        inputs = self.inputs
+        """A sample of the ego and its inputs; the first time the ego leaves the bounds the trigger prediction
+        rests on, a warning (the check written out: this runs every step)."""
+        bounds, inputs = self.bounds, self.inputs
+        if not self.schedule.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
+                                                  or math.hypot(state.ax, state.ay) > bounds.acceleration):
+            self.warnings.append(self.schedule.exceeded_warning(state))
         self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values)
 
     # ---- what happens at an instant -------------------------------------------------------------

@@ -66,18 +66,15 @@ class TriggerSchedule:
         self.traffic_earliest = -math.inf
         self.cached_bounds.clear()
 
-    def exceeded(self, state: EgoState) -> str | None:
-        """The first time the ego's yaw rate or acceleration exceeds the bounds the predictions assume, a
-        warning (the predictions rest on them: say so rather than silently risk a late trigger)."""
+    def exceeded_warning(self, state: EgoState) -> str:
+        """The warning, once per run, for a state whose yaw rate or acceleration exceeds the bounds the predictions
+        rest on (say so rather than silently risk a late trigger)."""
+        self.bounds_exceeded = True
         bounds = self.bounds
-        if not self.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
-                                         or math.hypot(state.ax, state.ay) > bounds.acceleration):
-            self.bounds_exceeded = True
-            return (f"at t = {state.time:.3f} s the ego's yaw rate ({state.yaw_rate:.3g} rad/s) or acceleration "
-                    f"({math.hypot(state.ax, state.ay):.3g} m/s2) exceeded the bounds the trigger prediction assumes "
-                    f"({bounds.yaw_rate:.3g} rad/s, {bounds.acceleration:.3g} m/s2): later triggers may be "
-                    "located late; rerun with a shorter --step")
-        return None
+        return (f"at t = {state.time:.3f} s the ego's yaw rate ({state.yaw_rate:.3g} rad/s) or acceleration "
+                f"({math.hypot(state.ax, state.ay):.3g} m/s2) exceeded the bounds the trigger prediction assumes "
+                f"({bounds.yaw_rate:.3g} rad/s, {bounds.acceleration:.3g} m/s2): later triggers may be "
+                "located late; rerun with a shorter --step")
 
     # ---- when the next trigger could be ---------------------------------------------------------
 

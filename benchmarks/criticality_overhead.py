@@ -3,19 +3,31 @@ against the same master with the measures switched off (a subclass whose critica
 side in one process, alternating, by CPU time (time.process_time: the machine is shared), on the demo and on
 roads with 1 ... N oncoming vehicles (linear in the number of vehicles?).
 
-    python benchmarks/criticality_overhead.py [--repeat N] [--vehicles 1,8,32]
+    python benchmarks/criticality_overhead.py [--repeat N] [--vehicle-repeat M] [--vehicles 1,8,32] [--json OUT]
+
+OUT (default benchmarks/results/criticality_overhead.json) holds `measured` (when and where), `repeat`, and
+`cases`: per scenario its `name`, `pairs`, `steps`, `located` (instants the measures located), the best CPU times
+`plain_s` and `measured_s`, `overhead_best` (their ratio - 1) and the median, quartiles, least and largest of the
+pairwise ratios - 1 (`overhead_median`, `overhead_q1`, `overhead_q3`, `overhead_min`, `overhead_max`), and
+`added_per_vehicle_s` (the median pairwise CPU added over the number of vehicles spawned: constant if linear).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import time
+from pathlib import Path
+
+from provenance import stamp
 
 from sdl_fmu.cosim.master import Cosimulation, RunOptions
 from sdl_fmu.fmu.cache import cached_fmus
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
+
+RESULT = Path(__file__).parent / "results" / "criticality_overhead.json"
 
 
 class WithoutCriticality(Cosimulation):
@@ -28,7 +40,10 @@ class WithoutCriticality(Cosimulation):
     def follow_criticality(self, base, t0, state, everyone):
         pass
 
-    def look(self, state, everyone=False, ahead=None):
+    def look(self, state, everyone=False, ahead=None, only=None):
+        pass
+
+    def look_before_change(self, i, state):
         pass
 
 
@@ -48,26 +63,39 @@ def compare(scenario, fmu, table, repeat: int) -> dict:
             run.run()
             times.append(time.process_time() - began)
     ratios = [b / a - 1 for a, b in zip(plain, measured)]
-    return {"plain_s": min(plain), "measured_s": min(measured), "overhead_best": min(measured) / min(plain) - 1,
-            "overhead_median": statistics.median(ratios), "overhead_min": min(ratios), "overhead_max": max(ratios),
+    q1, _, q3 = statistics.quantiles(ratios, n=4)
+    return {"pairs": repeat, "plain_s": min(plain), "measured_s": min(measured),
+            "overhead_best": min(measured) / min(plain) - 1, "overhead_median": statistics.median(ratios),
+            "overhead_q1": q1, "overhead_q3": q3, "overhead_min": min(ratios), "overhead_max": max(ratios),
+            "added_per_vehicle_s": statistics.median([b - a for a, b in zip(plain, measured)])
+            / len(run.recorder.vehicle_ids),
             "located": run.follower.located, "steps": run.steps}
 
 
 def main() -> None:
     arguments = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    arguments.add_argument("--repeat", type=int, default=7)
+    arguments.add_argument("--repeat", type=int, default=41, help="pairs on the demo")
+    arguments.add_argument("--vehicle-repeat", type=int, default=11, help="pairs on each N-vehicle road")
     arguments.add_argument("--vehicles", default="1,8,32")
+    arguments.add_argument("--json", default=str(RESULT))
     args = arguments.parse_args()
     table = load_vehicle_table(default_vehicle_table_path())
     fmu = cached_fmus("simple", (2,))[0]
-    cases = [("demo", load_scenario(SCENARIO_DIRECTORY / "demo.sdl"))]
-    cases += [(f"{n} oncoming", traffic_scenario(n)) for n in map(int, args.vehicles.split(","))]
-    for name, scenario in cases:
-        r = compare(scenario, fmu, table, args.repeat)
+    cases = [("demo", load_scenario(SCENARIO_DIRECTORY / "demo.sdl"), args.repeat)]
+    cases += [(f"{n} oncoming", traffic_scenario(n), args.vehicle_repeat) for n in map(int, args.vehicles.split(","))]
+    report = {"repeat": args.repeat, "cases": []}
+    for name, scenario, repeat in cases:
+        r = compare(scenario, fmu, table, repeat)
+        report["cases"].append({"name": name, **r})
         print(f"{name:12s} plain {r['plain_s']:.3f} s CPU, measured {r['measured_s']:.3f} s: best-of "
               f"{r['overhead_best'] * 100:+.1f} %, pairwise median {r['overhead_median'] * 100:+.1f} % "
-              f"(spread {r['overhead_min'] * 100:+.1f} … {r['overhead_max'] * 100:+.1f} %), "
-              f"{r['located']} located instants, {r['steps']} steps")
+              f"(quartiles {r['overhead_q1'] * 100:+.1f} … {r['overhead_q3'] * 100:+.1f} %, spread "
+              f"{r['overhead_min'] * 100:+.1f} … {r['overhead_max'] * 100:+.1f} %, {repeat} pairs), "
+              f"{r['added_per_vehicle_s'] * 1e3:.2f} ms per vehicle, {r['located']} located instants, "
+              f"{r['steps']} steps", flush=True)
+    measured = stamp("shared machine; CPU time (time.process_time), pairs alternating in one process")
+    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.json).write_text(json.dumps({"measured": measured, **report}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -16,9 +16,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import stamp
 from sdl_fmu.cosim.master import RunOptions, run_scenario
 from sdl_fmu.fmu.package import build_fmu
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
 from sdl_fmu.vehicle import EgoInstance
 
@@ -113,7 +114,7 @@ def main() -> int:
                   f"{d['same_events']}, worst event time difference {d['worst_event_time_difference_s']:.2e} s, "
                   f"final distance difference {d['final_distance_difference_ft']:.2e} ft")
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
     return 0
 
 

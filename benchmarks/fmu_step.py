@@ -25,6 +25,8 @@ from pathlib import Path
 import fmpy
 from fmpy.fmi2 import FMU2Slave
 
+from provenance import stamp
+
 HERE = Path(__file__).resolve().parent
 STEP = 0.01  # s, the communication step measured
 FIXED_STEPS = {"solver_tolerance": 0.0, "solver_step": 1e-3}  # the FMUs' solver before its error control
@@ -159,7 +161,7 @@ def main() -> int:
     for name, cost in results.items():
         print(f"{name:<{width}}  " + (f"{cost:9.1f} us CPU per 10 ms step" if isinstance(cost, float) else cost))
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **results}, indent=2) + "\n")
     return 0
 
 

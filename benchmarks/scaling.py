@@ -22,6 +22,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from provenance import stamp
+
 CHILD = r"""
 import json, resource, sys, time
 from pathlib import Path
@@ -110,7 +112,7 @@ def main() -> int:
     out.mkdir(parents=True, exist_ok=True)
     from sdl_fmu.fmu.package import build_fmu
 
-    series = {"vehicles": [], "lines": []}
+    series = {"measured": {}, "vehicles": [], "lines": []}
     if args.only is not None:
         earlier = out / "scaling.json"
         if earlier.exists():
@@ -134,6 +136,7 @@ def main() -> int:
                       f"({row['real_time_factor']:.0f}x), {row['cpu_s']:7.2f} s CPU, {row['steps']} steps, write {row['write_s']:.2f} s, "
                       f"peak RSS {row['peak_rss_simulation_mb']:.0f} MB simulating, {row['peak_rss_mb']:.0f} MB with writing, "
                       f"{row['events']} events", flush=True)
+    series["measured"].update({part: stamp() for part in ("vehicles", "lines") if args.only in (None, part)})
     (out / "scaling.json").write_text(json.dumps(series, indent=2) + "\n")
     plot(series, out / "scaling.png")
     print(f"wrote {out / 'scaling.json'} and {out / 'scaling.png'}")

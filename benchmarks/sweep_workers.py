@@ -16,6 +16,7 @@ from pathlib import Path
 
 from distributed import Client, LocalCluster
 
+from provenance import stamp
 from sdl_fmu import api
 from sdl_fmu import sweep as sweeping
 
@@ -43,7 +44,7 @@ def main() -> int:
     report["speedup"] = report[1]["wall_s"] / report[2]["wall_s"]
     print(f"2 workers vs 1: {report['speedup']:.2f}x")
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
     return 0
 
 

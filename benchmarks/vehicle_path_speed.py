@@ -19,9 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
+from provenance import stamp
+
 
 def load_package(name: str, source: Path, folder: Path):
     shutil.copytree(source / "sdl_fmu", folder / name, ignore=shutil.ignore_patterns("__pycache__"))
+    for data in ("scenarios", "modelDescription"):  # a checkout of the top-level layout: its data, as a wheel has it
+        if (source / data).is_dir():
+            shutil.copytree(source / data, folder / name / data, ignore=shutil.ignore_patterns("__pycache__"))
     sys.path.insert(0, str(folder))
     return importlib.import_module(name)
 
@@ -30,8 +35,9 @@ def runner(package_name: str, fmu: Path):
     """A function running the demo once through this package's master; returns (result, whole-call wall, CPU)."""
     master = importlib.import_module(f"{package_name}.cosim.master")
     sdl = importlib.import_module(f"{package_name}.sdl")
-    interface = importlib.import_module(f"{package_name}.interface")
-    scenario = sdl.load_scenario(interface.SCENARIO_DIRECTORY / "demo.sdl")
+    from sdl_fmu.paths import SCENARIO_DIRECTORY
+
+    scenario = sdl.load_scenario(SCENARIO_DIRECTORY / "demo.sdl")  # the same file for both
     table = sdl.load_vehicle_table(sdl.default_vehicle_table_path())
 
     def run():
@@ -79,7 +85,7 @@ def main() -> int:
     print(f"new / reference: loop {r['loop_wall_s']:.3f}, call {r['call_wall_s']:.3f}, CPU {r['cpu_s']:.3f}; "
           f"ego columns identical: {same}")
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
     return 0
 
 

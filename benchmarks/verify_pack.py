@@ -12,6 +12,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import stamp
 from sdl_fmu import api
 
 
@@ -32,7 +33,7 @@ def main() -> int:
         print(f"{dynamics}: pack {wall:.1f} s wall, {cpu:.1f} s CPU; "
               + ", ".join(f"{o.name} {o.seconds:.1f} s" for o in result.outcomes))
     if args.json:
-        Path(args.json).write_text(json.dumps(report, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
     return 0
 
 

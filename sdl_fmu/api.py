@@ -21,13 +21,14 @@ import shutil
 import sys
 import time
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 
-from .results import RunResult, summary, timeseries_table, write_results
+from .paths import SCENARIO_DIRECTORY
+from .results import summary, timeseries_table, write_results
+from .run_result import RunResult
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 from .units import Units
 from .vehicle.vehicle_map import Dynamics
@@ -102,9 +103,7 @@ def _option_error(option: str, value, reason: str) -> InputError:
 
 def shipped_scenarios() -> dict[str, Path]:
     """The example scenarios shipped in the package, by short name (file name without .sdl)."""
-    folder = resources.files("sdl_fmu") / "scenarios"
-    return {entry.name[:-4]: Path(str(entry)) for entry in sorted(folder.iterdir(), key=lambda e: e.name)
-            if entry.name.endswith(".sdl")}
+    return {path.stem: path for path in sorted(SCENARIO_DIRECTORY.glob("*.sdl"))}
 
 
 def resolve_scenario(name: str | os.PathLike) -> Path:

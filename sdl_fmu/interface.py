@@ -1,4 +1,4 @@
-"""FMU interfaces as data: reads sdl_fmu/interfaces/<Model>.json, the one source of variable names,
+"""FMU interfaces as data: reads modelDescription/<Model>.json, the one source of variable names,
 causalities, units, start values and descriptions (the XML, the C variable table and the CasADi symbols
 are all generated from it).
 
@@ -13,15 +13,10 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Literal
 
-# Package data (declared in pyproject.toml) is found through importlib.resources, so an installed package
-# reads its own copy wherever it is installed; pip installs packages unzipped, so these are real folders.
-PACKAGE_DIRECTORY = Path(str(resources.files(__package__)))
-INTERFACE_DIRECTORY = PACKAGE_DIRECTORY / "interfaces"
-SCENARIO_DIRECTORY = PACKAGE_DIRECTORY / "scenarios"  # shipped examples, vehicle table, tire files
+from .paths import MODEL_DESCRIPTION_DIRECTORY
 
 WHEELS = ("fl", "fr", "rl", "rr")  # the wheels' order everywhere (FMU variables, contact points, results columns)
 
@@ -95,7 +90,7 @@ def _variability(entry: dict, role: Role, type_: FmiType) -> Variability:
     return "continuous"
 
 
-def load_units(directory: Path = INTERFACE_DIRECTORY) -> dict:
+def load_units(directory: Path = MODEL_DESCRIPTION_DIRECTORY) -> dict:
     return json.loads((directory / "units.json").read_text())["units"]
 
 
@@ -179,7 +174,7 @@ def parse_interface(data: dict, units: dict, starts: dict[str, float] | None = N
     )
 
 
-def load_interface(model_name: str, directory: Path = INTERFACE_DIRECTORY,
+def load_interface(model_name: str, directory: Path = MODEL_DESCRIPTION_DIRECTORY,
                    starts: dict[str, float] | None = None) -> Interface:
     """The interface of one FMU, e.g. load_interface('EgoVehicleSimple'); starts: build-time start values."""
     path = directory / f"{model_name}.json"

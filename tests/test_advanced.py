@@ -1,42 +1,28 @@
 """The Advanced ego FMU (two-track vehicle on Magic Formula tires), loaded through fmpy, against analytic
-references computed here from the FMU's own parameters (its tire slots come from sdl_fmu/scenarios/tires/)."""
+references computed here from the FMU's own parameters (its tire slots come from scenarios/tires/)."""
 
 import math
+from functools import partial
 
 import casadi as ca
 import numpy as np
 import pytest
-from fmpy import read_model_description, simulate_fmu
 
 from sdl_fmu.dynamics import advanced
-from sdl_fmu.units import STANDARD_GRAVITY as G
 
-WHEELS = ("fl", "fr", "rl", "rr")
-ICE = 3  # attribute of ice in sdl_fmu/scenarios/tires/attributes.txt
-NO_RESISTANCES = {"drag_area": 0.0, "rolling_resistance": 0.0}
+import helpers
+from helpers import NO_RESISTANCES, WHEELS, G, input_table
 
-
-@pytest.fixture(scope="module")
-def defaults(advanced_fmu):
-    return {v.name: float(v.start) for v in read_model_description(str(advanced_fmu)).modelVariables
-            if v.causality == "parameter"}
-
-
-def simulate(fmu, stop_time, start, step=0.01, inputs=None, output=("s", "vx", "y", "psi", "yaw_rate", "stopped")):
-    return simulate_fmu(str(fmu), stop_time=stop_time, output_interval=step, start_values=start, input=inputs,
-                        output=list(output), fmi_type="CoSimulation")
-
-
-def input_table(time, **signals):
-    return np.array(list(zip(time, *signals.values())), dtype=[("time", float)] + [(n, float) for n in signals])
+ICE = 3  # attribute of ice in scenarios/tires/attributes.txt
+simulate = partial(helpers.simulate, output=("s", "vx", "y", "psi", "yaw_rate", "stopped"))
 
 
 # --- Magic Formula, written out again from Pacejka (MF 5.2, no shifts, no camber) ------------------------
 
 
-def tire(defaults, slot=0):
+def tire(parameters, slot=0):
     key_start = f"tire{slot}_"
-    return {name[len(key_start):]: value for name, value in defaults.items() if name.startswith(key_start)}
+    return {name[len(key_start):]: value for name, value in parameters.items() if name.startswith(key_start)}
 
 
 def load_increment(c, fz):
@@ -119,14 +105,14 @@ def understeer_gradient(p, c_front, c_rear):
     return m / wheelbase * (b / c_front - a / c_rear) + p["steer_compliance"] * m * b / wheelbase
 
 
-def test_understeer_gradient_is_a_passenger_cars(advanced_fmu, defaults):
+def test_understeer_gradient_is_a_passenger_cars(advanced_fmu, defaults_advanced):
     # Passenger cars: 2-5 deg/g. Source: characteristic speeds v_ch = sqrt(L / K_us) of passenger cars of
     # about 65-100 km/h (M. Mitschke, H. Wallentowitz, Dynamik der Kraftfahrzeuge, 4th ed., Springer 2004,
     # ch. on steady-state cornering), i.e. K_us = L / v_ch^2 = 1.9-4.7 deg/g at L = 2.7 m.
     # The tires alone give ~0.6 deg/g (their cornering stiffness is nearly proportional to load); the
     # front lateral-force compliance steer (Gillespie, Fundamentals of Vehicle Dynamics, ch. 6) adds D_f m b / L.
     # Measured in steady state at a_y <= 3 m/s2 (constant speed test, ISO 4138): K = (delta - L r / v) / a_y.
-    p, c = defaults, tire(defaults)
+    p, c = defaults_advanced, tire(defaults_advanced)
     a, b, wheelbase, fz_front, fz_rear = geometry(p)
     linear = understeer_gradient(p, 2 * cornering_stiffness(c, fz_front), 2 * cornering_stiffness(c, fz_rear))
     speed = 20.0
@@ -147,14 +133,14 @@ def test_understeer_gradient_is_a_passenger_cars(advanced_fmu, defaults):
 
 
 @pytest.mark.parametrize("speed", [10.0, 25.0])
-def test_steady_state_cornering_matches_linear_bicycle_model(advanced_fmu, defaults, speed):
+def test_steady_state_cornering_matches_linear_bicycle_model(advanced_fmu, defaults_advanced, speed):
     # Linear bicycle model (Milliken & Milliken, RCVD ch. 5; Gillespie ch. 6): in steady state
     #   delta = L / R + K_us a_y,  a_y = v r,  R = v / r   =>   r / delta = v / (L + K_us v^2),
     #   K_us = m_f / C_f - m_r / C_r + D_f m_f = (m / L) (b / C_f - a / C_r) + D_f m b / L,
     # with axle cornering stiffness C = 2 B C D = 2 K_y(Fz) at the static wheel load Fz and the front
     # lateral-force compliance steer D_f (steer_compliance, rad per N of front axle force m_f a_y;
     # Gillespie, Fundamentals of Vehicle Dynamics, ch. 6).
-    p, c = defaults, tire(defaults)
+    p, c = defaults_advanced, tire(defaults_advanced)
     m = p["mass"]
     a, b, wheelbase, fz_front, fz_rear = geometry(p)
     c_front, c_rear = 2 * cornering_stiffness(c, fz_front), 2 * cornering_stiffness(c, fz_rear)
@@ -189,7 +175,7 @@ def test_steady_state_cornering_matches_linear_bicycle_model(advanced_fmu, defau
 # --- braking -------------------------------------------------------------------------------------------
 
 
-def test_locked_wheel_braking_matches_sliding_friction(advanced_fmu, defaults):
+def test_locked_wheel_braking_matches_sliding_friction(advanced_fmu, defaults_advanced):
     # Brake torque far above what the tires can carry: the wheels lock at once and each tire slides at
     # kappa = -1 with Fx = mu_slide(Fz) Fz (Magic Formula at kappa = -1). No load transfer (cg_height 0),
     # no drag, no rolling resistance: constant deceleration a = sum Fx / m = mu_slide g, so
@@ -200,7 +186,7 @@ def test_locked_wheel_braking_matches_sliding_friction(advanced_fmu, defaults):
     # and a fixed 1 ms solver step would need 1e-5 s to resolve it (measured error then -0.43 mm, in budget).
     # The default error-controlled step resolves the spin-down with steps as short as it needs.
     measured = {"tire0_LMUX": 1.0, "tire0_LMUY": 1.0, "tire0_PCX1": 1.685}
-    p = {**defaults, **measured}
+    p = {**defaults_advanced, **measured}
     c = tire(p)
     m, v0 = p["mass"], 20.0
     _, _, _, fz_front, fz_rear = geometry(p)
@@ -241,11 +227,11 @@ def test_locked_wheel_braking_matches_sliding_friction(advanced_fmu, defaults):
     assert abs(budget) < 1e-4 * reference  # the reference is the point, not the budget
 
 
-def test_full_braking_on_dry_asphalt_stops_between_sliding_and_peak_distances(advanced_fmu, defaults):
+def test_full_braking_on_dry_asphalt_stops_between_sliding_and_peak_distances(advanced_fmu, defaults_advanced):
     # Without ABS the stop lies between the locked-wheel distance v0^2 / (2 mu_slide g) and the ideal
     # v0^2 / (2 mu_peak g). Both coefficients vary with the wheel load (PDX2 etc.), so the bounds use the
     # most favourable values over the loads the load transfer can produce (decelerations up to mu_peak g).
-    p, c = defaults, tire(defaults)
+    p, c = defaults_advanced, tire(defaults_advanced)
     m, v0 = p["mass"], 20.0
     _, _, wheelbase, fz_front, fz_rear = geometry(p)
     transfer = m * 1.3 * G * p["cg_height"] / (2 * wheelbase)
@@ -292,12 +278,12 @@ def wheel_force_function(c):
     return ca.Function("wheel", [fz, along, across, surface], [fx, fy])
 
 
-def test_pure_slip_forces_are_magic_formula_5_2(defaults):
+def test_pure_slip_forces_are_magic_formula_5_2(defaults_advanced):
     # Pure longitudinal slip (no lateral velocity) and pure lateral slip (free rolling, omega R = v_cx): the
     # FMU's forces equal the Magic Formula written out again above, at the model's slips
     # kappa = (omega R - u) / sqrt(u^2 + v_low^2), alpha = atan(w / sqrt(u^2 + v_low^2)). Same formula, so
     # only round-off separates them: 1e-12 relative.
-    c = tire(defaults)
+    c = tire(defaults_advanced)
     forces = wheel_force_function(c)
     floor = advanced.SLIP_SPEED_FLOOR
     for fz in (2000.0, 4000.0, 6000.0):
@@ -315,12 +301,12 @@ def test_pure_slip_forces_are_magic_formula_5_2(defaults):
                 assert fx == 0.0
 
 
-def test_a_sliding_tire_pushes_against_its_sliding_velocity(defaults):
+def test_a_sliding_tire_pushes_against_its_sliding_velocity(defaults_advanced):
     # Locked (omega = 0) at slip angle beta: the sliding velocity is the contact velocity (u, w). The force
     # turns toward -(u, w) with weight lambda = s^4, s = |V_s| / sqrt(u^2 + w^2 + v_low^2) = 1 - 1.25e-5 at
     # 20 m/s, so its angle to -(u, w) is at most (1 - lambda) x the MF 5.2 force's angle = 5e-5 x beta.
     # At small combined slip (kappa, alpha ~ 0.02) lambda = s^4 ~ 1e-6: F is MF 5.2 to that order.
-    c = tire(defaults)
+    c = tire(defaults_advanced)
     forces = wheel_force_function(c)
     fz, speed = 4000.0, 20.0
     for beta in (0.05, 0.1, 0.3):

@@ -1,21 +1,19 @@
 """The command line as a user meets it: real subprocesses, exit codes, messages, files written."""
 
 import json
+import os
 import subprocess
 import sys
 
 import pytest
+
+from helpers import sdl_fmu
 
 BAD_SCENARIO = """English
 100,A,20,1000,-6,*8~1
 200,BRK,150,0,3
 300,XYZ,1
 """
-
-
-def sdl_fmu(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=300)
 
 
 def test_run_on_malformed_input_names_each_line_and_writes_nothing(tmp_path, simple_fmu):
@@ -122,11 +120,15 @@ def test_every_option_of_every_command_has_help_text():
 
 
 def test_a_closed_pipe_ends_quietly_with_141(tmp_path):
-    # the reader's end is closed before sdl-fmu writes, so its first write meets EPIPE: what `| head -1` does
-    # to a writer that is still writing, without depending on which process is faster
-    process = subprocess.Popen([sys.executable, "-m", "sdl_fmu", "check", "demo"], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, cwd=tmp_path)
-    process.stdout.close()
+    # sdl-fmu's stdout is a pipe whose only reading end is closed before sdl-fmu starts, so its first write meets
+    # EPIPE whatever the timing: what `| head -1` does to a writer that is still writing
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        process = subprocess.Popen([sys.executable, "-m", "sdl_fmu", "check", "demo"], stdout=write_end,
+                                   stderr=subprocess.PIPE, cwd=tmp_path)
+    finally:
+        os.close(write_end)
     error = process.stderr.read().decode()
     assert process.wait(timeout=120) == 141
     assert "Traceback" not in error and "BrokenPipe" not in error and "Exception ignored" not in error

@@ -7,13 +7,12 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
-from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
+from sdl_fmu.sdl import load_scenario, parse_text
 from sdl_fmu.units import FOOT
 
-TABLE = load_vehicle_table(default_vehicle_table_path())
-NO_RESISTANCE = {"drag_area": 0.0, "rolling_resistance": 0.0}
+from helpers import NO_RESISTANCES, TABLE
 
 
 def options(**extra):
@@ -66,7 +65,7 @@ def test_approaching_vehicle_example_runs_with_advanced_dynamics(advanced_fmu):
     # the hand computation of the simple-dynamics test holds: closing at 80 ft/s, spawn at 100/60 s,
     # action 1 at gap 800 ft (2.5 s later), action 2 at gap 400 ft (7.5 s after the spawn).
     scenario = load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl")
-    result = run_scenario(scenario, advanced_fmu, options(speed=60 * FOOT, parameters=dict(NO_RESISTANCE)), TABLE)
+    result = run_scenario(scenario, advanced_fmu, options(speed=60 * FOOT, parameters=dict(NO_RESISTANCES)), TABLE)
     times = {(e["action"], e.get("index")): e["time_s"] for e in result.events if e["code"] == "A"}
     spawn = 100 / 60
     assert times[("spawn", None)] == pytest.approx(spawn, abs=1e-5)

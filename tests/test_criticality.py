@@ -11,8 +11,8 @@ from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, approach_hor
                                        course_horizon,
                                        distance, distance_horizon, distance_horizons, distance_rate, distance_rates,
                                        distances, drac, drac_rate, dracs, heading_horizon, headway, headway_rate,
-                                       headways, post_encroachment_time, signed_distance, signed_distances, ttc,
-                                       ttc_rate, ttcs)
+                                       headways, passage_known, post_encroachment_time, signed_distance,
+                                       signed_distances, ttc, ttc_rate, ttcs)
 
 EGO_LENGTH, EGO_WIDTH = 4.6, 1.8  # m
 CAR_LENGTH, CAR_WIDTH = 4.5, 1.8
@@ -237,6 +237,42 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
                 assert distance_rate(ego_s, dx_s, dy_s, vx_s, vy_s, start[7], CAR_LENGTH, CAR_WIDTH) < 0
             checked += 1
     assert checked > 50
+
+
+def test_passage_known_never_contradicts_a_motion_within_the_bounds():
+    # The front of the ego's footprint, x(t) + (L/2) |cos psi| + (W/2) |sin psi|, for motions whose station
+    # acceleration stays within A (here a(t) = A sin(w t + phase) scaled by k <= 1) and whose yaw rate stays
+    # within r_max: wherever passage_known answers True or False at an instant between two known ones, the
+    # front is indeed at or past / short of the station there (it answers None otherwise: a probe).
+    rng = np.random.default_rng(11)
+    acceleration, yaw_rate_bound = 9.0, 0.7
+    radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
+    turn = radius * yaw_rate_bound
+    decided = 0
+
+    def front(t, v0, k, w, phase, r, psi0):
+        # x' = v0 + k A (cos(phase) - cos(w t + phase)) / w: x'' = k A sin(w t + phase), |x''| <= A
+        x = v0 * t + k * acceleration * (math.cos(phase) * t - (math.sin(w * t + phase) - math.sin(phase)) / w) / w
+        psi = psi0 + r * t
+        rate = v0 + k * acceleration * (math.cos(phase) - math.cos(w * t + phase)) / w
+        return x + EGO_LENGTH / 2 * abs(math.cos(psi)) + EGO_WIDTH / 2 * abs(math.sin(psi)), rate
+
+    for _ in range(300):
+        args = (rng.uniform(0, 40), rng.uniform(0, 1), rng.uniform(0.5, 20), rng.uniform(0, 2 * math.pi),
+                rng.uniform(-yaw_rate_bound, yaw_rate_bound), rng.uniform(-0.2, 0.2))
+        low, high = 0.0, rng.uniform(1e-4, 0.1)
+        (low_position, low_rate), (high_position, high_rate) = front(low, *args), front(high, *args)
+        for middle in np.linspace(low, high, 23)[1:-1]:
+            middle_position = front(middle, *args)[0]
+            for station in (middle_position + rng.uniform(-1, 1) * 10.0 ** rng.uniform(-6, 0),
+                            rng.uniform(low_position - 0.5, high_position + 0.5)):
+                for known_low in (None, low_position):
+                    outcome = passage_known(middle, low, known_low, low_rate, high, high_position, high_rate,
+                                            station, turn, acceleration)
+                    if outcome is not None:
+                        assert outcome == (middle_position >= station), (args, middle, station)
+                        decided += 1
+    assert decided > 1000
 
 
 def test_course_horizon_is_a_lower_bound_on_a_collision_course_or_headway_beginning():

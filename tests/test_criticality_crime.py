@@ -8,8 +8,8 @@ CriMe's TTC takes both speeds along the lanelet's direction whatever the vehicle
 (measure/time/ttc.py: |v| cos(lanelet orientation)), so a head-on approach is not comparable there; it is
 checked against its hand computation in test_criticality.py.
 
-Skipped only where commonroad-crime is not installed (it is not a dependency of sdl-fmu: it pulls the
-CommonRoad stack; `pip install -e '.[test,crime]'` in a separate venv, see the README)."""
+commonroad-crime is part of the `test` extra (`pip install -e '.[test]'`), so this runs wherever the tests do: a
+missing package fails here, it is not skipped."""
 
 import logging
 import math
@@ -17,20 +17,18 @@ import math
 import numpy as np
 import pytest
 
-crime = pytest.importorskip("commonroad_crime")
+from commonroad.geometry.shape import Rectangle
+from commonroad.prediction.prediction import TrajectoryPrediction
+from commonroad.scenario.lanelet import Lanelet
+from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType
+from commonroad.scenario.scenario import Scenario
+from commonroad.scenario.state import CustomState, InitialState
+from commonroad.scenario.trajectory import Trajectory
+from commonroad_crime.data_structure.configuration import CriMeConfiguration
+from commonroad_crime.measure.time.thw import THW
+from commonroad_crime.measure.time.ttc import TTC
 
-from commonroad.geometry.shape import Rectangle  # noqa: E402
-from commonroad.prediction.prediction import TrajectoryPrediction  # noqa: E402
-from commonroad.scenario.lanelet import Lanelet  # noqa: E402
-from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType  # noqa: E402
-from commonroad.scenario.scenario import Scenario  # noqa: E402
-from commonroad.scenario.state import CustomState, InitialState  # noqa: E402
-from commonroad.scenario.trajectory import Trajectory  # noqa: E402
-from commonroad_crime.data_structure.configuration import CriMeConfiguration  # noqa: E402
-from commonroad_crime.measure.time.thw import THW  # noqa: E402
-from commonroad_crime.measure.time.ttc import TTC  # noqa: E402
-
-from sdl_fmu.cosim.criticality import Footprint, headway, ttc  # noqa: E402
+from sdl_fmu.cosim.criticality import Footprint, headway, ttc
 
 DT = 0.1  # s, CriMe's time step
 STEPS = 200

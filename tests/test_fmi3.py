@@ -1,8 +1,6 @@
 """The FMI 3.0 FMUs, loaded through fmpy: valid, the same trajectories as the FMI 2.0 FMUs (same model code),
 the SPEC §2 closed forms at the FMI 2.0 tests' tolerances, FMU state, variable communication steps, misuse."""
 
-import subprocess
-import sys
 import zipfile
 
 import numpy as np
@@ -12,7 +10,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
-from test_simple_fmu import COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, expected_distance, start_values
+from helpers import COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, FmpyCar, expected_distance, sdl_fmu, start_values
 
 MODELS = {"simple": "EgoVehicleSimple", "advanced": "EgoVehicleAdvanced"}
 
@@ -138,25 +136,9 @@ def test_fmi3_braking_distance_model_exchange(simple_fmus, defaults_simple, resi
     assert abs(result["s"][-1] - expected) / expected < MODEL_EXCHANGE_TOLERANCE
 
 
-class Slave3:
-    """An FMI 3.0 co-simulation instance through fmpy's low-level API."""
-
-    def __init__(self, path, start, directory):
-        self.md = read_model_description(str(path))
-        self.references = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.fmu = FMU3Slave(guid=self.md.guid, unzipDirectory=extract(str(path), unzipdir=str(directory)),
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName="fmi3")
-        self.fmu.instantiate()
-        self.fmu.enterInitializationMode(startTime=0.0)
-        self.set(**start)
-        self.fmu.exitInitializationMode()
-        self.time = 0.0
-
-    def set(self, **values):
-        self.fmu.setFloat64([self.references[n] for n in values], list(values.values()))
-
-    def get(self, *names):
-        return self.fmu.getFloat64([self.references[n] for n in names])
+class Slave3(FmpyCar):
+    """An FMI 3.0 co-simulation instance through fmpy's low-level API, whose steps end where asked, without an
+    event or an early return."""
 
     def step(self, h):
         event, terminate, early, last = self.fmu.doStep(self.time, h)
@@ -164,33 +146,31 @@ class Slave3:
         self.time += h
 
 
-def test_fmi3_stop_located_inside_a_long_step(simple_fmus, defaults_simple, tmp_path):
+def test_fmi3_stop_located_inside_a_long_step(simple_fmus, defaults_simple):
     # one 6 s communication step covers the whole stop (t_stop = v0 / (mu g) = 5.1 s): located inside the step
     values, _ = start_values(False)
-    slave = Slave3(simple_fmus[3], {**values, "brake": 1.0}, tmp_path)
+    slave = Slave3(simple_fmus[3], {**values, "brake": 1.0})
     slave.step(6.0)
-    assert slave.fmu.getBoolean([slave.references["stopped"]]) == [True]
+    assert slave.fmu.getBoolean([slave.refs["stopped"]]) == [True]
     expected = expected_distance(defaults_simple, False)
     assert abs(slave.get("s")[0] - expected) / expected < COSIM_TOLERANCE
     assert slave.fmu.getFloat64([0]) == [6.0]  # time has value reference 0
-    slave.fmu.terminate()
-    slave.fmu.freeInstance()
+    slave.close()
 
 
-def test_fmi3_variable_communication_steps(simple_fmus, defaults_simple, tmp_path):
+def test_fmi3_variable_communication_steps(simple_fmus, defaults_simple):
     values, _ = start_values(True)
-    slave = Slave3(simple_fmus[3], {**values, "brake": 1.0}, tmp_path)
+    slave = Slave3(simple_fmus[3], {**values, "brake": 1.0})
     rng = np.random.default_rng(3)
     while slave.time < 10.0:
         slave.step(min(rng.choice([0.001, 0.013, 0.25, 0.7, 1.9]), 10.0 - slave.time))
     expected = expected_distance(defaults_simple, True)
     assert abs(slave.get("s")[0] - expected) / expected < COSIM_TOLERANCE
-    slave.fmu.terminate()
-    slave.fmu.freeInstance()
+    slave.close()
 
 
-def test_fmi3_fmu_state_rollback_and_serialization(advanced_fmus, tmp_path):
-    slave = Slave3(advanced_fmus[3], {"v0": 20.0, "brake": 0.5, "steer": 0.02}, tmp_path)
+def test_fmi3_fmu_state_rollback_and_serialization(advanced_fmus):
+    slave = Slave3(advanced_fmus[3], {"v0": 20.0, "brake": 0.5, "steer": 0.02})
     names = ("x", "y", "psi", "s", "vx", "vy", "yaw_rate")
     slave.step(0.5)
     state = slave.fmu.getFMUState()
@@ -211,8 +191,7 @@ def test_fmi3_fmu_state_rollback_and_serialization(advanced_fmus, tmp_path):
     slave.fmu.freeFMUState(restored)
     with pytest.raises(FMICallException):
         slave.fmu.deserializeFMUState(serialized[:-8])  # truncated
-    slave.fmu.terminate()
-    slave.fmu.freeInstance()
+    slave.close()
 
 
 def test_fmi3_misuse_returns_error_status_not_a_crash(simple_fmus, tmp_path):
@@ -222,8 +201,8 @@ def test_fmi3_misuse_returns_error_status_not_a_crash(simple_fmus, tmp_path):
                       modelIdentifier=md.coSimulation.modelIdentifier, instanceName="wrong")
     with pytest.raises(Exception):
         wrong.instantiate()  # wrong instantiation token: no instance
-    slave = Slave3(simple_fmus[3], {"v0": 10.0}, tmp_path / "slave")
-    references = slave.references
+    slave = Slave3(simple_fmus[3], {"v0": 10.0})
+    references = slave.refs
     with pytest.raises(FMICallException):
         slave.fmu.doStep(1.0, 0.1)  # not at the FMU's time
     with pytest.raises(FMICallException):
@@ -240,20 +219,16 @@ def test_fmi3_misuse_returns_error_status_not_a_crash(simple_fmus, tmp_path):
         slave.fmu.enterInitializationMode()  # wrong state
     slave.step(0.1)  # still usable after argument errors
     assert slave.get("s")[0] == pytest.approx(1.0, rel=1e-2)
-    slave.fmu.terminate()
-    slave.fmu.freeInstance()
+    slave.close()
 
 
 @pytest.mark.slow
 def test_build_command_writes_both_versions(tmp_path):
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "build", "--dynamics", "simple",
-                                "--fmi-version", "all", "--out", str(tmp_path)], capture_output=True, text=True,
-                               timeout=300)
+    completed = sdl_fmu("build", "--dynamics", "simple", "--fmi-version", "all", "--out", tmp_path)
     assert completed.returncode == 0, completed.stderr
     assert completed.stdout.split() == [str(tmp_path / "fmi2" / "EgoVehicleSimple.fmu"),
                                         str(tmp_path / "fmi3" / "EgoVehicleSimple.fmu")]
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "build", "--fmi-version", "4"],
-                               capture_output=True, text=True, timeout=60)
+    completed = sdl_fmu("build", "--fmi-version", "4", timeout=60)
     assert completed.returncode == 2 and "Traceback" not in completed.stderr and "--fmi-version" in completed.stderr
 
 
@@ -287,9 +262,7 @@ def test_fmi3_build_through_fmu_reproduces_the_fmi2_run(fmus, model, scenario):
 def test_command_line_runs_an_fmi3_fmu(simple_fmus, tmp_path):
     scenario = tmp_path / "s.sdl"
     scenario.write_text("Metric\n10,ES\n")
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", str(scenario), "--fmu",
-                                str(simple_fmus[3]), "--out", str(tmp_path / "out")], capture_output=True, text=True,
-                               timeout=120, cwd=tmp_path)
+    completed = sdl_fmu("run", scenario, "--fmu", simple_fmus[3], "--out", tmp_path / "out", timeout=120, cwd=tmp_path)
     assert completed.returncode == 0, completed.stderr
     import json
 

@@ -5,10 +5,12 @@ fmi3GetNumberOf* and fmi3SetTime; a refused null output argument is explained by
 
 import ctypes
 
-from sdl_fmu.fmu import fuzz
+import fmi_fuzz as fuzz
 from sdl_fmu.fmu.xml import LOG_CATEGORIES
 
-from test_runtime_hardening import ERROR, OK, Raw, Raw3
+from helpers import ERROR, OK, Raw, Raw3
+
+DISCARD = fuzz.DISCARD
 
 
 def declare(library, name, argtypes):
@@ -111,3 +113,30 @@ def test_fmi3_state_table_rows(simple_fmus, tmp_path):
         assert me("SerializedFMUStateSize", None, None) == ERROR
     finally:
         me.free()
+
+
+def test_status_kinds_the_fmu_does_not_report_are_discarded_with_a_message(simple_fmu, tmp_path):
+    """FMI 2.0 sec. 4.2.3: fmi2Get*Status returns fmi2Discard for a kind it cannot report; like every non-OK
+    return here, it says why. fmi2StatusKind: 0 DoStepStatus, 1 PendingStatus, 2 LastSuccessfulTime, 3 Terminated."""
+    raw = Raw(simple_fmu, tmp_path).instantiate().start(v0=20.0)
+    getters = {"GetStatus": ctypes.c_int, "GetRealStatus": ctypes.c_double, "GetIntegerStatus": ctypes.c_int,
+               "GetBooleanStatus": ctypes.c_int, "GetStringStatus": ctypes.c_char_p}
+    for name, kind_type in getters.items():
+        declare(raw.library, f"fmi2{name}", [ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(kind_type)])
+    reported = {("GetStatus", 0), ("GetRealStatus", 2), ("GetBooleanStatus", 3)}
+    try:
+        assert raw("DoStep", 0.0, 0.01, 1) == OK
+        for name, kind_type in getters.items():
+            for kind in (0, 1, 2, 3, 7):
+                value = kind_type()
+                status = raw(name, kind, ctypes.byref(value))
+                if (name, kind) in reported:
+                    assert status == OK, (name, kind)
+                else:
+                    assert status == DISCARD, (name, kind)
+                    assert [m for s, m in raw.messages if s == DISCARD and f"fmi2{name}" in m], (name, kind)
+        real, terminated = ctypes.c_double(), ctypes.c_int(1)
+        assert raw("GetRealStatus", 2, ctypes.byref(real)) == OK and real.value == 0.01  # fmi2LastSuccessfulTime
+        assert raw("GetBooleanStatus", 3, ctypes.byref(terminated)) == OK and terminated.value == 0
+    finally:
+        raw.free()

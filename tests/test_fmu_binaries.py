@@ -11,7 +11,7 @@ from fmpy.validation import validate_fmu
 
 from sdl_fmu.fmu.package import build_fmu
 
-from conftest import windows_tools_required
+from helpers import windows_tools_required
 
 # what every 64-bit Windows has; the DLL must need nothing else (libgcc is linked statically)
 SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}

@@ -9,7 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from conftest import WEAK_PARAMETERS, FmpyCar, foreign_parameters
+from helpers import WEAK_PARAMETERS, FmpyCar, foreign_parameters
 
 G = 9.80665  # the car's own g (foreign_car_dynamics.G), the standard value
 OUTPUTS = {"earth_x", "earth_y", "heading_angle", "veh_speed", "yaw_velocity", "long_accel"}
@@ -22,11 +22,12 @@ RK4_TOLERANCE = 1e-9
 def shipped_names() -> set[str]:
     """Every variable name of sdl-fmu's two FMUs (their interface files; tire slots as tire0_.., tire7_..)."""
     import json
-    from importlib import resources
+
+    from sdl_fmu.paths import MODEL_DESCRIPTION_DIRECTORY
 
     names = set()
     for model in ("EgoVehicleSimple", "EgoVehicleAdvanced"):
-        interface = json.loads((resources.files("sdl_fmu") / "interfaces" / f"{model}.json").read_text())
+        interface = json.loads((MODEL_DESCRIPTION_DIRECTORY / f"{model}.json").read_text())
         for entry in interface["variables"]:
             if "repeat" in entry:
                 repeat = entry["repeat"]
@@ -171,7 +172,7 @@ def test_weak_foreign_car_cannot_reach_100_kmh(foreign_vehicle, tmp_path):
         car.close()
     assert np.all(np.diff(speeds) > 0) and max(speeds) < v_top
     assert speeds[-1] >= v_top * (1 - math.exp(-lam * 400.0)) - RK4_TOLERANCE
-    assert v_top * 3.6 == pytest.approx(84.7, abs=0.05)  # the figure conftest.WEAK_PARAMETERS quotes
+    assert v_top * 3.6 == pytest.approx(84.7, abs=0.05)  # the figure helpers.WEAK_PARAMETERS quotes
 
 
 @pytest.mark.slow
@@ -208,12 +209,12 @@ def test_foreign_car_through_its_map_speaks_iso_si(foreign_vehicle, fmi_version)
     assert state.y > y0 and not state.stopped
 
 
-def test_readme_shows_the_foreign_car_map_as_it_is():
-    """The README's complete map example for a foreign FMU is the test suite's map, key for key."""
-    from conftest import FOREIGN_CAR_MAP
+def test_the_docs_show_the_foreign_car_map_as_it_is():
+    """The vehicle-map document's complete map example for a foreign FMU is the test suite's map, key for key."""
+    from helpers import FOREIGN_CAR_MAP
 
-    readme = (FOREIGN_CAR_MAP.parents[2] / "README.md").read_text()
-    section = readme[readme.index("### A vehicle built elsewhere: the test suite's foreign car"):]
+    docs = (FOREIGN_CAR_MAP.parents[2] / "docs" / "vehicle-maps.md").read_text()
+    section = docs[docs.index("## A vehicle built elsewhere: the test suite's foreign car"):]
     block = section[section.index("```toml\n") + len("```toml\n"):]
     block = block[:block.index("```")]
     with open(FOREIGN_CAR_MAP, "rb") as file:

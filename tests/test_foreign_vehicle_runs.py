@@ -19,10 +19,11 @@ import tomllib
 
 import pytest
 
-from conftest import foreign_parameters
 from sdl_fmu import api
 from sdl_fmu.units import FOOT, STANDARD_GRAVITY as G
 from sdl_fmu.vehicle import STOPPED_SPEED
+
+from helpers import foreign_parameters, sdl_fmu
 
 pytestmark = pytest.mark.slow  # builds the FMUs with PythonFMU / pythonfmu3 and runs whole scenarios
 
@@ -273,18 +274,13 @@ def test_foreign_car_head_on_contact_at_half_the_sum_of_lengths(runs, foreign_ve
 ], ids=["missing-variable", "output-as-input", "disagreeing-unit"])
 def test_bad_foreign_car_map_is_one_line_naming_file_and_key(foreign_vehicle, tmp_path, fmi_version, replace, key,
                                                              words):
-    import subprocess
-    import sys
-
     fmu, good = foreign_vehicle(fmi_version)
     text = good.read_text()
     assert replace[0] in text
     bad = tmp_path / "bad_map.toml"
     bad.write_text(text.replace(replace[0], replace[1]))
     out = tmp_path / "results"
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "head_on", "--fmu", str(fmu),
-                                "--vehicle", str(bad), "--out", str(out)], capture_output=True, text=True,
-                               cwd=tmp_path, timeout=300)
+    completed = sdl_fmu("run", "head_on", "--fmu", fmu, "--vehicle", bad, "--out", out, cwd=tmp_path)
     assert completed.returncode == 2 and "Traceback" not in completed.stderr
     line, = completed.stderr.strip().splitlines()
     assert str(bad) in line and key in line and words in line

@@ -9,9 +9,7 @@ from fmpy import simulate_fmu
 
 from sdl_fmu.dynamics.tires import DEFAULT_ATTRIBUTE_FILE, mf_coefficients, read_attribute_file, read_tir
 
-G = 9.80665
-WHEELS = ("fl", "fr", "rl", "rr")
-NO_RESISTANCES = {"drag_area": 0.0, "rolling_resistance": 0.0}
+from helpers import NO_RESISTANCES, WHEELS, G
 
 # J. Y. Wong, Theory of Ground Vehicles, 4th ed. (2008), Table 1.3, average coefficients of road adhesion
 # (peak, sliding; midpoints of ranges), as cited in each tire file's header; and the Simple model's RSA
@@ -83,16 +81,13 @@ def band(t, mass, cg_height, wheelbase, a, b, v0):
     return v0**2 / (2 * mu_peak * G), v0**2 / (2 * mu_locked * G)
 
 
-def test_full_brake_stops_within_the_surface_band_in_both_models(simple_fmu, advanced_fmu, defaults_simple):
+def test_full_brake_stops_within_the_surface_band_in_both_models(simple_fmu, advanced_fmu, defaults_advanced):
     # Full pedal from 20 m/s on each surface, drag and rolling resistance off. Without ABS a stop lies
     # between the distance at peak friction and at locked-wheel friction, v0^2 / (2 mu g): the band is taken
     # over the loads of the stop (load sensitivity of the tire, PDX2, PKX2, PEX2...). The Simple FMU stops
     # at v0^2 / (2 (RSA / 10) g) exactly; the Advanced FMU (Magic Formula tires, load transfer, brake
     # balance, wheel lock) anywhere in the band.
-    from fmpy import read_model_description
-
-    advanced = {v.name: float(v.start) for v in read_model_description(str(advanced_fmu)).modelVariables
-                if v.causality == "parameter"}
+    advanced = defaults_advanced
     tires = shipped_tires()
     v0 = 20.0
     for attribute, (name, peak, sliding, rsa) in SURFACES.items():

@@ -10,13 +10,11 @@ FMU, run by fmpy), a plain C host on Linux and the same C host cross-compiled wi
 Windows DLL under wine."""
 
 import json
-import math
 import shutil
 import struct
 import subprocess
 import sys
 import textwrap
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -24,18 +22,12 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 
 from sdl_fmu.fmu.package import fmi_headers, mingw_compiler
-from sdl_fmu.units import STANDARD_GRAVITY as G
 
-from conftest import windows_tools_required
+from helpers import (HOST_SOURCE, HOST_STEP, MU, SIMPLE_START, V0, G, extract_binary, host_arguments,
+                     windows_tools_required)
 
-HOST_SOURCE = Path(__file__).parent / "hosts" / "fmi_host.c"
-WHEELS = ("fl", "fr", "rl", "rr")
-
-# Simple FMU: straight braking on mu 0.6 without drag and rolling resistance: a = min(b a_max, mu g) = mu g
-# (a_max = 9.81 > 0.6 g), stopping distance v0^2 / (2 a).
-MU, V0 = 0.6, 30.0
-SIMPLE_START = {"v0": V0, "brake": 1.0, "drag_area": 0.0, "rolling_resistance": 0.0,
-                **{f"mu_{w}": MU for w in WHEELS}}
+# Simple FMU: SIMPLE_START brakes straight on mu 0.6 without drag and rolling resistance: a = min(b a_max, mu g)
+# = mu g (a_max = 9.81 > 0.6 g), stopping distance v0^2 / (2 a).
 SIMPLE_STOP = V0**2 / (2 * MU * G)
 # Every co-simulation importer drives the same binary: RODAS4 integrates the constant deceleration exactly
 # and locates the stop to 1e-12 s, so only round-off remains (tests/test_simple_fmu.py: 1e-9 relative).
@@ -47,11 +39,7 @@ SIMPLE_ME_TOLERANCE = 1e-7
 ADVANCED_START = {"v0": 20.0, "steer": 0.03, "brake": 0.3}
 ADVANCED_OUTPUTS = ("x", "y", "psi", "s", "vx", "yaw_rate")
 SAMPLE_TIMES = (1.0, 2.0, 3.0, 4.0)
-STEP = 0.01
-
-
-def fmu_variables(fmu):
-    return {v.name: v for v in read_model_description(str(fmu)).modelVariables}
+STEP = HOST_STEP  # s, the communication step of every importer here
 
 
 # ---- tolerances of the Advanced trajectory -------------------------------------------------------------------
@@ -248,14 +236,6 @@ def test_fmu_container_advanced(advanced_fmus, reference, tmp_path, version):
 
 
 @pytest.fixture(scope="session")
-def linux_host(tmp_path_factory):
-    host = tmp_path_factory.mktemp("host") / "fmi_host"
-    subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{fmi_headers()}", str(HOST_SOURCE),
-                    "-o", str(host), "-ldl"], check=True)
-    return host
-
-
-@pytest.fixture(scope="session")
 def windows_host(tmp_path_factory):
     compiler = mingw_compiler()
     if compiler is None:
@@ -269,16 +249,6 @@ def windows_host(tmp_path_factory):
     return host
 
 
-def host_arguments(fmu, library, start, outputs, stop_time, booleans=()):
-    variables = fmu_variables(fmu)
-    description = read_model_description(str(fmu))
-    every = int(round(1.0 / STEP))
-    return [*(["--fmi3"] if description.fmiVersion.startswith("3") else []), library, description.guid, repr(STEP), repr(stop_time), "--every", str(every),
-            *[f"r:{variables[n].valueReference}={v!r}" for n, v in start.items()],
-            *[f"o:{variables[n].valueReference}" for n in outputs],
-            *[f"b:{variables[n].valueReference}" for n in booleans]]
-
-
 def parse_host_output(stdout, outputs, booleans=()):
     """RESULT lines: time and values as the hex digits of their IEEE 754 bits."""
     rows = [[struct.unpack(">d", bytes.fromhex(word))[0] for word in line.split()[1:]]
@@ -288,15 +258,6 @@ def parse_host_output(stdout, outputs, booleans=()):
     for i, name in enumerate((*outputs, *booleans)):
         columns[name] = table[:, i + 1]
     return columns
-
-
-PLATFORMS = {(2, "so"): "linux64", (2, "dll"): "win64", (3, "so"): "x86_64-linux", (3, "dll"): "x86_64-windows"}
-
-
-def extract_binary(fmu, directory, version, suffix):
-    with zipfile.ZipFile(fmu) as archive:
-        archive.extractall(directory)
-    return directory / "binaries" / PLATFORMS[version, suffix] / f"{Path(fmu).stem}.{suffix}"
 
 
 def run_host(runner, host, fmu, library, start, outputs, stop_time, booleans=()):
@@ -320,19 +281,19 @@ def sampled(columns):
 
 
 @VERSIONS
-def test_linux_c_host_simple(simple_fmus, linux_host, tmp_path, version):
+def test_linux_c_host_simple(simple_fmus, c_host, tmp_path, version):
     fmu = simple_fmus[version]
     library = extract_binary(fmu, tmp_path, version, "so")
-    columns = run_host(linux_runner, linux_host, fmu, library, SIMPLE_START, ("s", "v"), 10.0, ("stopped",))
+    columns = run_host(linux_runner, c_host, fmu, library, SIMPLE_START, ("s", "v"), 10.0, ("stopped",))
     assert columns["stopped"][-1] == 1.0 and columns["v"][-1] == 0.0
     assert abs(columns["s"][-1] - SIMPLE_STOP) / SIMPLE_STOP < SIMPLE_TOLERANCE
 
 
 @VERSIONS
-def test_linux_c_host_advanced(advanced_fmus, reference, linux_host, tmp_path, version):
+def test_linux_c_host_advanced(advanced_fmus, reference, c_host, tmp_path, version):
     fmu = advanced_fmus[version]
     library = extract_binary(fmu, tmp_path, version, "so")
-    columns = run_host(linux_runner, linux_host, fmu, library, ADVANCED_START, ADVANCED_OUTPUTS, SAMPLE_TIMES[-1])
+    columns = run_host(linux_runner, c_host, fmu, library, ADVANCED_START, ADVANCED_OUTPUTS, SAMPLE_TIMES[-1])
     assert_same_trajectory(sampled(columns), reference, SAME_BINARY_TOLERANCE)
 
 

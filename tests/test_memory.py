@@ -81,8 +81,9 @@ def test_a_run_keeps_no_object_per_line_or_event(tmp_path, simple_fmu, monkeypat
 
 def test_summary_json_streams_the_events(tmp_path):
     """Writing summary.json holds one event at a time, not the list and the whole text."""
+    from sdl_fmu.results import summary, write_summary_json
+    from sdl_fmu.run_result import RunResult
     from sdl_fmu.storage import EventLog
-    from sdl_fmu.results import RunResult, summary, write_summary_json
     from sdl_fmu.sdl.events import DEFAULT_ROAD
 
     def result(events: int) -> RunResult:

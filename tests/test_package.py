@@ -1,17 +1,20 @@
 """A real package (issue 7, item 2): a wheel built from the checkout runs the demo from any folder and
-leaves only its results there; FMUs come from a per-user cache keyed by everything that goes into them."""
+leaves only its results there; FMUs come from a per-user cache keyed by everything that goes into them.
+The top-level scenarios/ and modelDescription/ ship as package data (issue 19): importlib.resources reads them
+from a wheel and from an editable install."""
 
 import os
 import shutil
 import subprocess
 import sys
 import sysconfig
+import tomllib
 import zipfile
 from pathlib import Path
 
 import pytest
 
-from sdl_fmu import api
+from sdl_fmu import api, paths
 from sdl_fmu.cli import main
 from sdl_fmu.fmu import cache
 from sdl_fmu.results_folder import MANIFEST_NAME
@@ -20,35 +23,107 @@ CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = sorted([MANIFEST_NAME, "plot.png", "summary.json", "timeseries.csv"])
 
 
-@pytest.mark.slow
-def test_a_wheel_installed_in_a_fresh_venv_runs_the_demo_from_any_folder(tmp_path):
-    # The wheel is built from a copy of the checkout (a build writes build/ and *.egg-info beside the sources)
-    # without build isolation, so nothing is downloaded; the fresh venv borrows this venv's dependencies
-    # through a .pth line (which does not run this venv's own .pth files, so its editable sdl_fmu stays out).
-    source = tmp_path / "source"
-    shutil.copytree(CHECKOUT, source, ignore=shutil.ignore_patterns(
-        ".venv", ".git", "build", "dist", "runs", "*.egg-info", "__pycache__", ".pytest_cache"))
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-q",
-                    "-w", tmp_path / "wheels", source], check=True, capture_output=True)
-    (wheel,) = (tmp_path / "wheels").glob("sdl_fmu-*.whl")
+SHIPPED_DATA = ("scenarios", "modelDescription")  # top-level folders shipped as sdl_fmu.scenarios, .modelDescription
+# In a venv: every shipped data file read through importlib.resources must equal the checkout's (argv[1]); prints
+# where sdl_fmu and sdl_fmu.paths find the package and its data.
+READ_THROUGH_RESOURCES = """
+import sys
+from importlib import resources
+from pathlib import Path
 
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", venv], check=True)
-    python = venv / "bin" / "python"
+import sdl_fmu
+from sdl_fmu import paths
+
+checkout, read = Path(sys.argv[1]), []
+for folder in ("scenarios", "modelDescription"):
+    for original in sorted((checkout / folder).rglob("*")):
+        if original.is_file() and "__pycache__" not in original.parts:
+            shipped = resources.files("sdl_fmu." + folder)
+            for part in original.relative_to(checkout / folder).parts:
+                shipped = shipped / part
+            assert shipped.read_bytes() == original.read_bytes(), original
+            read.append(original.relative_to(checkout).as_posix())
+print(sdl_fmu.__file__, paths.SCENARIO_DIRECTORY, paths.MODEL_DESCRIPTION_DIRECTORY, *read, sep="\\n")
+"""
+
+
+def checkout_copy(destination: Path) -> Path:
+    """A copy of the checkout's sources (a build writes build/ and *.egg-info beside them)."""
+    shutil.copytree(CHECKOUT, destination, ignore=shutil.ignore_patterns(
+        ".venv", ".git", "build", "dist", "runs", "*.egg-info", "__pycache__", ".pytest_cache"))
+    return destination
+
+
+def fresh_venv(folder: Path) -> tuple[Path, Path]:
+    """A venv without sdl-fmu that borrows this venv's dependencies through a .pth line (which does not run this
+    venv's own .pth files, so its editable sdl_fmu stays out); returns its python and site-packages."""
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", folder], check=True)
+    python = folder / "bin" / "python"
     site_packages = Path(subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                                         check=True, capture_output=True, text=True).stdout.strip())
     (site_packages / "borrowed_dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    return python, site_packages
+
+
+def clean_environment(tmp_path: Path, venv: Path) -> dict:
+    """No FMU cache, PYTHONPATH or HOME of this session's: the venv's sdl-fmu first on PATH."""
+    env = {key: value for key, value in os.environ.items() if key not in (cache.CACHE_VARIABLE, "PYTHONPATH")}
+    env.update(HOME=str(tmp_path / "home"), XDG_CACHE_HOME=str(tmp_path / "xdg-cache"),
+               PATH=f"{venv / 'bin'}:{env['PATH']}")
+    (tmp_path / "home").mkdir()
+    return env
+
+
+def shipped_data_files() -> list[str]:
+    return sorted(path.relative_to(CHECKOUT).as_posix() for folder in SHIPPED_DATA
+                  for path in (CHECKOUT / folder).rglob("*") if path.is_file() and "__pycache__" not in path.parts)
+
+
+def read_through_resources(python: Path, env: dict, cwd: Path) -> list[str]:
+    completed = subprocess.run([python, "-c", READ_THROUGH_RESOURCES, CHECKOUT], cwd=cwd, env=env,
+                               capture_output=True, text=True)
+    assert completed.returncode == 0, completed.stderr
+    package, scenarios, model_description, *read = completed.stdout.splitlines()
+    assert sorted(read) == shipped_data_files()
+    assert {"scenarios/demo.sdl", "scenarios/vehicles.csv", "scenarios/tires/attributes.txt",
+            "scenarios/tires/dry_asphalt.tir", "scenarios/vehicles/simple.toml", "scenarios/vehicles/advanced.toml",
+            "modelDescription/EgoVehicleSimple.json", "modelDescription/units.json"} <= set(read)
+    return [package, scenarios, model_description]
+
+
+def test_the_packages_in_pyproject_are_the_package_folders_and_the_shipped_data():
+    # a mapped package cannot join a setuptools `find`, so pyproject.toml lists them: the list must follow the tree
+    setuptools = tomllib.loads((CHECKOUT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    folders = {".".join(init.parent.relative_to(CHECKOUT).parts) for init in (CHECKOUT / "sdl_fmu").rglob("__init__.py")}
+    assert set(setuptools["packages"]) == folders | {f"sdl_fmu.{name}" for name in SHIPPED_DATA}
+    assert setuptools["package-dir"] == {f"sdl_fmu.{name}": name for name in SHIPPED_DATA}
+    for name in SHIPPED_DATA:  # a regular package: an editable install maps it, importlib.resources gives real paths
+        assert (CHECKOUT / name / "__init__.py").is_file() and not (CHECKOUT / "sdl_fmu" / name).exists()
+
+
+@pytest.mark.slow
+def test_a_wheel_installed_in_a_fresh_venv_ships_the_data_and_runs_the_demo_from_any_folder(tmp_path):
+    # built without build isolation, so nothing is downloaded
+    source = checkout_copy(tmp_path / "source")
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-q",
+                    "-w", tmp_path / "wheels", source], check=True, capture_output=True)
+    (wheel,) = (tmp_path / "wheels").glob("sdl_fmu-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    assert {f"sdl_fmu/{name}" for name in shipped_data_files()} <= set(names)
+    assert not [name for name in names if name.split("/")[0] in SHIPPED_DATA]  # nothing at site-packages' top
+    # development tools stay in the checkout (tools/): the FMI call-sequence fuzzer is not installed
+    assert [name for name in names if "fuzz" in name] == []
+
+    venv = tmp_path / "venv"
+    python, site_packages = fresh_venv(venv)
     subprocess.run([python, "-m", "pip", "install", "--no-deps", "--no-index", "-q", wheel], check=True,
                    capture_output=True)
-
-    work, home = tmp_path / "anywhere", tmp_path / "home"
+    work = tmp_path / "anywhere"
     work.mkdir()
-    home.mkdir()
-    env = {key: value for key, value in os.environ.items() if key not in (cache.CACHE_VARIABLE, "PYTHONPATH")}
-    env.update(HOME=str(home), XDG_CACHE_HOME=str(tmp_path / "xdg-cache"), PATH=f"{venv / 'bin'}:{env['PATH']}")
-    located = subprocess.run([python, "-c", "import sdl_fmu; print(sdl_fmu.__file__)"], cwd=work, env=env,
-                             check=True, capture_output=True, text=True).stdout
-    assert located.startswith(str(site_packages)), located
+    env = clean_environment(tmp_path, venv)
+    package, scenarios, model_description = read_through_resources(python, env, work)
+    assert package == str(site_packages / "sdl_fmu" / "__init__.py")
+    assert [scenarios, model_description] == [str(site_packages / "sdl_fmu" / name) for name in SHIPPED_DATA]
 
     completed = subprocess.run([venv / "bin" / "sdl-fmu", "run", "demo"], cwd=work, env=env, capture_output=True,
                                text=True, timeout=300)
@@ -60,7 +135,32 @@ def test_a_wheel_installed_in_a_fresh_venv_runs_the_demo_from_any_folder(tmp_pat
     # the FMU went into the per-user cache ($XDG_CACHE_HOME/sdl-fmu), nowhere near the working folder
     (fmu,) = (tmp_path / "xdg-cache" / "sdl-fmu").glob("EgoVehicleSimple-fmi2-*/fmi2/EgoVehicleSimple.fmu")
     assert zipfile.ZipFile(fmu).testzip() is None
-    assert list(home.rglob("*sdl*")) == []  # (matplotlib keeps its own font cache under HOME)
+    assert list((tmp_path / "home").rglob("*sdl*")) == []  # (matplotlib keeps its own font cache under HOME)
+
+
+@pytest.mark.slow
+def test_an_editable_install_reads_the_top_level_folders_and_a_pythonpath_checkout_reads_its_own(tmp_path):
+    source = checkout_copy(tmp_path / "source")
+    venv = tmp_path / "venv"
+    python, _ = fresh_venv(venv)
+    subprocess.run([python, "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-index", "-q", "-e",
+                    source], check=True, capture_output=True)
+    work = tmp_path / "anywhere"
+    work.mkdir()
+    env = clean_environment(tmp_path, venv)
+    assert read_through_resources(python, env, work) == [str(source / "sdl_fmu" / "__init__.py"),
+                                                         *(str(source / name) for name in SHIPPED_DATA)]
+    completed = subprocess.run([venv / "bin" / "sdl-fmu", "check", "demo"], cwd=work, env=env, capture_output=True,
+                               text=True)
+    assert completed.returncode == 0 and completed.stdout.startswith(str(source / "scenarios" / "demo.sdl"))
+
+    # this checkout on PYTHONPATH, in a venv whose editable install is another checkout (the copy): sdl_fmu.paths
+    # gives this checkout's own folders, whatever importlib.resources finds through the other install
+    env["PYTHONPATH"] = str(CHECKOUT)
+    located = subprocess.run([python, "-c", "import sdl_fmu, sdl_fmu.paths as p; print(sdl_fmu.__file__, "
+                              "p.SCENARIO_DIRECTORY, p.MODEL_DESCRIPTION_DIRECTORY, sep='\\n')"], cwd=work, env=env,
+                             check=True, capture_output=True, text=True).stdout.split()
+    assert located == [str(CHECKOUT / "sdl_fmu" / "__init__.py"), *(str(CHECKOUT / name) for name in SHIPPED_DATA)]
 
 
 def test_the_cache_location_follows_the_environment(monkeypatch, tmp_path):
@@ -74,14 +174,35 @@ def test_the_cache_location_follows_the_environment(monkeypatch, tmp_path):
     assert cache.cache_directory() == tmp_path / "home" / ".cache" / "sdl-fmu"
 
 
-@pytest.mark.parametrize("changed", ["dynamics/simple.py", "interfaces/EgoVehicleSimple.json", "fmu/runtime/instance.c",
-                                     "fmu/runtime/model.h", "fmu/codegen.py", "fmu/package.py",
+def use_copy_of_build_inputs(root: Path, monkeypatch, installed: bool = False) -> Path:
+    """Copies the package and its data to root, as in a checkout (data beside sdl_fmu/) or as a wheel installs
+    them (inside sdl_fmu/), and points sdl_fmu.paths at the copy."""
+    package = root / "sdl_fmu"
+    shutil.copytree(paths.PACKAGE_DIRECTORY, package, ignore=shutil.ignore_patterns("__pycache__"))
+    data = package if installed else root
+    shutil.copytree(paths.SCENARIO_DIRECTORY, data / "scenarios", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(paths.MODEL_DESCRIPTION_DIRECTORY, data / "modelDescription",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(paths, "PACKAGE_DIRECTORY", package)
+    monkeypatch.setattr(paths, "MODEL_DESCRIPTION_DIRECTORY", data / "modelDescription")
+    monkeypatch.setattr(paths, "TIRE_DIRECTORY", data / "scenarios" / "tires")
+    return root
+
+
+def test_the_cache_key_is_the_same_in_a_checkout_and_installed(monkeypatch, tmp_path):
+    use_copy_of_build_inputs(tmp_path / "checkout", monkeypatch)
+    in_checkout = cache.build_key("simple")
+    use_copy_of_build_inputs(tmp_path / "site-packages", monkeypatch, installed=True)
+    assert cache.build_key("simple") == in_checkout
+
+
+@pytest.mark.parametrize("changed", ["sdl_fmu/dynamics/simple.py", "modelDescription/EgoVehicleSimple.json",
+                                     "modelDescription/units.json", "sdl_fmu/fmu/runtime/instance.c",
+                                     "sdl_fmu/fmu/runtime/model.h", "sdl_fmu/fmu/codegen.py", "sdl_fmu/fmu/package.py",
                                      "scenarios/tires/dry_asphalt.tir", "scenarios/tires/attributes.txt",
-                                     "interface.py", "units.py", "CC", "fmi"])
+                                     "sdl_fmu/interface.py", "sdl_fmu/units.py", "CC", "fmi"])
 def test_the_cache_key_changes_with_every_input_of_the_build(changed, monkeypatch, tmp_path):
-    package = tmp_path / "sdl_fmu"
-    shutil.copytree(cache.PACKAGE_DIRECTORY, package, ignore=shutil.ignore_patterns("__pycache__"))
-    monkeypatch.setattr(cache, "PACKAGE_DIRECTORY", package)
+    root = use_copy_of_build_inputs(tmp_path, monkeypatch)
     before = cache.build_key("simple")
     assert cache.build_key("simple") == before and cache.build_key("advanced") != before
     if changed == "CC":
@@ -91,7 +212,7 @@ def test_the_cache_key_changes_with_every_input_of_the_build(changed, monkeypatc
     if changed == "fmi":
         assert cache.build_key("simple", fmi_version=3) != before
         return
-    with open(package / changed, "a") as file:
+    with open(root / changed, "a") as file:
         file.write("\n")  # even a blank line: the key does not guess what matters
     assert cache.build_key("simple") != before
 

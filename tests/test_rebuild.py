@@ -10,7 +10,7 @@ import xml.etree.ElementTree as ET
 import pytest
 from fmpy import read_model_description
 
-from test_simple_fmu import COSIM_TOLERANCE, expected_distance
+from helpers import COSIM_TOLERANCE, expected_distance
 
 HOST = r"""
 /* A plain C host: dlopen()s an FMU binary, brakes from v0 to a stop in co-simulation, prints s.

@@ -1,7 +1,6 @@
 """The Simple ego FMU, loaded for real through fmpy (and libcosimpy in a subprocess), against the
 closed forms of SPEC §2."""
 
-import math
 import shutil
 import subprocess
 import sys
@@ -17,91 +16,37 @@ from fmpy import extract, read_model_description
 
 from sdl_fmu.cosim.ego import EgoFMU, step_until
 
-G = 9.80665
-WHEELS = ("fl", "fr", "rl", "rr")
-# FMU defaults, read from the model description in `defaults` below
-MU = 0.6
-V0 = 30.0
-
-
-@pytest.fixture(scope="module")
-def defaults(simple_fmu):
-    return {v.name: float(v.start) for v in read_model_description(str(simple_fmu)).modelVariables
-            if v.causality == "parameter"}
-
-
-def braking_distance(v0, deceleration, rolling_resistance, drag_factor):
-    """Stopping distance of dv/dt = -(A + K v^2), A = deceleration + f_r g, K = rho CdA / (2 m).
-
-    v dv/ds = -(A + K v^2)  =>  ds = -v dv / (A + K v^2)  =>  s = ln(1 + K v0^2 / A) / (2K);
-    the limit K -> 0 is v0^2 / (2A).
-    """
-    a = deceleration + rolling_resistance * G
-    if drag_factor == 0:
-        return v0**2 / (2 * a)
-    return math.log(1 + drag_factor * v0**2 / a) / (2 * drag_factor)
-
-
-def start_values(resistances, mu=MU, brake=1.0, v0=V0):
-    values = {"v0": v0, **{f"mu_{w}": mu for w in WHEELS}}
-    if not resistances:
-        values.update(drag_area=0.0, rolling_resistance=0.0)
-    return values, np.array([(0.0, brake)], dtype=[("time", float), ("brake", float)])
-
-
-def expected_distance(defaults, resistances, mu=MU, brake=1.0, v0=V0):
-    deceleration = min(brake * defaults["brake_decel_max"], mu * G)
-    if not resistances:
-        return braking_distance(v0, deceleration, 0.0, 0.0)
-    drag_factor = defaults["air_density"] * defaults["drag_area"] / (2 * defaults["mass"])
-    return braking_distance(v0, deceleration, defaults["rolling_resistance"], drag_factor)
-
-
-# Tolerances. The issue asks for 1e-6 (no resistances) and 1e-4 (with them); the numerics give more:
-# with constant deceleration v(t) is linear and s(t) quadratic, which RODAS4 (order 4) integrates
-# exactly at any step, so only round-off remains (~1e4 steps x 1e-16 relative). With drag, v' = -w,
-# w = A + K v^2, and s^(5) = v'''' = 16 K^2 v w^2 + 8 K^3 v^3 w <= 2.1e-3 m/s^5 (K = 2.9e-4 1/m, v <= 30 m/s,
-# w <= 7.3 m/s^2); an internal step h (error-controlled, at most solver_step = 0.1 s) has the local error
-# C h^5 s^(5) with RODAS4's error constant C ~ 1e-2, so the <= 46 steps of the 4.6 s stop add up to
-# ~46 x 1e-2 x 1e-5 x 2.1e-3 = 1e-8 m = 2e-10 relative; the stop itself is located to 1e-12 s, where v ~ 0.
-# 1e-9 relative bounds all of that with room for the platform's libm. Measured: 7e-14 at 1 and 10 ms
-# communication steps, 3.3e-12 at 100 ms (internal steps up to 0.1 s).
-COSIM_TOLERANCE = 1e-9
+from helpers import COSIM_TOLERANCE, MODEL_EXCHANGE_TOLERANCE, MU, V0, G, expected_distance, start_values
 
 
 @pytest.mark.parametrize("step", [0.001, 0.01, 0.1])
 @pytest.mark.parametrize("resistances", [False, True], ids=["no-resistances", "drag+rolling"])
-def test_braking_distance_cosimulation(simple_fmu, defaults, step, resistances):
+def test_braking_distance_cosimulation(simple_fmu, defaults_simple, step, resistances):
     values, brake = start_values(resistances)
     result = simulate_fmu(simple_fmu, fmi_type="CoSimulation", start_values=values, input=brake,
                           output=["s", "v", "stopped"], stop_time=10.0, output_interval=step)
-    expected = expected_distance(defaults, resistances)
+    expected = expected_distance(defaults_simple, resistances)
     assert result["stopped"][-1]
     assert abs(result["s"][-1] - expected) / expected < COSIM_TOLERANCE
 
 
-# CVode controls the local error to rtol = 1e-10; over the few hundred steps of a stop the global
-# error stays within ~1e3 x rtol, and the stop is a state event that CVode's root finder locates.
-MODEL_EXCHANGE_TOLERANCE = 1e-7
-
-
 @pytest.mark.parametrize("resistances", [False, True], ids=["no-resistances", "drag+rolling"])
-def test_braking_distance_model_exchange(simple_fmu, defaults, resistances):
+def test_braking_distance_model_exchange(simple_fmu, defaults_simple, resistances):
     values, brake = start_values(resistances)
     result = simulate_fmu(simple_fmu, fmi_type="ModelExchange", solver="CVode", relative_tolerance=1e-10,
                           start_values=values, input=brake, output=["s", "v", "stopped"], stop_time=10.0,
                           output_interval=0.01)
-    expected = expected_distance(defaults, resistances)
+    expected = expected_distance(defaults_simple, resistances)
     assert result["stopped"][-1] and result["v"][-1] == 0.0
     assert abs(result["s"][-1] - expected) / expected < MODEL_EXCHANGE_TOLERANCE
 
 
-def test_partial_pedal_below_friction_limit(simple_fmu, defaults):
+def test_partial_pedal_below_friction_limit(simple_fmu, defaults_simple):
     # 25 % pedal demands 0.25 * brake_decel_max < mu g, so the pedal sets the deceleration
     values, brake = start_values(False, brake=0.25)
     result = simulate_fmu(simple_fmu, fmi_type="CoSimulation", start_values=values, input=brake,
                           output=["s"], stop_time=20.0, output_interval=0.1)
-    expected = V0**2 / (2 * 0.25 * defaults["brake_decel_max"])
+    expected = V0**2 / (2 * 0.25 * defaults_simple["brake_decel_max"])
     assert abs(result["s"][-1] - expected) / expected < COSIM_TOLERANCE
 
 
@@ -120,7 +65,7 @@ def test_standstill_holds_without_creep_or_chatter(simple_fmu, step):
     assert (np.diff(result["s"]) >= 0).all()  # never backwards
 
 
-def test_standstill_releases_when_throttle_exceeds_holding_forces(simple_fmu, defaults):
+def test_standstill_releases_when_throttle_exceeds_holding_forces(simple_fmu, defaults_simple):
     # Stop with full brake; then full throttle against full brake (drive_accel_max < brake_decel_max:
     # held); then brake 0.2 with full throttle: net = drive_accel_max - 0.2 brake_decel_max - f_r g > 0.
     values, _ = start_values(True, v0=10.0)
@@ -137,7 +82,8 @@ def test_standstill_releases_when_throttle_exceeds_holding_forces(simple_fmu, de
         ego.set(brake=0.2)
         ego.step(0.01)
         state = ego.read()
-        net = defaults["drive_accel_max"] - 0.2 * defaults["brake_decel_max"] - defaults["rolling_resistance"] * G
+        p = defaults_simple
+        net = p["drive_accel_max"] - 0.2 * p["brake_decel_max"] - p["rolling_resistance"] * G
         assert not state.stopped and state.v > 0
         # from rest, v(t) = net t - (drag: K v^2, negligible at 1 cm/s)
         assert state.v == pytest.approx(net * 0.01, rel=1e-6)
@@ -220,20 +166,20 @@ def test_fmu_state_rollback_and_serialization(simple_fmu):
         ego.close()
 
 
-def test_stop_located_inside_a_long_step(simple_fmu, defaults):
+def test_stop_located_inside_a_long_step(simple_fmu, defaults_simple):
     # one 6 s communication step covers the whole stop (t_stop = v0 / (mu g) = 5.1 s); still exact
     values, _ = start_values(False)
     ego = EgoFMU(simple_fmu, {**values, "brake": 1.0})
     try:
         ego.step(6.0)
         assert ego.read().stopped
-        expected = expected_distance(defaults, False)
+        expected = expected_distance(defaults_simple, False)
         assert abs(ego.read().s - expected) / expected < COSIM_TOLERANCE
     finally:
         ego.close()
 
 
-def test_stop_time_by_rollback_matches_closed_form(simple_fmu, defaults):
+def test_stop_time_by_rollback_matches_closed_form(simple_fmu, defaults_simple):
     # t_stop = v0 / a with constant deceleration a = min(b a_max, mu g)
     values, _ = start_values(False)
     ego = EgoFMU(simple_fmu, {**values, "brake": 1.0})
@@ -291,7 +237,7 @@ def test_wrong_guid_is_refused(simple_fmu):
 
 
 @pytest.mark.slow
-def test_sources_rebuild_the_binary(simple_fmu, defaults, tmp_path):
+def test_sources_rebuild_the_binary(simple_fmu, defaults_simple, tmp_path):
     # an importer on another platform compiles sources/ by buildDescription.xml; fmpy does it here
     from fmpy.build import build_platform_binary
 
@@ -308,7 +254,7 @@ def test_sources_rebuild_the_binary(simple_fmu, defaults, tmp_path):
     values, brake = start_values(False)
     result = simulate_fmu(rebuilt, fmi_type="CoSimulation", start_values=values, input=brake, output=["s"],
                           stop_time=10.0, output_interval=0.1)
-    expected = expected_distance(defaults, False)
+    expected = expected_distance(defaults_simple, False)
     assert abs(result["s"][-1] - expected) / expected < COSIM_TOLERANCE
 
 
@@ -333,8 +279,9 @@ LIBCOSIM_SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("step", [0.01, 0.1])
-def test_libcosim_gets_the_same_stopping_distance(simple_fmu, defaults, step):
+def test_libcosim_gets_the_same_stopping_distance(simple_fmu, defaults_simple, step):
     # libcosim is an independent C++ master; it runs in a subprocess because it aborts the process
     # on FMUs it cannot load. Defaults: mu 0.8, drag and rolling resistance on.
     completed = subprocess.run([sys.executable, "-c", LIBCOSIM_SCRIPT, str(simple_fmu), str(V0), str(step)],
@@ -343,6 +290,6 @@ def test_libcosim_gets_the_same_stopping_distance(simple_fmu, defaults, step):
     import json
 
     result = json.loads(next(line for line in completed.stdout.splitlines() if line.startswith("{")))
-    expected = expected_distance(defaults, True, mu=0.8)
+    expected = expected_distance(defaults_simple, True, mu=0.8)
     assert result["stopped"]
     assert abs(result["s"] - expected) / expected < COSIM_TOLERANCE

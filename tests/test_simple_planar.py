@@ -6,27 +6,23 @@ parameter defaults."""
 import ctypes
 import math
 import shutil
+from functools import partial
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description, simulate_fmu
+from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model
 
-G = 9.80665
-WHEELS = ("fl", "fr", "rl", "rr")
-NO_RESISTANCES = {"drag_area": 0.0, "rolling_resistance": 0.0}
+import helpers
+from helpers import NO_RESISTANCES, WHEELS, G, input_table
 
-
-def simulate(fmu, stop_time, start, step=0.01, inputs=None, output=("psi", "yaw_rate", "vx", "vy", "ax", "ay", "s",
-                                                                     "stopped")):
-    return simulate_fmu(str(fmu), fmi_type="CoSimulation", start_values=start, input=inputs, output=list(output),
-                        stop_time=stop_time, output_interval=step)
+simulate = partial(helpers.simulate, output=("psi", "yaw_rate", "vx", "vy", "ax", "ay", "s", "stopped"))
 
 
 def steer_pulse(stop_time, angle, duration):
     """A steering input of `angle` for the first `duration` seconds, then straight ahead."""
     time = np.arange(0.0, stop_time + 1e-9, 0.01)
-    return np.array(list(zip(time, np.where(time < duration, angle, 0.0))), dtype=[("time", float), ("steer", float)])
+    return input_table(time, steer=np.where(time < duration, angle, 0.0))
 
 
 def initial_derivatives(fmu, start):

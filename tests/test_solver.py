@@ -9,13 +9,10 @@ import pytest
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi2 import FMU2Slave
 
+from helpers import parameter_defaults
+
 V0 = 40.0  # m/s
 COAST_TIME = 20.0  # s
-
-
-def parameter_starts(fmu):
-    return {v.name: float(v.start) for v in read_model_description(str(fmu)).modelVariables
-            if v.causality == "parameter"}
 
 
 def coasting_distance(drag_factor, v0, t):
@@ -27,7 +24,7 @@ def coasting_distance(drag_factor, v0, t):
 def coasting_errors(simple_fmu):
     """The error in s of a 20 s coast from 40 m/s, in one communication step, at each tolerance; solver_step
     10 s lets the error control alone choose the internal steps."""
-    p = parameter_starts(simple_fmu)
+    p = parameter_defaults(simple_fmu)
     drag_factor = p["air_density"] * p["drag_area"] / (2 * p["mass"])
     exact = coasting_distance(drag_factor, V0, COAST_TIME)
     errors = {}
@@ -71,7 +68,7 @@ def test_default_longest_step_keeps_the_closed_form_to_round_off(simple_fmu):
     # h = 0.1 s, and C, RODAS4's error constant, is of the order of the Taylor remainder's 1/5! ~ 1e-2:
     # 1.7e-12 m per step, 200 steps: 3.4e-10 m on 720 m = 5e-13 relative. Allowed 1e-11 (C up to 0.2).
     # Measured 4e-14.
-    p = parameter_starts(simple_fmu)
+    p = parameter_defaults(simple_fmu)
     drag_factor = p["air_density"] * p["drag_area"] / (2 * p["mass"])
     assert 24 * drag_factor**4 * V0**5 < 1.7e-5
     exact = coasting_distance(drag_factor, V0, COAST_TIME)

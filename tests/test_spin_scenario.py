@@ -1,20 +1,20 @@
-"""The seed's BRK use case as a scenario (sdl_fmu/scenarios/spin.sdl): BRK on split friction (RSA) makes the
+"""The seed's BRK use case as a scenario (scenarios/spin.sdl): BRK on split friction (RSA) makes the
 Simple-dynamics car begin to spin; the driver model counter-steers and brings it back to its lane."""
 
 import csv
-import math
 
 import numpy as np
 import pytest
 
 from sdl_fmu.cosim import driver
 from sdl_fmu.cosim.master import RunOptions, run_scenario
-from sdl_fmu.interface import SCENARIO_DIRECTORY
+from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.results import write_results
-from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
+from sdl_fmu.sdl import load_scenario
 from sdl_fmu.units import FOOT
 
-TABLE = load_vehicle_table(default_vehicle_table_path())
+from helpers import TABLE
+
 SCENARIO = SCENARIO_DIRECTORY / "spin.sdl"
 
 

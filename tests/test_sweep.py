@@ -206,10 +206,14 @@ def test_a_folder_with_other_files_or_another_sweep_is_refused(client, scenario,
         sweeping.sweep(scenario, {"seed": [1, 2]}, out, client=client, until_distance=200.0, progress=False)
 
 
-def test_the_tire_files_travel_with_the_attribute_file(tmp_path):
+def test_the_tire_files_travel_with_the_attribute_file(tmp_path, monkeypatch):
     # an attribute file naming one tire by a relative path and one by an absolute path, shipped as a bundle and
     # written elsewhere: the slot start values read from the copy equal those read from the originals
     from sdl_fmu.dynamics.tires import TIRE_DIRECTORY, slot_parameters
+
+    # a cache of its own: in the session's cache (kept between sessions with SDL_FMU_TEST_CACHE) the bundle may
+    # already exist from an earlier session, and then nothing is written and nothing cleaned up
+    monkeypatch.setenv("SDL_FMU_CACHE", str(tmp_path / "cache"))
 
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "wet.tir").write_bytes((TIRE_DIRECTORY / "wet_asphalt.tir").read_bytes())

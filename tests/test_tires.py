@@ -7,7 +7,7 @@ import pytest
 
 from sdl_fmu.dynamics.tires import (DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, TireFileError, mf_coefficients,
                                     parse_attribute_file, parse_tir, read_tir, slot_of, slot_parameters)
-from sdl_fmu.interface import INTERFACE_DIRECTORY
+from sdl_fmu.paths import MODEL_DESCRIPTION_DIRECTORY
 
 DRY = DEFAULT_ATTRIBUTE_FILE.parent / "dry_asphalt.tir"
 
@@ -30,7 +30,7 @@ def test_shipped_tires_fill_the_slots_by_attribute():
 
 
 def test_interface_data_lists_the_slot_coefficients():
-    data = json.loads((INTERFACE_DIRECTORY / "EgoVehicleAdvanced.json").read_text())
+    data = json.loads((MODEL_DESCRIPTION_DIRECTORY / "EgoVehicleAdvanced.json").read_text())
     (group,) = [entry for entry in data["variables"] if "repeat" in entry]
     assert group["repeat"]["count"] == SLOT_COUNT
     assert tuple(v["name"].split("_", 1)[1] for v in group["variables"]) == SLOT_KEYS

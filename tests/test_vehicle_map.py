@@ -5,18 +5,14 @@ the model description), so every expectation is either a closed form or the ship
 import json
 import math
 import re
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from conftest import rewritten_fmu
 from sdl_fmu import api
-from sdl_fmu.cosim.ego import step_until
 from sdl_fmu.vehicle import STOPPED_SPEED, EgoModel, VehicleMapError, shipped_map_path
 
-G = 9.80665
+from helpers import G, rewritten_fmu, sdl_fmu
 
 # The Simple FMU described as a foreign vehicle would be: numbers in [vehicle], only the required outputs
 BARE_MAP = """
@@ -109,9 +105,8 @@ def test_fmu_mistakes_are_one_line_naming_the_fmu(simple_fmu, tmp_path, change, 
 
 def test_command_line_reports_a_map_mistake_in_one_line(simple_fmu, tmp_path):
     vehicle = write(tmp_path, BARE_MAP.replace('variable = "steer"', 'variable = "steering_angle"'))
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "head_on", "--fmu", str(simple_fmu),
-                                "--vehicle", str(vehicle), "--out", str(tmp_path / "out")], capture_output=True,
-                               text=True, timeout=120, cwd=tmp_path)
+    completed = sdl_fmu("run", "head_on", "--fmu", simple_fmu, "--vehicle", vehicle, "--out", tmp_path / "out",
+                        timeout=120, cwd=tmp_path)
     assert completed.returncode == 2 and completed.stdout == ""
     assert completed.stderr.count("\n") == 1 and "car.toml: inputs.steer" in completed.stderr
     assert not (tmp_path / "out").exists()
@@ -293,7 +288,6 @@ def test_a_sweep_drives_a_vehicle_map(simple_fmu, tmp_path):
 
 def test_verify_takes_the_vehicle_option(simple_fmu, tmp_path):
     vehicle = write(tmp_path, BARE_MAP.replace('variable = "steer"', 'variable = "steering_angle"'))
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "verify", "--fmu", str(simple_fmu),
-                                "--vehicle", str(vehicle)], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    completed = sdl_fmu("verify", "--fmu", simple_fmu, "--vehicle", vehicle, timeout=120, cwd=tmp_path)
     assert completed.returncode == 2 and "car.toml: inputs.steer" in completed.stderr
     assert completed.stderr.count("\n") == 1

@@ -1,13 +1,12 @@
 """The run side's vehicle model (sdl_fmu.vehicle): EgoModel built from an FMU's model description and a vehicle map,
 the shipped FMUs (FMI 2.0 and 3.0) through their shipped maps, exactly as any FMU."""
 
-import math
 
 import pytest
 
 from sdl_fmu.vehicle import EgoModel, VehicleMapError, shipped_map_path, shipped_model
 
-G = 9.80665
+from helpers import G
 
 
 @pytest.mark.parametrize("fmi_version", [2, 3])

@@ -5,14 +5,15 @@ import base64
 import csv
 import json
 import re
-import subprocess
-import sys
+from functools import partial
 from pathlib import Path
 
 import pytest
 
 from sdl_fmu import api
 from sdl_fmu.verify import MANOEUVRES, braking
+
+import helpers
 
 SPEC_METRICS = {  # SPEC section 7 / issue 16's metric names per manoeuvre
     "braking": {"stopping_distance_m", "mfdd_mps2"},
@@ -25,9 +26,7 @@ SPEC_METRICS = {  # SPEC section 7 / issue 16's metric names per manoeuvre
 }
 
 
-def sdl_fmu(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=1800)
+sdl_fmu = partial(helpers.sdl_fmu, timeout=1800)  # a whole pack may run; the limit only catches a hang
 
 
 def check_results_folder(folder: Path, names) -> dict:

@@ -24,7 +24,9 @@ distance/hw.py; https://criticality-metrics.readthedocs.io):
   t_entry(second) - t_exit(first)). Here, for a vehicle crossing the ego's path (a lateral action into the
   ego's lane and back): the conflict area is where the vehicle's footprint stood when it left the ego's path
   band (`band_times`), and the ego reaches it when its front reaches that area's near end
-  (`conflict_station`). PET = t_ego_reaches - t_vehicle_left.
+  (`conflict_station`). PET = t_ego_reaches - t_vehicle_left. The ego first (a vehicle moving into the ego's
+  lane behind it): the area is where the vehicle's footprint stands when it enters the band, the ego left it
+  when its rear passed that area's far end (`conflict_far_end`); PET = t_vehicle_enters - t_ego_left.
 - time headway (SUMO's TGAP = space gap / follower speed; CriMe thw.py for a constant ego speed): the
   bumper-to-bumper gap to a vehicle ahead in the ego's path (the footprints overlap laterally) moving the same
   way, divided by the ego's speed along the road.
@@ -207,8 +209,10 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
     look at one vehicle): `distance`, `distance_rate` and `distance_rate` with yaw_rate 0.
 
     The per-look path, so written out: `penetration` and `_corners` inline (the same operations in the same
-    order, so the same bits); the eight corner distances first, then the rates of the closest corners only
-    (in corner order: the first sets them, later equally close ones can only lower them)."""
+    order, so the same bits); the eight corners unrolled, their squared gaps first and one square root, the
+    least's (sqrt is correctly rounded, so monotonic: sqrt(min) = min(sqrt)), then the rates of the closest
+    corners only: those whose gap's square root equals it (in corner order: the first sets them, later
+    equally close ones can only lower them)."""
     a, b, c, s = ego
     ac = c if c >= 0.0 else -c
     as_ = s if s >= 0.0 else -s
@@ -220,38 +224,56 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
         return 0.0, 0.0, 0.0  # penetration >= 0: in contact or touching
     acs, as_s, bc, bs = a * c, a * s, b * c, b * s
     lc, ls, wc, ws = hl * c, hl * s, hw * c, hw * s
-    corners = (
-        # ego corner (sign_l a, sign_w b) turned by psi, minus the vehicle's centre, against the vehicle's box
-        (acs - bs - dx, as_s + bc - dy, hl, hw),
-        (acs + bs - dx, as_s - bc - dy, hl, hw),
-        (-acs - bs - dx, -as_s + bc - dy, hl, hw),
-        (-acs + bs - dx, -as_s - bc - dy, hl, hw),
-        # vehicle corner (sign_l hl, sign_w hw) turned by -psi, plus the centre in the body frame, against the ego's
-        (du + lc + ws, dv - ls + wc, a, b),
-        (du + lc - ws, dv - ls - wc, a, b),
-        (du - lc + ws, dv + ls + wc, a, b),
-        (du - lc - ws, dv + ls - wc, a, b),
-    )
+    # the corners (x, y): ego corner (sign_l a, sign_w b) turned by psi minus the vehicle's centre, against the
+    # vehicle's box (hl, hw); vehicle corner (sign_l hl, sign_w hw) turned by -psi plus the centre in the body
+    # frame, against the ego's (a, b); per corner the squared gap max(|x| - half_x, 0)^2 + max(|y| - half_y, 0)^2
+    x0, y0 = acs - bs - dx, as_s + bc - dy
+    x1, y1 = acs + bs - dx, as_s - bc - dy
+    x2, y2 = -acs - bs - dx, -as_s + bc - dy
+    x3, y3 = -acs + bs - dx, -as_s - bc - dy
+    x4, y4 = du + lc + ws, dv - ls + wc
+    x5, y5 = du + lc - ws, dv - ls - wc
+    x6, y6 = du - lc + ws, dv + ls + wc
+    x7, y7 = du - lc - ws, dv + ls - wc
+    ex = (x0 if x0 >= 0.0 else -x0) - hl
+    ey = (y0 if y0 >= 0.0 else -y0) - hw
+    q0 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x1 if x1 >= 0.0 else -x1) - hl
+    ey = (y1 if y1 >= 0.0 else -y1) - hw
+    q1 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x2 if x2 >= 0.0 else -x2) - hl
+    ey = (y2 if y2 >= 0.0 else -y2) - hw
+    q2 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x3 if x3 >= 0.0 else -x3) - hl
+    ey = (y3 if y3 >= 0.0 else -y3) - hw
+    q3 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x4 if x4 >= 0.0 else -x4) - a
+    ey = (y4 if y4 >= 0.0 else -y4) - b
+    q4 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x5 if x5 >= 0.0 else -x5) - a
+    ey = (y5 if y5 >= 0.0 else -y5) - b
+    q5 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x6 if x6 >= 0.0 else -x6) - a
+    ey = (y6 if y6 >= 0.0 else -y6) - b
+    q6 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    ex = (x7 if x7 >= 0.0 else -x7) - a
+    ey = (y7 if y7 >= 0.0 else -y7) - b
+    q7 = (ex * ex if ex > 0.0 else 0.0) + (ey * ey if ey > 0.0 else 0.0)
+    least = min(q0, q1, q2, q3, q4, q5, q6, q7)
     sqrt = math.sqrt
-    gaps = []
-    for x, y, half_x, half_y in corners:
-        # max(|x| - half_x, 0) without the calls; the same value as np.maximum
-        ex = (x if x >= 0.0 else -x) - half_x
-        if ex < 0.0:
-            ex = 0.0
-        ey = (y if y >= 0.0 else -y) - half_y
-        if ey < 0.0:
-            ey = 0.0
-        gaps.append(sqrt(ex * ex + ey * ey))
-    best = min(gaps)
+    best = sqrt(least)
+    near = least * (1.0 + 1e-15)  # sqrt(q) == best needs q / least < (1 + 2^-52)^2
     vu, vv = vx * c + vy * s, -vx * s + vy * c
     rate = frozen = INF
     first = True
-    for k in range(8):
-        d = gaps[k]
-        if d != best:
+    for k, q, x, y in ((0, q0, x0, y0), (1, q1, x1, y1), (2, q2, x2, y2), (3, q3, x3, y3),
+                       (4, q4, x4, y4), (5, q5, x5, y5), (6, q6, x6, y6), (7, q7, x7, y7)):
+        if q > near or (q != least and sqrt(q) != best):
             continue
-        x, y, half_x, half_y = corners[k]
+        if k < 4:
+            half_x, half_y = hl, hw
+        else:
+            half_x, half_y = a, b
         ex = (x if x >= 0.0 else -x) - half_x
         if ex < 0.0:
             ex = 0.0
@@ -260,13 +282,13 @@ def _distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: flo
             ey = 0.0
         gx = ex if x >= 0.0 else -ex
         gy = ey if y >= 0.0 else -ey
-        if k < 4:  # ego corner: e = p + d
+        if k < 4:
             px_rate, py_rate = -yaw_rate * (y + dy) - vx, yaw_rate * (x + dx) - vy
-            r_frozen = (gx * -vx + gy * -vy) / d
+            r_frozen = (gx * -vx + gy * -vy) / best
         else:
             px_rate, py_rate = vu + yaw_rate * y, vv - yaw_rate * x
-            r_frozen = (gx * vu + gy * vv) / d
-        r = (gx * px_rate + gy * py_rate) / d
+            r_frozen = (gx * vu + gy * vv) / best
+        r = (gx * px_rate + gy * py_rate) / best
         if first:
             rate, frozen, first = r, r_frozen, False
         else:
@@ -506,10 +528,40 @@ def conflict_station(station: float, length: float) -> float:
     return station - length / 2
 
 
-def post_encroachment_time(vehicle_leaves: float, ego_reaches: float) -> float:
-    """PET (s) = t_ego_reaches - t_vehicle_leaves; nan when the ego reached the area first (then the two
-    occupied it together: a contact or a near miss, measured by distance and TTC, not PET)."""
-    return ego_reaches - vehicle_leaves if ego_reaches >= vehicle_leaves else math.nan
+def conflict_far_end(station: float, length: float) -> float:
+    """The far (higher-station) end of the area where a vehicle's footprint enters the ego's path: its front
+    in the ego's direction of travel, the station the ego's rear must have passed for the ego to have left
+    the area before the vehicle entered it (the ego passing first)."""
+    return station + length / 2
+
+
+def passage_known(middle: float, low: float, low_position: float | None, low_rate: float, high: float,
+                  high_position: float, high_rate: float, station: float, turn: float,
+                  acceleration: float) -> bool | None:
+    """Whether a point of the ego's footprint moving along the road (its front or rear: the reference point's
+    station plus an offset turning with the yaw) is at or past `station` at `middle`, where its positions at
+    low (None: unknown) and high and the reference point's station rates there say so for certain; None where
+    only a probe can tell. The point's station rate is the reference point's (which changes at most at the
+    acceleration bound A) plus at most R r_max (`turn`: the offset turning), so over d = middle - low it moves
+    at most (rate + turn) d + A d^2 / 2 on from low, and over d = high - middle it moved at most as much to
+    high. The master's bisection of a PET passage skips the probes this decides: the same brackets, the
+    same instant, fewer FMU probes."""
+    if low_position is not None:
+        d = middle - low
+        if low_position + (low_rate + turn) * d + 0.5 * acceleration * d * d < station:
+            return False
+    d = high - middle
+    if high_position - (high_rate + turn) * d - 0.5 * acceleration * d * d >= station:
+        return True
+    return None
+
+
+def post_encroachment_time(first_leaves: float, second_enters: float) -> float:
+    """PET (s) = t_second_enters - t_first_leaves (the vehicle first: the ego's front reaching the area it
+    left; the ego first: the vehicle entering the area the ego's rear left); nan when the second entered
+    before the first left (then the two occupied it together: a contact or a near miss, measured by distance
+    and TTC, not PET)."""
+    return second_enters - first_leaves if second_enters >= first_leaves else math.nan
 
 
 # ---- horizons -------------------------------------------------------------------------------------------
@@ -519,7 +571,10 @@ def _reach_time(distance: float, rate: float, acceleration: float) -> float:
     if distance <= 0.0:
         return 0.0
     root = math.sqrt(rate * rate + 2 * acceleration * distance)
-    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
+    if rate > 0:
+        closing = rate + root  # max(rate + root, 1e-300) without the call (the same value)
+        return 2 * distance / (1e-300 if 1e-300 > closing else closing)
+    return (root - rate) / acceleration
 
 
 def distance_horizon(distance: float, frozen_rate: float, floor: float, turn: float, acceleration: float) -> float:
@@ -554,7 +609,8 @@ def approach_horizon(distance: float, frozen_rate: float, relative_speed: float,
     half = _reach_time(distance / 2, relative_speed + turn, acceleration)
     speed = relative_speed + acceleration * half
     growth = acceleration + speed * (4 * (speed + turn) / distance + yaw_rate_bound)
-    return min(half, closing / growth)
+    bound = closing / growth
+    return bound if bound < half else half  # min(half, bound)
 
 
 def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: float, turn: float,
@@ -575,13 +631,18 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
     if speed <= 2 * turn or rho <= 2 * radius_sum:
         return 0.0
     cos_alpha = -(dx * vx + dy * vy) / (rho * speed)
-    alpha = math.acos(min(1.0, max(-1.0, cos_alpha)))
+    cos_alpha = cos_alpha if cos_alpha > -1.0 else -1.0  # clipped to [-1, 1] as min(1, max(-1, .)) does
+    alpha = math.acos(cos_alpha if cos_alpha < 1.0 else 1.0)
     margin = math.acos(2 * turn / speed) - math.asin(2 * radius_sum / rho) - alpha
     if margin <= 0.0:
         return 0.0
-    within = min(_reach_time(rho / 2, speed, acceleration), speed / (2 * acceleration))
+    within = _reach_time(rho / 2, speed, acceleration)
+    slowing = speed / (2 * acceleration)
+    if slowing < within:
+        within = slowing
     fastest = speed + acceleration * within
-    return min(within, margin / (2 * fastest / rho + 2 * acceleration / speed))
+    bound = margin / (2 * fastest / rho + 2 * acceleration / speed)
+    return bound if bound < within else within
 
 
 def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
@@ -697,9 +758,17 @@ class Extremes:
         self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
         self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
         self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
+        # the ego passing first (PET): the far end of the area where the vehicle's footprint will enter the ego's
+        # path, while the ego's rear has yet to pass it (m), and the instant it did (s)
+        self.far_end = np.full(capacity, np.nan)
+        self.rear_left = np.full(capacity, np.nan)
         # s from the last look: a lower bound on when that vehicle's next located instant (a closest
         # approach, a collision course's start or end, a transition's end) can be (0: any time)
         self.quiet = 0.0
+        # the last ego state evaluated at and (footprint, cos, sin, inertial velocity) there; per vehicle its
+        # (length, width) in floats (fixed from its spawn, a vehicle's index is never reused)
+        self._at = (None, None)
+        self._sizes: dict[int, tuple[float, float]] = {}
 
     def _grow(self, size: int) -> None:
         while size > len(self.left_path):
@@ -708,6 +777,8 @@ class Extremes:
                     table[name] = np.concatenate([values, np.full(len(values), np.nan)])
             self.left_path = np.concatenate([self.left_path, np.full(len(self.left_path), np.nan)])
             self.conflict = np.concatenate([self.conflict, np.full(len(self.conflict), np.nan)])
+            self.far_end = np.concatenate([self.far_end, np.full(len(self.far_end), np.nan)])
+            self.rear_left = np.concatenate([self.rear_left, np.full(len(self.rear_left), np.nan)])
         self.size = max(self.size, size)
 
     # -- offering values
@@ -787,14 +858,22 @@ class Extremes:
         """Vehicle i at the ego's state, in one pass: (values to offer {measure: value}, rates, what the horizon
         needs). Beyond RANGE only the distance and its rates."""
         t = state.time
-        c, s = math.cos(state.psi), math.sin(state.psi)
-        ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+        at = self._at
+        if at[0] is state:  # another vehicle at the same ego state: its footprint and velocity as computed
+            ego, c, s, ego_vx, ego_vy = at[1]
+        else:
+            c, s = math.cos(state.psi), math.sin(state.psi)
+            ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+            ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+            self._at = (state, (ego, c, s, ego_vx, ego_vy))
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         elapsed, duration = t - float(traffic.t0[i]), float(traffic.duration[i])
         moving = elapsed < duration
         speed_rate = (float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration if moving else 0.0
-        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
-        length, width = float(traffic.length[i]), float(traffic.width[i])
+        size = self._sizes.get(i)
+        if size is None:
+            size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
+        length, width = size
         dx, dy = station - state.x, -lateral - state.y
         vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
         d, rate, frozen = _distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
@@ -862,33 +941,44 @@ class Extremes:
         if near and (rates[1] == rates[1] or rates[3] == rates[3]):
             self.quiet = 0.0
             return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
+        # the per-look path: min(x, y) written as `y if y < x else x` and max(x, y) as `y if y > x else x`
+        # (what the builtins return, nan included), without their calls
         turn = radius * yaw_rate_bound
-        relative = acceleration + abs(speed_rate)
-        new_minimum = distance_horizon(d, frozen, float(self.value["min_distance"][i]) - FLAT, turn, relative)
+        relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
+        new_minimum = _reach_time(d - (float(self.value["min_distance"][i]) - FLAT), turn - frozen, relative)
         # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
         approach_end = INF if rates[0] >= 0.0 else 0.0
         if frozen < -turn:
             vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
-            approach_end = max(approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative,
-                                                yaw_rate_bound),
-                               heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative))
-            new_minimum = max(new_minimum, approach_end)
+            approach_end = approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative, yaw_rate_bound)
+            heading = heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative)
+            if heading > approach_end:
+                approach_end = heading
+            if approach_end > new_minimum:
+                new_minimum = approach_end
         if not near:
             # a collision course can be seen only within RANGE
-            entering = distance_horizon(d, frozen, RANGE, turn, relative)
-            self.quiet = min(min(entering, approach_end), transition_left)
-            return rates, min(min(entering, new_minimum), transition_left)
+            entering = _reach_time(d - RANGE, turn - frozen, relative)
+            quiet = approach_end if approach_end < entering else entering
+            self.quiet = transition_left if transition_left < quiet else quiet
+            horizon = new_minimum if new_minimum < entering else entering
+            return rates, transition_left if transition_left < horizon else horizon
         # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
-        longest = min(max(new_minimum, approach_end), transition_left)
+        longest = approach_end if approach_end > new_minimum else new_minimum
+        if transition_left < longest:
+            longest = transition_left
         if not longest > 0.0:
             self.quiet = 0.0
             return rates, 0.0
         a, b, c, s = ego
-        ac, as_ = abs(c), abs(s)
+        ac = c if c >= 0.0 else -c
+        as_ = s if s >= 0.0 else -s
         course = course_horizon(dx, dy, vx, vy, a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2,
                                 longest, turn, relative)
-        self.quiet = min(min(approach_end, transition_left), course)
-        return rates, min(min(new_minimum, transition_left), course)
+        quiet = transition_left if transition_left < approach_end else approach_end
+        self.quiet = course if course < quiet else quiet
+        horizon = transition_left if transition_left < new_minimum else new_minimum
+        return rates, course if course < horizon else horizon
 
     # -- post-encroachment time
 
@@ -904,6 +994,42 @@ class Extremes:
             self.left_path[i], self.conflict[i] = t, near_end
         else:
             self.left_path[i] = self.conflict[i] = np.nan
+
+    def path_entering(self, i: int, far_end: float, ego_rear: float) -> None:
+        """Vehicle i's footprint will enter the ego's path (`band_times`' enter instant, closed form as its move
+        starts), reaching then up to `far_end` (`conflict_far_end`). If the ego's rear has yet to pass that
+        station, the ego may leave the area first: its rear's passage (`rear_stations`, `rear_reached`) and the
+        entry (`path_entered`) give the PET. If the rear has passed it already (the ego left the area before
+        the move began), no PET is measured for this entry (README)."""
+        if i >= self.size:
+            self._grow(i + 1)
+        self.rear_left[i] = np.nan
+        self.far_end[i] = far_end if ego_rear < far_end else np.nan
+
+    def cancel_entry(self, i: int) -> None:
+        """Vehicle i's motion changed before it entered the ego's path: its pending entry is void."""
+        if i < self.size:
+            self.far_end[i] = self.rear_left[i] = np.nan
+
+    def rear_stations(self) -> np.ndarray:
+        """(vehicle indices, far ends) whose passage by the ego's rear is pending."""
+        far = self.far_end[:self.size]
+        pending = np.flatnonzero((far == far) & (self.rear_left[:self.size] != self.rear_left[:self.size]))
+        return pending, far[pending]
+
+    def rear_reached(self, i: int, t: float) -> None:
+        """The ego's rear passed vehicle i's entry area's far end at t."""
+        self.rear_left[i] = t
+
+    def path_entered(self, i: int, t: float) -> None:
+        """Vehicle i's footprint entered the ego's path at t: if the ego's rear had left the area by then, the
+        PET (ego first) = t - that instant; either way the entry is done."""
+        if i >= self.size:
+            return
+        left = float(self.rear_left[i])
+        if left == left and self.far_end[i] == self.far_end[i]:
+            self.offer("min_pet", i, t, post_encroachment_time(left, t))
+        self.far_end[i] = self.rear_left[i] = np.nan
 
     def pending_stations(self) -> np.ndarray:
         """The conflict stations the ego's front has yet to reach (the master's PET trigger: a station, like

@@ -19,25 +19,44 @@ CRITICALITY_TOLERANCE = TIME_TOLERANCE / 4
 FLAT_STEP = 0.98
 
 Probe = Callable[[float], EgoState]
+# known(middle, (instant, state) probed last below, (instant, state) probed last above): True / False, or None
+Known = Callable[[float, tuple, tuple], 'bool | None']
 
 
 def first_instant(probe: Probe, low: float, high: float, condition: Callable[[EgoState], bool], tolerance: float,
-                  high_state: EgoState | None = None,
-                  below: Callable[[float], None] | None = None) -> tuple[float, EgoState | None, EgoState | None]:
+                  high_state: EgoState | None = None, below: Callable[[float], None] | None = None,
+                  known: Known | None = None) -> tuple[float, EgoState | None, EgoState | None]:
     """Bisects (low, high], where the condition is false at low and true at high, to a bracket no wider than
     `tolerance`: (its high end, the state probed at its low end, the state at its high end; None where that
     end was not probed, high_state for the given high end). `below(t)` is called after each probe at which the
-    condition is false (the caller may then move its snapshot there)."""
+    condition is false (the caller may then move its snapshot there). With `known(middle, (instant, state)
+    probed last below, (instant, state) probed last above)`, a test that is True or False where it can tell the
+    condition without a probe (None: a probe): the same midpoints and outcomes, fewer probes, and the state at
+    the final high end probed once if it was not (the state at the low end is then that of the last probe
+    below)."""
     low_state = None
+    last_below, last_above = (low, None), (high, high_state)
     while high - low > tolerance:
         middle = 0.5 * (low + high)
-        probed = probe(middle)
-        if condition(probed):
+        outcome = None if known is None else known(middle, last_below, last_above)
+        probed = None
+        if outcome is None:
+            probed = probe(middle)
+            outcome = condition(probed)
+        if outcome:
             high, high_state = middle, probed
+            if probed is not None:
+                last_above = (middle, probed)
         else:
             low, low_state = middle, probed
-            if below is not None:
-                below(middle)
+            if probed is not None:
+                last_below = (middle, probed)
+                if below is not None:
+                    below(middle)
+    if known is not None:
+        if high_state is None:
+            high_state = probe(high)
+        low_state = last_below[1]
     return high, low_state, high_state
 
 

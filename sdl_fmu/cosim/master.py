@@ -11,7 +11,7 @@ own module:
 - `Inputs` (inputs.py): the driver's (or BRK's) pedals, the steer and the surfaces under the wheels;
 - `Recorder` (recorder.py): the samples;
 - `CriticalityFollower` (follower.py): the criticality record (criticality.py), fed through the hooks `look`,
-  `criticality_due` and `follow_criticality` below, and the extremes located inside steps.
+  `look_before_change`, `criticality_due` and `follow_criticality` below, and the extremes located inside steps.
 Where nothing can happen the loop steps long: to the next driver sample, the `step` limit or the earliest
 trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
 and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
@@ -30,7 +30,7 @@ from functools import partial
 from pathlib import Path
 from typing import Callable, Literal
 
-from ..results import RunResult
+from ..run_result import RunResult
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..storage import EventLog
@@ -148,6 +148,7 @@ class Cosimulation:
             state = ego.read()
             self.fire_due(state)
             self.look(state, everyone=True)
+            follower.touched.clear()
             inputs.sample_driver(state, None)
             inputs.apply(state, True)
             self.record(state)
@@ -201,12 +202,13 @@ class Cosimulation:
                 self.steps += 1
                 driver_sample = state.time >= next_sample
                 if base is not None or fired or state.time >= follower.earliest_look or not self.exact:
-                    self.follow_criticality(base, t, state, everyone=fired)
+                    self.follow_criticality(base, t, state, everyone=False)
                 if fired:
                     self.fire_due(state)
                     schedule.forget()  # spawns, actions, contacts, departures, the next event, BRK: bounds changed
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
-                    self.look(state, everyone=True)  # the motions from this instant on
+                    self.look(state, only=follower.touched)  # the changed motions from this instant on
+                    follower.touched.clear()
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if driver_sample:
@@ -264,6 +266,7 @@ class Cosimulation:
         action, overlap, away = schedule.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
+                self.look_before_change(int(i), state)
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
@@ -280,7 +283,9 @@ class Cosimulation:
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
+        self.follower.touched.update(changed.tolist())
         for i in active[away & ~overlap]:
+            self.look_before_change(int(i), state)
             traffic.remove(i)
             recorder.left(i)
             self.log("A", "despawn", state, vehicle=recorder.vehicle_ids[i])
@@ -290,6 +295,7 @@ class Cosimulation:
             model_number = choose_model(event, self.rng)
             model = self.vehicle_table[model_number]
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
+            self.follower.touched.add(index)
             self.recorder.spawned(index + 1)
             self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
@@ -330,8 +336,11 @@ class Cosimulation:
 
     # ---- criticality hooks (follower.py) ---------------------------------------------------------
 
-    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None) -> None:
-        self.follower.look(state, everyone, ahead)
+    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None, only=None) -> None:
+        self.follower.look(state, everyone, ahead, only)
+
+    def look_before_change(self, i: int, state: EgoState) -> None:
+        self.follower.look_before_change(i, state)
 
     def criticality_due(self, t: float, limit: float) -> bool:
         return self.follower.criticality_due(t, limit)

@@ -8,7 +8,7 @@ from array import array
 
 import numpy as np
 
-from ..results import VehicleTracks
+from ..run_result import VehicleTracks
 from ..storage import ChunkedTable, release_pages
 from ..vehicle import EgoState
 from .criticality import RANGE, Footprint, distances, ttcs

@@ -2,7 +2,7 @@
 
 States: x, y, psi, s, body velocities vx, vy and the yaw rate r. The centre of gravity lies midway
 between the axles (a = b = wheelbase / 2) and each wheel carries a quarter of the weight, Fz = m g / 4
-(no load transfer), so on uniform mu straight-line braking meets SPEC section 2's closed forms exactly.
+(no load transfer), so on uniform mu straight-line braking meets the closed forms v0^2 / (2 a) exactly.
 Wheel i sits at (x_i, y_i): front x = +a, rear x = -b, left y = +track / 2, right y = -track / 2; the
 front wheels are steered by `steer` (parallel steer). Per wheel, with the contact-point velocity
 (vx - r y_i, vy + r x_i), in the wheel frame (u_i, w_i):

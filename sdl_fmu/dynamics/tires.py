@@ -28,10 +28,9 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..interface import SCENARIO_DIRECTORY
+from ..paths import TIRE_DIRECTORY
 
 SLOT_COUNT = 8
-TIRE_DIRECTORY = SCENARIO_DIRECTORY / "tires"
 DEFAULT_ATTRIBUTE_FILE = TIRE_DIRECTORY / "attributes.txt"
 
 _LONGITUDINAL, _LATERAL, _SCALING = "LONGITUDINAL_COEFFICIENTS", "LATERAL_COEFFICIENTS", "SCALING_COEFFICIENTS"
@@ -296,7 +295,7 @@ def read_attribute_file(path: Path | str) -> list[AttributeEntry]:
 
 
 def default_attribute_file() -> Path:
-    """The shipped Tire Attribute File (sdl_fmu/scenarios/tires/attributes.txt), which the FMU's slot defaults come from."""
+    """The shipped Tire Attribute File (scenarios/tires/attributes.txt), which the FMU's slot defaults come from."""
     return DEFAULT_ATTRIBUTE_FILE
 
 

@@ -19,17 +19,13 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .. import __version__
-from ..interface import PACKAGE_DIRECTORY
+from .. import __version__, paths
 from .package import MODELS, FmiVersion, build_fmus, fmu_path, mingw_compiler
 
 if TYPE_CHECKING:
     from ..vehicle.vehicle_map import Dynamics
 
 CACHE_VARIABLE = "SDL_FMU_CACHE"
-# Everything a build reads, relative to the package: the model and build code, interface data, the tire
-# files the Advanced FMU's start values come from, the C runtime.
-BUILD_INPUTS = ("interface.py", "units.py", "dynamics", "fmu", "interfaces", "scenarios/tires")
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
 
 
@@ -51,12 +47,22 @@ def _compiler_identity(compiler: str) -> str:
         return f"unavailable: {error}"  # build_fmu reports the missing compiler itself
 
 
-def _input_files() -> list[Path]:
+def build_inputs() -> dict[str, Path]:
+    """Everything a build reads, by its place in the checkout (the same in any install): the model and build
+    code, the interface data, the tire files the Advanced FMU's start values come from, the C runtime."""
+    package = paths.PACKAGE_DIRECTORY
+    return {"sdl_fmu/interface.py": package / "interface.py", "sdl_fmu/units.py": package / "units.py",
+            "sdl_fmu/dynamics": package / "dynamics", "sdl_fmu/fmu": package / "fmu",
+            "modelDescription": paths.MODEL_DESCRIPTION_DIRECTORY, "scenarios/tires": paths.TIRE_DIRECTORY}
+
+
+def _input_files() -> list[tuple[str, Path]]:
+    """(name in the key, file) of every build input."""
     files = []
-    for entry in BUILD_INPUTS:
-        path = PACKAGE_DIRECTORY / entry
+    for name, path in build_inputs().items():
         candidates = sorted(path.rglob("*")) if path.is_dir() else [path]
-        files += [f for f in candidates if f.is_file() and f.suffix in BUILD_SUFFIXES and "__pycache__" not in f.parts]
+        files += [(f"{name}/{f.relative_to(path).as_posix()}" if path.is_dir() else name, f) for f in candidates
+                  if f.is_file() and f.suffix in BUILD_SUFFIXES and "__pycache__" not in f.parts]
     return files
 
 
@@ -73,8 +79,8 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
                  _compiler_identity(compiler), f"mingw {cross_compiler}",
                  _compiler_identity(cross_compiler) if cross_compiler else ""):
         digest.update(part.encode() + b"\0")
-    for path in _input_files():
-        digest.update(path.relative_to(PACKAGE_DIRECTORY).as_posix().encode() + b"\0")
+    for name, path in _input_files():
+        digest.update(name.encode() + b"\0")
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()
 

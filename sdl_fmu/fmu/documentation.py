@@ -9,13 +9,11 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
-from ..interface import INPUT, OUTPUT, PARAMETER, Interface, INTERFACE_DIRECTORY
+from ..interface import INPUT, OUTPUT, PARAMETER, Interface
+from ..paths import MODEL_DESCRIPTION_DIRECTORY
 from .codegen import TableEntry
+from .xml import COPYRIGHT, LICENSE, entry_description, entry_unit
 
-# the modelDescription's author, copyright and license attributes (pyproject.toml: license = MIT)
-AUTHOR = "the sdl-fmu authors"
-COPYRIGHT = "Copyright (c) 2026 the sdl-fmu authors"
-LICENSE = "MIT"
 LICENSE_FILE = Path(str(resources.files(__package__) / "LICENSE.txt"))  # package data; equal to ./LICENSE
 DOCUMENTATION = "documentation/index.html"
 LICENSE_ENTRY = "documentation/licenses/license.txt"  # FMI's entry point of the licence information
@@ -39,7 +37,7 @@ def license_text() -> str:
 
 def references(model_name: str) -> list[str]:
     """The literature a model is built on (the "references" of its interface data)."""
-    data = json.loads((INTERFACE_DIRECTORY / f"{model_name}.json").read_text(encoding="utf-8"))
+    data = json.loads((MODEL_DESCRIPTION_DIRECTORY / f"{model_name}.json").read_text(encoding="utf-8"))
     return data.get("references", [])
 
 
@@ -52,8 +50,6 @@ def _number(value) -> str:
 
 
 def _variable_rows(rows: list[tuple[int, TableEntry]], table, interface, with_start: bool) -> str:
-    from .xml import entry_description, entry_unit
-
     head = "<tr><th>name</th><th>value reference</th><th>type</th><th>unit</th>"
     head += "<th>start</th><th>min</th><th>max</th>" if with_start else ""
     head += "<th>description</th></tr>"

@@ -8,8 +8,12 @@ import xml.etree.ElementTree as ET
 from .. import __version__
 from ..interface import INPUT, OUTPUT, PARAMETER, STATE, DISCRETE, Interface
 from .codegen import TableEntry
-from .documentation import AUTHOR, COPYRIGHT, LICENSE
 from .structure import DeclaredDependencies
+
+# the modelDescription's author, copyright and license attributes (pyproject.toml: license = MIT)
+AUTHOR = "the sdl-fmu authors"
+COPYRIGHT = "Copyright (c) 2026 the sdl-fmu authors"
+LICENSE = "MIT"
 
 LOG_CATEGORIES = {
     "logEvents": "Events located by the FMU: stops, starts, mode changes (debug logging)",

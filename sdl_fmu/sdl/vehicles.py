@@ -10,6 +10,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..paths import VEHICLE_TABLE
 from .events import ApproachingVehicle, Scenario
 from .parser import SdlError
 
@@ -27,10 +28,8 @@ class VehicleModel:
 
 
 def default_vehicle_table_path() -> Path:
-    """The table shipped with the scenarios: sdl_fmu/scenarios/vehicles.csv."""
-    from ..interface import SCENARIO_DIRECTORY
-
-    return SCENARIO_DIRECTORY / "vehicles.csv"
+    """The table shipped with the scenarios: scenarios/vehicles.csv."""
+    return VEHICLE_TABLE
 
 
 def _positive(text: str) -> float:

@@ -1,5 +1,5 @@
 """The run side's vehicle: EgoModel (an FMU and its vehicle map, resolved once per run) and its instances.
-Interface: EGO_MODEL_INTERFACE.md; map format: SPEC §6 and the README."""
+Map format: docs/vehicle-maps.md."""
 
 from .instance import STANDSTILL_SPEED, STOPPED_SPEED, EgoInstance, EgoState, FmuError
 from .model import (DEFAULT_PEAK_FRICTION, VEHICLE_DEFAULTS, WHEELS, EgoModel, FrictionInput,

@@ -224,7 +224,7 @@ class EgoInstance:
         self._state = self._derive(values)
 
     def _derive(self, values: dict[str, float]) -> EgoState:
-        """sdl-fmu's state from the FMU's outputs; what the FMU lacks is derived (README: vehicle maps)."""
+        """sdl-fmu's state from the FMU's outputs; what the FMU lacks is derived (docs/vehicle-maps.md)."""
         time = self.time
         t0, v0, psi0, s0, rate0 = self._memory
         h = time - t0

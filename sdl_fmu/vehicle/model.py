@@ -1,5 +1,5 @@
 """EgoModel: everything the run side knows about the ego vehicle, built once per run from the FMU's model
-description and a vehicle map (SPEC §6). The master, the road, the driver, the triggers and the results ask it;
+description and a vehicle map (docs/vehicle-maps.md). The master, the road, the driver, the triggers and the results ask it;
 no other module looks at the FMU's variable names or at which model it is."""
 
 from __future__ import annotations
@@ -136,7 +136,7 @@ class EgoModel:
         """The model of an FMU driven through a vehicle map (fmu None: the map's own `fmu` key). Raises
         VehicleMapError (one line naming the map file and key, or the FMU) before anything runs."""
         if vehicle is None:
-            raise VehicleMapError("--vehicle: a vehicle map is needed to drive an FMU (see README, vehicle maps)")
+            raise VehicleMapError("--vehicle: a vehicle map is needed to drive an FMU (see docs/vehicle-maps.md)")
         vehicle_map = vehicle if isinstance(vehicle, VehicleMap) else load_vehicle_map(vehicle)
         if fmu is None:
             if vehicle_map.fmu is None:

@@ -1,4 +1,4 @@
-"""The vehicle map (SPEC §6): a TOML file telling sdl-fmu how to drive a vehicle FMU, read with tomllib and
+"""The vehicle map (docs/vehicle-maps.md): a TOML file telling sdl-fmu how to drive a vehicle FMU, read with tomllib and
 checked for its shape here (against the FMU in model.py). Every mistake is one VehicleMapError line naming the
 file and the key."""
 
@@ -7,9 +7,10 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Literal
+
+from ..paths import VEHICLE_MAP_DIRECTORY
 
 FrictionMeaning = Literal["mu", "attribute"]
 Dynamics = Literal["simple", "advanced"]  # the shipped vehicles, each a map scenarios/vehicles/<name>.toml
@@ -76,7 +77,7 @@ def shipped_map_path(name: Dynamics) -> Path:
     """The shipped map of the shipped model `name` ("simple" or "advanced")."""
     if name not in SHIPPED:
         raise VehicleMapError(f"--dynamics {name}: must be one of {', '.join(SHIPPED)}")
-    return Path(str(resources.files("sdl_fmu") / "scenarios" / "vehicles" / f"{name}.toml"))
+    return VEHICLE_MAP_DIRECTORY / f"{name}.toml"
 
 
 def load_vehicle_map(path: str | Path) -> VehicleMap:

@@ -1,8 +1,8 @@
-"""`sdl-fmu verify`: the vehicle test pack (SPEC section 7) and the Simple FMU's closed-form braking cases.
+"""`sdl-fmu verify`: the vehicle test pack (docs/verification.md) and the Simple FMU's closed-form braking cases.
 
 One module per job: drive (the sampled control loop), driver (path following), one module per manoeuvre
 (braking, circular, step_steer, sine_with_dwell, split_mu, lane_change), pack (runs them, failures contained),
-report (verify.json, CSVs, report.html, the table), closed_forms (SPEC section 2's braking distances).
+report (verify.json, CSVs, report.html, the table), closed_forms (the closed-form braking distances).
 """
 
 from .drive import ManoeuvreFailed

@@ -1,4 +1,4 @@
-"""`sdl-fmu verify`: straight-line braking of the Simple FMU against the closed forms of SPEC §2."""
+"""`sdl-fmu verify`: straight-line braking of the Simple FMU against its closed forms (docs/verification.md)."""
 
 from __future__ import annotations
 

@@ -42,12 +42,12 @@ def run_pack(model, names: Iterable[str] | None = None) -> list[Outcome]:
 
 
 def _add_closed_form_stops(model, stop: Outcome) -> None:
-    """SPEC section 2's closed forms, for a vehicle whose map says they hold (the Simple FMU): the 60
+    """The closed-form braking distances (docs/verification.md), for a vehicle whose map says they hold (the Simple FMU): the 60
     straight-line stops beside the R13-H stop, each within 1e-9 relative."""
     cases = closed_forms.verify(model.fmu_path)
     worst = max(max(abs(c.distance_error), abs(c.time_error)) for c in cases)
     stop.metrics.update(closed_form_cases=len(cases), closed_form_max_relative_error=worst)
-    stop.criteria.append(f"{len(cases)} SPEC section 2 closed-form stops, largest relative error "
+    stop.criteria.append(f"{len(cases)} closed-form braking stops, largest relative error "
                          f"{worst:.1e} <= 1e-9: {'pass' if worst <= 1e-9 else 'FAIL'}")
     if stop.passed is not None:
         stop.passed = stop.passed and worst <= 1e-9

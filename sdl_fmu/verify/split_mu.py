@@ -21,7 +21,7 @@ STANDARD = "ISO 14512 straight-ahead braking on split friction"
 SPEED_KMH = 100.0
 MU_LEFT, MU_RIGHT = 0.8, 0.2  # ISO 14512: high-mu (dry) left, low-mu right
 # Friction given as surface attribute numbers: the default Tire Attribute File's dry asphalt (0, peak 0.85)
-# and packed snow (2, peak 0.2) (sdl_fmu/scenarios/tires/attributes.txt)
+# and packed snow (2, peak 0.2) (scenarios/tires/attributes.txt)
 ATTRIBUTE_LEFT, ATTRIBUTE_RIGHT = 0, 2
 YAW_TIME = 2.0  # s after the brake application
 STOP_SPEED = 0.01  # m/s

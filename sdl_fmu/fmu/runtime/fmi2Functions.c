@@ -501,6 +501,16 @@ fmi2Status fmi2CancelStep(fmi2Component c) {
     return fmi2Error;
 }
 
+/* fmi2Get*Status for a kind this FMU does not report: Discard, with the message every non-OK return carries */
+static fmi2Status status_not_available(Instance *instance, const char *function, fmi2StatusKind s) {
+    instance_log(instance, STATUS_DISCARD, "logStatusWarning",
+                 "%s: status kind %d is not available (fmi2DoStep always completes; reported are fmi2GetStatus("
+                 "fmi2DoStepStatus), fmi2GetRealStatus(fmi2LastSuccessfulTime) and fmi2GetBooleanStatus("
+                 "fmi2Terminated))",
+                 function, (int)s);
+    return fmi2Discard;
+}
+
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
     Instance *instance = checked_cs(c, "fmi2GetStatus", MASK_fmi2GetStatus);
     if (!instance || !present(instance, "fmi2GetStatus", value, "value")) return fmi2Error;
@@ -508,7 +518,7 @@ fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *va
         *value = fmi2OK;
         return fmi2OK;
     }
-    return fmi2Discard;
+    return status_not_available(instance, "fmi2GetStatus", s);
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
@@ -518,14 +528,13 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
         *value = instance->now.time;
         return fmi2OK;
     }
-    return fmi2Discard;
+    return status_not_available(instance, "fmi2GetRealStatus", s);
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
     Instance *instance = checked_cs(c, "fmi2GetIntegerStatus", MASK_fmi2GetIntegerStatus);
-    (void)s;
     (void)value;
-    return instance ? fmi2Discard : fmi2Error;
+    return instance ? status_not_available(instance, "fmi2GetIntegerStatus", s) : fmi2Error;
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
@@ -535,12 +544,11 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         *value = fmi2False;
         return fmi2OK;
     }
-    return fmi2Discard;
+    return status_not_available(instance, "fmi2GetBooleanStatus", s);
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
     Instance *instance = checked_cs(c, "fmi2GetStringStatus", MASK_fmi2GetStringStatus);
-    (void)s;
     (void)value;
-    return instance ? fmi2Discard : fmi2Error;
+    return instance ? status_not_available(instance, "fmi2GetStringStatus", s) : fmi2Error;
 }

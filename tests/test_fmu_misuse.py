@@ -5,85 +5,12 @@ checked (GUID hash, checksum, then field by field) before they touch the instanc
 import ctypes
 import math
 import struct
-import zipfile
 
 import pytest
-from fmpy import read_model_description
 
-from sdl_fmu.fmu import fuzz
-from sdl_fmu.units import STANDARD_GRAVITY as G
+import fmi_fuzz as fuzz
 
-OK, ERROR = fuzz.OK, fuzz.ERROR
-
-
-class Raw:
-    """One FMU binary loaded with ctypes; every call returns its status and records the log messages."""
-
-    def __init__(self, fmu, directory):
-        with zipfile.ZipFile(fmu) as archive:
-            archive.extractall(directory)
-        self.description = read_model_description(str(directory))
-        identifier = self.description.coSimulation.modelIdentifier
-        self.library = fuzz.load_library(directory / "binaries" / "linux64" / f"{identifier}.so", 2)
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.messages = []
-        self.callbacks = fuzz.fmi2_callbacks(fuzz.Logger(self._log))
-        self.component = None
-
-    def _log(self, environment, name, status, category, message, argument):
-        if message == b"%s" and argument:
-            message = ctypes.string_at(argument)
-        self.messages.append((status, message.decode()))
-
-    def instantiate(self, kind=fuzz.CS):
-        self.component = self.library.fmi2Instantiate(b"test", kind, self.description.guid.encode(), b"",
-                                                      ctypes.byref(self.callbacks), 0, 0)
-        assert self.component
-        return self
-
-    def __call__(self, name, *args):
-        self.messages.clear()
-        status = getattr(self.library, f"fmi2{name}")(self.component, *args)
-        if status == ERROR:  # every error says why
-            assert any(s == ERROR for s, _ in self.messages), f"fmi2{name} returned an error without a message"
-        return status
-
-    def set_real(self, **values):
-        vrs = [self.vr[n] for n in values]
-        return self("SetReal", (ctypes.c_uint * len(vrs))(*vrs), len(vrs), (ctypes.c_double * len(vrs))(*values.values()))
-
-    def get_real(self, *names):
-        values = (ctypes.c_double * len(names))()
-        assert self("GetReal", (ctypes.c_uint * len(names))(*[self.vr[n] for n in names]), len(names), values) == OK
-        return list(values)
-
-    def start(self, start_time=0.0, **values):
-        assert self("SetupExperiment", 0, 0.0, start_time, 0, 0.0) == OK
-        assert self.set_real(**values) == OK
-        assert self("EnterInitializationMode") == OK
-        assert self("ExitInitializationMode") == OK
-        return self
-
-    def free(self):
-        self.library.fmi2FreeInstance(self.component)
-
-    def serialize(self):
-        state = ctypes.c_void_p()
-        assert self("GetFMUstate", ctypes.byref(state)) == OK
-        size = ctypes.c_size_t()
-        assert self("SerializedFMUstateSize", state, ctypes.byref(size)) == OK
-        buffer = ctypes.create_string_buffer(size.value)
-        assert self("SerializeFMUstate", state, buffer, size.value) == OK
-        assert self("FreeFMUstate", ctypes.byref(state)) == OK
-        return buffer.raw
-
-    def deserialize_and_set(self, data):
-        state = ctypes.c_void_p()
-        status = self("DeSerializeFMUstate", bytes(data), len(data), ctypes.byref(state))
-        if status == OK:
-            status = self("SetFMUstate", state)
-            self("FreeFMUstate", ctypes.byref(state))
-        return status
+from helpers import ERROR, OK, WHEELS, G, Raw, Raw3
 
 
 @pytest.fixture
@@ -158,7 +85,7 @@ def test_step_far_below_solver_step_and_event_at_the_end_of_a_step(simple):
     # so did the rest of a step after an event located within 1e-11 s of the step's end.
     mu, v0 = 0.6, 30.0
     simple.start(v0=v0, brake=1.0, drag_area=0.0, rolling_resistance=0.0, solver_step=0.01,
-                 **{f"mu_{w}": mu for w in ("fl", "fr", "rl", "rr")})
+                 **{f"mu_{w}": mu for w in WHEELS})
     assert simple("DoStep", 0.0, 5e-12, 1) == OK
     t_stop = v0 / (mu * G)  # constant deceleration mu g (< brake_decel_max)
     assert simple("DoStep", 5e-12, t_stop, 1) == OK  # ends 5e-12 s after the stop
@@ -268,47 +195,6 @@ def test_serialized_states_are_validated_field_by_field(simple, advanced_fmu, tm
 
 
 # ---- FMI 3.0: the same shared checks behind fmi3Functions.c, and its own state table ---------------------------
-
-
-class Raw3:
-    """An FMI 3.0 binary loaded with ctypes (the fuzzer's signatures); calls return their status."""
-
-    def __init__(self, fmu, directory, cosimulation=True):
-        with zipfile.ZipFile(fmu) as archive:
-            archive.extractall(directory)
-        self.description = read_model_description(str(directory))
-        identifier = self.description.coSimulation.modelIdentifier
-        self.library = fuzz.load_library(directory / "binaries" / "x86_64-linux" / f"{identifier}.so", 3)
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
-        self.messages = []
-        self.logger = fuzz.LogMessage3(lambda environment, status, category, message: self.messages.append(status))
-        token = self.description.guid.encode()
-        if cosimulation:
-            self.instance = self.library.fmi3InstantiateCoSimulation(b"test", token, b"", False, False, False, False,
-                                                                     None, 0, None, self.logger, None)
-        else:
-            self.instance = self.library.fmi3InstantiateModelExchange(b"test", token, b"", False, False, None,
-                                                                      self.logger)
-        assert self.instance
-
-    def __call__(self, name, *args):
-        self.messages.clear()
-        status = getattr(self.library, f"fmi3{name}")(self.instance, *args)
-        if status == ERROR:
-            assert ERROR in self.messages, f"fmi3{name} returned an error without a message"
-        return status
-
-    def set_float64(self, **values):
-        vrs = [self.vr[n] for n in values]
-        return self("SetFloat64", (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
-                    (ctypes.c_double * len(vrs))(*values.values()), len(vrs))
-
-    def do_step(self, t, h):
-        flags = [ctypes.byref(ctypes.c_bool()) for _ in range(3)]
-        return self("DoStep", t, h, True, *flags, ctypes.byref(ctypes.c_double()))
-
-    def free(self):
-        self.library.fmi3FreeInstance(self.instance)
 
 
 def test_fmi3_gets_the_same_hardening(simple_fmus, advanced_fmus, tmp_path):

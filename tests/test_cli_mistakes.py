@@ -21,6 +21,8 @@ from sdl_fmu.cli import main
 from sdl_fmu.dynamics.tires import DEFAULT_ATTRIBUTE_FILE
 from sdl_fmu.results_folder import MANIFEST_NAME
 
+from helpers import sdl_fmu
+
 GOOD = "English\n100,BRK,100,1,50\n200,ES\n"
 DRY_TIRE = DEFAULT_ATTRIBUTE_FILE.parent / "dry_asphalt.tir"
 
@@ -267,7 +269,6 @@ def test_ctrl_c_during_a_run_exits_130_with_one_line_and_no_partial_folder(tmp_p
     assert stderr.splitlines() == ["sdl-fmu: interrupted (Ctrl-C); nothing was written"] and stdout == ""
     assert list(work.iterdir()) == []
     # the interrupted run's folder is free: the next run writes it
-    completed = subprocess.run([sys.executable, "-m", "sdl_fmu.cli", "run", "demo", "--fmu", str(simple_fmu),
-                                "--until-time", "1", "--out", str(out)], cwd=work, capture_output=True, text=True)
+    completed = sdl_fmu("run", "demo", "--fmu", simple_fmu, "--until-time", "1", "--out", out, cwd=work)
     assert completed.returncode == 0, completed.stderr
     assert os.listdir(work) == ["results"]

@@ -9,11 +9,10 @@ import subprocess
 
 import pytest
 
-from sdl_fmu.fmu import fuzz
+import fmi_fuzz as fuzz
 from sdl_fmu.fmu.package import fmi_headers
 
-from test_importers import HOST_SOURCE, SIMPLE_START, extract_binary, host_arguments
-from test_runtime_hardening import ERROR, OK, Raw, Raw3
+from helpers import ERROR, OK, SIMPLE_START, Raw, Raw3, extract_binary, host_arguments
 
 
 def as_address(handle):
@@ -84,23 +83,15 @@ def test_fmi3_handles_are_looked_up_not_dereferenced(simple_fmus, tmp_path):
         b.free()
 
 
-@pytest.fixture(scope="module")
-def host(tmp_path_factory):
-    path = tmp_path_factory.mktemp("host") / "fmi_host"
-    subprocess.run(["gcc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", f"-I{fmi_headers()}", str(HOST_SOURCE),
-                    "-o", str(path), "-ldl"], check=True)
-    return path
-
-
 MISUSES = 6  # the misuses in misuse_states (tests/hosts/fmi_host.c)
 
 
 @pytest.mark.parametrize("version", [2, 3], ids=["fmi2", "fmi3"])
-def test_c_host_misusing_handles_as_fmusim_does(simple_fmus, host, tmp_path, version):
+def test_c_host_misusing_handles_as_fmusim_does(simple_fmus, c_host, tmp_path, version):
     fmu = simple_fmus[version]
     library = extract_binary(fmu, tmp_path, version, "so")
     arguments = host_arguments(fmu, library, SIMPLE_START, ("s",), 1.0)
-    completed = subprocess.run([str(host), *map(str, arguments), "--misuse-states"], capture_output=True, text=True,
+    completed = subprocess.run([str(c_host), *map(str, arguments), "--misuse-states"], capture_output=True, text=True,
                                timeout=300)
     assert completed.returncode == 0, completed.stderr[-3000:]
     refused = [line for line in completed.stdout.splitlines() if line.startswith("MISUSE")]
@@ -110,8 +101,9 @@ def test_c_host_misusing_handles_as_fmusim_does(simple_fmus, host, tmp_path, ver
     assert len(logged) >= MISUSES, completed.stderr
 
 
+@pytest.mark.slow  # rebuilds the FMU from its sources with the sanitizers
 @pytest.mark.parametrize("version", [2, 3], ids=["fmi2", "fmi3"])
-def test_c_host_misuse_is_clean_under_asan_and_ubsan(simple_fmus, host, tmp_path, version):
+def test_c_host_misuse_is_clean_under_asan_and_ubsan(simple_fmus, c_host, tmp_path, version):
     """The same misuse against the FMU's own sources built with AddressSanitizer + UBSan (abort on the first
     finding, leaks included): no read through a freed or foreign handle, no double free, nothing leaked."""
     fmu = simple_fmus[version]
@@ -119,7 +111,7 @@ def test_c_host_misuse_is_clean_under_asan_and_ubsan(simple_fmus, host, tmp_path
     library = fuzz.sanitized_library(tmp_path, tmp_path / "sanitized.so")
     environment = {**fuzz.sanitizer_environment(), "ASAN_OPTIONS": "detect_leaks=1:abort_on_error=1"}
     arguments = host_arguments(fmu, library, SIMPLE_START, ("s",), 0.5)
-    completed = subprocess.run([str(host), *map(str, arguments), "--misuse-states", "--repeat", "2"],
+    completed = subprocess.run([str(c_host), *map(str, arguments), "--misuse-states", "--repeat", "2"],
                                capture_output=True, text=True, timeout=600, env=environment)
     assert completed.returncode == 0, completed.stderr[-3000:]
     assert "Sanitizer" not in completed.stderr and "runtime error" not in completed.stderr

@@ -1,6 +1,7 @@
-"""Red team (issue 21, item 4): the inputs that once crashed or exhausted a run, and generated inputs of the same
-families (huge model ranges, long digit strings, extreme but legal magnitudes of every numeric field, many lanes,
-long lines, non-ASCII digits). The set is meant to grow: add a case to a list below.
+"""Scenario inputs at and beyond the format's limits (issue 21, item 4): the inputs that once crashed or exhausted
+a run, and generated inputs of the same families (huge model ranges, long digit strings, extreme but legal
+magnitudes of every numeric field, many lanes, long lines, non-ASCII digits). The set is meant to grow: add a case
+to a list below.
 
 Each case runs the real command line in a subprocess under a memory cap (resource.setrlimit on the address space)
 and a wall-clock limit that only catches hangs (never a speed assertion), and has one of two outcomes, which
@@ -18,6 +19,8 @@ import sys
 import pytest
 
 from sdl_fmu.sdl.parser import MAX_LANES, MAX_NUMBER_CHARS, MAX_PARAMETERS, MAX_SHOWN_CHARS
+
+import helpers
 
 MEMORY_CAP = 1 << 30  # bytes of address space per sdl-fmu process; a run needs ~0.3 GiB, the old reproducers > 1
 HANG_LIMIT = 900  # s: only a hang gets near it (the longest case, a 3600 s run, takes ~10 s alone)
@@ -85,8 +88,8 @@ def failures(cases, outcomes, check) -> list[str]:
 
 
 def sdl_fmu(arguments, cwd):
-    return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, arguments)], cwd=cwd, capture_output=True,
-                          text=True, timeout=HANG_LIMIT, preexec_fn=_capped, env={**os.environ, "PYTHONWARNINGS": ""})
+    return helpers.sdl_fmu(*arguments, cwd=cwd, timeout=HANG_LIMIT, preexec_fn=_capped,
+                           env={**os.environ, "PYTHONWARNINGS": ""})
 
 
 def run_case(tmp_path, fmu, text, extra=(), name="case.sdl"):
@@ -127,43 +130,65 @@ def test_brk_relative_velocity_beyond_the_stop_no_longer_holds_the_run(tmp_path,
     assert actions[-1] == ("ES", "end", "scenario") and summary["final"]["time_s"] < 100
 
 
-@pytest.mark.parametrize("models", ["*1~30000000", "*1~1000000000", "*1~99999999999999999999",
-                                    "*1~" + "9" * MAX_NUMBER_CHARS, "*5~" + "1" + "0" * 30])
-def test_a_huge_model_range_is_refused_at_once(tmp_path, simple_fmu, models):
-    result, path, out = run_case(tmp_path, simple_fmu, f"English\n100,A,20,1000,-6,{models}\n")
-    line = assert_refused(result, path, out, 2, "A parameter 4 (model)")
-    assert "11-" in line and "are not in the table" in line
-
-
-@pytest.mark.parametrize("event, field", [
+# The short refusals below share one capped subprocess (run_batch, once per module): each case is still the real
+# command line (cli.main) on its own file and folder; only the interpreter's start-up is shared.
+HUGE_MODEL_RANGES = ["*1~30000000", "*1~1000000000", "*1~99999999999999999999", "*1~" + "9" * MAX_NUMBER_CHARS,
+                     "*5~" + "1" + "0" * 30]
+WHOLE_NUMBER_FIELDS = [
     ("0,ROAD,12,2,{}", "ROAD parameter 3 (lanes right of the dividing line)"),
     ("100,RSA,{},8", "RSA parameter 1 (lane)"),
     ("100,BRK,100,{},3", "BRK parameter 2 (threshold type)"),
     ("100,A,20,1000,-6,{}", "A parameter 4 (model)"),
-])
-@pytest.mark.parametrize("digits", [MAX_NUMBER_CHARS + 1, 4301, 10**6], ids=["33", "4301", "1M"])
-def test_a_whole_number_field_with_too_many_digits_is_one_short_line(tmp_path, simple_fmu, event, field, digits):
-    result, path, out = run_case(tmp_path, simple_fmu, "English\n" + event.format("1" * digits) + "\n")
-    line = assert_refused(result, path, out, 2, field)
-    assert f"longer than {MAX_NUMBER_CHARS} characters" in line
-    assert (f"({digits} characters)" in line) == (digits > MAX_SHOWN_CHARS)  # shortened when long
-
-
-@pytest.mark.parametrize("event, field", [
+]
+DIGITS = [MAX_NUMBER_CHARS + 1, 4301, 10**6]
+UNDRAWABLE = [
     ("100,A,-1e308,1000,-6,1", "A parameter 1 (speed)"),
     ("0,ROAD,1e308,2,1", "ROAD parameter 1 (lane width)"),
     ("0,ROAD,12,100000,1", "ROAD parameter 2 (lanes)"),
     ("0,ROAD,12,1000000,1", "ROAD parameter 2 (lanes)"),
     ("0,ROAD,12,200,99", "ROAD parameter 3 (lanes right of the dividing line)"),  # 101 left: lane -101 = shoulder
-])
-def test_values_the_plot_could_not_draw_are_refused_up_front(tmp_path, simple_fmu, event, field):
-    result, path, out = run_case(tmp_path, simple_fmu, f"English\n{event}\n")
+]
+REFUSALS = {  # case -> scenario text
+    **{("models", models): f"English\n100,A,20,1000,-6,{models}\n" for models in HUGE_MODEL_RANGES},
+    **{("digits", event, digits): "English\n" + event.format("1" * digits) + "\n"
+       for event, _ in WHOLE_NUMBER_FIELDS for digits in DIGITS},
+    **{("undrawable", event): f"English\n{event}\n" for event, _ in UNDRAWABLE},
+    ("1 MB field",): "English\n100,BRK,100,0," + "x" * 2**20 + "\n",
+}
+
+
+@pytest.fixture(scope="module")
+def refused(tmp_path_factory, simple_fmu):
+    """case -> (result, path, out) of every case of REFUSALS, run as run_case runs one."""
+    cases = [(str(case), text, []) for case, text in REFUSALS.items()]
+    return dict(zip(REFUSALS, run_batch(tmp_path_factory.mktemp("refusals"), simple_fmu, cases)))
+
+
+@pytest.mark.parametrize("models", HUGE_MODEL_RANGES)
+def test_a_huge_model_range_is_refused_at_once(refused, models):
+    result, path, out = refused["models", models]
+    line = assert_refused(result, path, out, 2, "A parameter 4 (model)")
+    assert "11-" in line and "are not in the table" in line
+
+
+@pytest.mark.parametrize("event, field", WHOLE_NUMBER_FIELDS)
+@pytest.mark.parametrize("digits", DIGITS, ids=["33", "4301", "1M"])
+def test_a_whole_number_field_with_too_many_digits_is_one_short_line(refused, event, field, digits):
+    result, path, out = refused["digits", event, digits]
+    line = assert_refused(result, path, out, 2, field)
+    assert f"longer than {MAX_NUMBER_CHARS} characters" in line
+    assert (f"({digits} characters)" in line) == (digits > MAX_SHOWN_CHARS)  # shortened when long
+
+
+@pytest.mark.parametrize("event, field", UNDRAWABLE)
+def test_values_the_plot_could_not_draw_are_refused_up_front(refused, event, field):
+    result, path, out = refused["undrawable", event]
     line = assert_refused(result, path, out, 2, field)
     assert "beyond the format's limit" in line or "at most 100 (lane numbers 101 and -101 are the shoulders)" in line
 
 
-def test_a_1mb_bad_field_is_shown_shortened(tmp_path, simple_fmu):
-    result, path, out = run_case(tmp_path, simple_fmu, "English\n100,BRK,100,0," + "x" * 2**20 + "\n")
+def test_a_1mb_bad_field_is_shown_shortened(refused):
+    result, path, out = refused["1 MB field",]
     assert "(1048576 characters)" in assert_refused(result, path, out, 2, "BRK parameter 3 (magnitude)")
 
 
@@ -192,13 +217,13 @@ def test_a_short_name_shadowed_in_the_working_folder_is_one_line(tmp_path, shado
     assert sdl_fmu(["check", "demo"], tmp_path / "clean").returncode == 0
 
 
-def test_the_readme_lists_every_shipped_scenario():
+def test_the_scenario_docs_list_every_shipped_scenario():
     from pathlib import Path
 
     from sdl_fmu import api
 
-    readme = (Path(__file__).parent.parent / "README.md").read_text()
-    section = readme.split("## Scenarios (SDL)")[1].split("\n## ")[0]
+    docs = (Path(__file__).parent.parent / "docs" / "scenarios.md").read_text()
+    section = docs.split("## The shipped examples")[1].split("\n## ")[0]
     assert all(f"`{name}`" in section for name in api.shipped_scenarios()), sorted(api.shipped_scenarios())
 
 
@@ -239,6 +264,7 @@ def _metric(text: str) -> str:
     return text.replace(L_MAX, "1000000").replace(S_MAX, "1000").replace("328,", "100,")
 
 
+@pytest.mark.slow  # 27 whole runs of up to 600 s with their plots
 def test_extreme_legal_values_run_and_plot(tmp_path, simple_fmu):
     assert EXTREMES["long RSA line"].split("\n")[1].count(",") - 1 == MAX_PARAMETERS  # the most a line may hold
     cases = [(f"English {name}", f"English\n{text}\n", ["--until-time", "600"]) for name, text in EXTREMES.items()]

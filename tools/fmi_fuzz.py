@@ -5,13 +5,17 @@ function may be called in which state, on a model-exchange or a co-simulation in
 modelDescription (value
 references, types, causality, variability, min/max), plus the runtime's documented argument rules (README:
 non-finite or out-of-range values, a step not at the FMU's time, time that cannot advance, the internal-step
-budget, corrupted serialized states). A call that returns OK where an error is required is a violation; so is
-an error without a log message.
+budget, corrupted serialized states). A call that returns OK where an error is required is a violation (a
+communication step of 0 included); so is any non-OK return (Warning, Discard, Error, Fatal) without a log message
+of a non-OK status during the call.
 
 Sequences run in batches, each batch in a worker subprocess that is restarted after a crash; a watchdog kills a
 worker whose current call takes longer than the hang timeout. Every sequence is reproducible from (seed, index).
 
-    python -m sdl_fmu.fmu.fuzz dist/fmi2/EgoVehicleSimple.fmu dist/fmi3/EgoVehicleSimple.fmu --sequences 20000
+    python tools/fmi_fuzz.py dist/fmi2/EgoVehicleSimple.fmu dist/fmi3/EgoVehicleSimple.fmu --sequences 20000
+
+A development tool of the repository, not part of the installed package (the wheel does not contain it). It needs
+fmpy, and for --sanitize the sdl_fmu package (installed, or this checkout's, found beside tools/).
 """
 
 from __future__ import annotations
@@ -40,9 +44,10 @@ INTERNAL_STEP_BUDGET = 50000
 TIME_MISMATCH = 1e-6
 HANG_TIMEOUT = 5.0  # s
 STARTUP_TIMEOUT = 120.0  # s for a worker to start Python and load the FMU (not a call: no hang)
-WORKER_COMMAND = [sys.executable, "-m", "sdl_fmu.fmu.fuzz"]  # a worker runs batches of sequences
+WORKER_COMMAND = [sys.executable, str(Path(__file__).resolve())]  # a worker runs batches of sequences
 
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
+STATUS_NAMES = ("OK", "Warning", "Discard", "Error", "Fatal")
 ME, CS = 0, 1
 
 # ---- ctypes view of the FMI 2.0 API -------------------------------------------------------------------------
@@ -101,7 +106,11 @@ SIGNATURES = {
     "fmi2GetContinuousStates": (Status, [Component, P(Real), ctypes.c_size_t]),
     "fmi2GetNominalsOfContinuousStates": (Status, [Component, P(Real), ctypes.c_size_t]),
     "fmi2DoStep": (Status, [Component, Real, Real, Boolean]),
+    "fmi2GetStatus": (Status, [Component, ctypes.c_int, P(Status)]),
     "fmi2GetRealStatus": (Status, [Component, ctypes.c_int, P(Real)]),
+    "fmi2GetIntegerStatus": (Status, [Component, ctypes.c_int, P(Integer)]),
+    "fmi2GetBooleanStatus": (Status, [Component, ctypes.c_int, P(Boolean)]),
+    "fmi2GetStringStatus": (Status, [Component, ctypes.c_int, P(ctypes.c_char_p)]),
 }
 
 Instance3 = ctypes.c_void_p
@@ -172,7 +181,7 @@ ALLOWED = {  # function -> {interface type: states where the standard allows it}
     "fmi2Reset": {CS: "any", ME: "any"},
     "get": {CS: {"init", "step", "terminated"}, ME: {"init", "event", "cont", "terminated"}},
     "fmi2DoStep": {CS: {"step"}, ME: set()},
-    "fmi2GetRealStatus": {CS: {"step", "terminated"}, ME: set()},
+    "fmi2GetXXXStatus": {CS: {"step", "terminated"}, ME: set()},
     "fmi2EnterEventMode": {CS: set(), ME: {"event", "cont"}},
     "fmi2NewDiscreteStates": {CS: set(), ME: {"event"}},
     "fmi2EnterContinuousTimeMode": {CS: set(), ME: {"event"}},
@@ -255,7 +264,7 @@ class Worker:
         self.unknown_vr = max(self.by_vr) + 1000
         self.solver_step = next((v for v in self.variables if v.name == "solver_step"), None)
         self.seed = config["seed"]
-        self.log_errors = 0
+        self.log_non_ok = 0  # messages of any non-OK status during the current call
         self.last_message = ""
         self.callbacks = fmi2_callbacks(Logger(self._log))
         self.stats = Counter()
@@ -264,8 +273,9 @@ class Worker:
         self._log(environment, None, status, category, message, None)
 
     def _log(self, environment, name, status, category, message, argument):
+        if status != OK:
+            self.log_non_ok += 1
         if status >= ERROR:
-            self.log_errors += 1
             if message == b"%s" and argument:
                 message = ctypes.string_at(argument)
             self.last_message = message.decode(errors="replace") if message else ""
@@ -279,16 +289,16 @@ class Worker:
         """Runs one FMI call; checks the oracle; returns the status."""
         self.emit("c", self.index, self.count, name)
         self.count += 1
-        self.log_errors = 0
+        self.log_non_ok = 0
         if self.version == 3:
             name = FMI3_NAMES[name]
             args = self.fmi3_arguments(name, args)
         status = getattr(self.library, name)(*args)
-        self.stats[f"{name} {('OK', 'Warning', 'Discard', 'Error', 'Fatal')[status]}"] += 1
+        self.stats[f"{name} {STATUS_NAMES[status]}"] += 1
         if must_fail and status in (OK, WARNING):
             self.emit("V", self.index, self.count - 1, name, "returned OK where an error is required:", self.why)
-        if status >= ERROR and self.log_errors == 0:
-            self.emit("V", self.index, self.count - 1, name, "returned an error without a log message")
+        if status != OK and self.log_non_ok == 0:
+            self.emit("V", self.index, self.count - 1, name, f"returned {STATUS_NAMES[status]} without a log message")
         if status >= ERROR and not (must_fail or may_fail):
             self.state = None  # an error the oracle did not predict (e.g. numerical): state unknown
             self.stats["unpredicted errors"] += 1
@@ -608,10 +618,16 @@ class Worker:
         ])()
 
     def do_status(self) -> None:
-        if self.version == 3:  # FMI 3.0 has no fmi3GetRealStatus
+        """One of the five fmi2Get*Status functions with a kind of fmi2StatusKind (0..3) or outside it; a kind the
+        FMU does not report may give Discard, which (like every non-OK return) needs a log message."""
+        if self.version == 3:  # FMI 3.0 has no fmi3Get*Status
             return
-        must, uncertain = self.state_rule("fmi2GetRealStatus")
-        self.call("fmi2GetRealStatus", must, True, self.component, 2, ctypes.byref(Real()))  # fmi2LastSuccessfulTime
+        name, value = self.rng.choice([("fmi2GetStatus", Status()), ("fmi2GetRealStatus", Real()),
+                                       ("fmi2GetIntegerStatus", Integer()), ("fmi2GetBooleanStatus", Boolean()),
+                                       ("fmi2GetStringStatus", ctypes.c_char_p())])
+        kind = self.rng.choice([0, 1, 2, 3, 3, -1, 7])
+        must, _ = self.state_rule("fmi2GetXXXStatus")
+        self.call(name, must, True, self.component, kind, ctypes.byref(value))
 
     def sequence(self, index: int) -> None:
         self.rng = r = random.Random(self.seed * 1_000_003 + index)
@@ -698,7 +714,11 @@ def model_config(unzipped: Path, library: Path, seed: int) -> dict:
 
 def sanitized_library(unzipped: Path, output: Path) -> Path:
     """Compiles the FMU's own sources with AddressSanitizer and UBSan (aborting on the first finding)."""
-    from .package import compile_binary
+    try:
+        from sdl_fmu.fmu.package import compile_binary
+    except ImportError:  # not installed: the checkout this tool lives in
+        sys.path.append(str(Path(__file__).resolve().parents[1]))
+        from sdl_fmu.fmu.package import compile_binary
     from fmpy.model_description import read_build_description
 
     configuration, = read_build_description(str(unzipped))
@@ -805,7 +825,7 @@ def _run_batch(config: Path, first: int, count: int, hang_timeout: float, enviro
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m sdl_fmu.fmu.fuzz", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python tools/fmi_fuzz.py", description=__doc__.split("\n\n")[0])
     parser.add_argument("fmu", nargs="+", type=Path)
     parser.add_argument("--sequences", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=1)

@@ -4,11 +4,12 @@ same times and the same collisions at --step 0.001 ... 10 s (issue 11). Runs the
 import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
-from sdl_fmu.interface import SCENARIO_DIRECTORY
-from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
+from sdl_fmu.paths import SCENARIO_DIRECTORY
+from sdl_fmu.sdl import load_scenario, parse_text
 from sdl_fmu.units import FOOT
 
-TABLE = load_vehicle_table(default_vehicle_table_path())
+from helpers import TABLE
+
 STEPS = (0.001, 0.01, 0.1, 1.0, 10.0)
 # Every trigger is bisected to within TIME_TOLERANCE = 1e-6 s of its instant, from whichever side the
 # step happens to bracket it: two runs place one instant at most 1e-6 s apart. Later instants inherit the

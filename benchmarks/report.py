@@ -1,0 +1,307 @@
+"""BENCHMARKS.md, generated from benchmarks/results/*.json: every measured number is typed once, by the benchmark
+that measured it. The method of each benchmark and its target are written here; the numbers come from the JSON.
+
+    python benchmarks/report.py            # rewrites BENCHMARKS.md
+    python benchmarks/report.py --check    # exit 1 if BENCHMARKS.md is not what the results give
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+OUT = ROOT / "BENCHMARKS.md"
+
+# the targets the benchmarks are held to (requirements, not measurements)
+DEMO_RTF = {"simple": 1000.0, "advanced": 200.0}
+DEMO_EVENT_S, DEMO_DISTANCE_FT = 1e-3, 0.01
+VEHICLES_TIME_RATIO = 12.0  # 10 000 vehicles take at most 12x the time of 1 000
+SWEEP_SPEEDUP = 1.8  # 2 workers against 1
+CRITICALITY_OVERHEAD = 0.15  # on the demo
+VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
+
+
+def _load(name: str, results: Path) -> dict:
+    return json.loads((results / f"{name}.json").read_text())
+
+
+def _measured(block: dict) -> str:
+    load = block.get("load_average_1min")
+    when = f"{block['utc']}, {block['machine']}, Python {block['python']}, " + ", ".join(
+        f"{name} {version}" for name, version in block["versions"].items())
+    parts = [when] + ([f"load average {load} (1 min) at the end"] if load is not None else [])
+    parts += [block["conditions"]] if block.get("conditions") else []
+    return "Measured " + "; ".join(parts) + "."
+
+
+def _met(ok: bool) -> str:
+    return "**met**" if ok else "**not met**"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + ["| " + " | ".join(r) + " |" for r in rows]
+
+
+def _pct(x: float) -> str:
+    return f"{x * 100:+.1f} %"
+
+
+def fmu_step(results: Path) -> list[str]:
+    data = _load("fmu_step", results)
+    native = data["native simple (fmpy, FMI 2 CS)"]
+    how = {
+        "native simple (fmpy, FMI 2 CS)": "sdl-fmu: CasADi C code + own runtime, RODAS4 with error-controlled steps (default)",
+        "native advanced (fmpy, FMI 2 CS)": "the same, the Advanced model (Magic Formula tires)",
+        "native simple, fixed 1 ms steps": "the Simple FMU with `solver_tolerance` 0, `solver_step` 1 ms",
+        "native advanced, fixed 1 ms steps": "likewise, Advanced",
+        "PythonFMU simple (fmpy, FMI 2 CS)": "`benchmarks/simple_pythonfmu.py`: the model's CasADi derivatives "
+                                             "function called from Python, RK4 at 1 ms",
+        "CasADi export simple (fmpy CVode, FMI 3 ME)": "`DaeBuilder.export_fmu` + `compile_fmu` + `pack_fmu` (FMI 3.0 "
+                                                       "model exchange), simulated by `fmpy.simulate_fmu` (CVode)",
+    }
+    rows = []
+    for name, cost in data.items():
+        if name == "measured":
+            continue
+        if isinstance(cost, (int, float)):
+            figure = f"{cost:,.0f}".replace(",", " ") + ("" if name.startswith("native simple (") else
+                                                         f" ({cost / native:.1f}× the native Simple)")
+        else:
+            figure = str(cost)
+        rows.append([name, how.get(name, ""), figure])
+    return [
+        "## 1. Per-step cost of the ego FMU through fmpy", "", "Script: `benchmarks/fmu_step.py`.", "",
+        "Set the inputs, advance 10 ms, get the outputs, through fmpy's public calls; CPU time per 10 ms step "
+        "(2000 steps for the native Simple FMU and the CasADi export, 500 for the others; the CasADi export's figure "
+        "is `fmpy.simulate_fmu`'s whole CPU time over 2000 output intervals, its set-up included). All integrate the "
+        "same Simple equations (`sdl_fmu.dynamics.simple.equations()`): the native build compiles them, the "
+        "PythonFMU slave evaluates the model's CasADi `derivatives` Function in Python (what a PythonFMU user with "
+        "this model would write), and the CasADi export is built generically from the model's interface.", "",
+        *_table(["FMU", "how it is made", "µs CPU per 10 ms step"], rows), "",
+        _measured(data["measured"]), "",
+        "- The PythonFMU slave's cost is CasADi's numeric call from Python (argument conversion and the SX virtual "
+        "machine), 40 calls per 10 ms step with RK4 at 1 ms. Hand-written Python arithmetic would be cheaper per "
+        "call but would be a second copy of the equations.",
+        "- CasADi's `DaeBuilder.export_fmu` generates FMI 3.0 model-exchange sources only (no FMI 2.0, no "
+        "co-simulation). fmpy's fixed-step `Euler` solver cannot run the export: it answers "
+        "`fmi3GetEventIndicators` with status fatal when it has no event indicators. The export has no events: "
+        "the Simple model's discrete states (`stopped`, each wheel's direction) stay at their start values, so it "
+        "cannot come to a standstill; the benchmark drives forward and never stops, so its trajectory is unaffected.",
+        ""]
+
+
+def demo_speed(results: Path) -> list[str]:
+    data = _load("demo_speed", results)
+    rows, verdicts = [], []
+    for dynamics in ("simple", "advanced"):
+        r = data[dynamics]
+        fixed = r["fixed_1ms_internal_steps"]
+        against = fixed["default_against_it"]
+        master = data.get(f"{dynamics}_master", {})
+        rows.append([dynamics.capitalize(), f"{r['simulated_s']:.1f}", f"{r['wall_s']:.3f}",
+                     f"**{r['real_time_factor']:.0f}×** (CPU: {r['cpu_real_time_factor']:.0f}×)", str(r["steps"]),
+                     f"{r['reference_wall_s']:.3f} s, {r['reference_steps']} steps; "
+                     f"{'same' if r['same_events'] else 'different'} events, worst time difference "
+                     f"{r['worst_event_time_difference_s']:.1e} s, final distance {r['final_distance_difference_ft']:.1e} ft",
+                     f"{fixed['wall_s']:.3f} s = {fixed['real_time_factor']:.0f}×; "
+                     f"{'same' if against['same_events'] else 'different'} events, "
+                     f"{against['worst_event_time_difference_s']:.1e} s, {against['final_distance_difference_ft']:.1e} ft",
+                     f"{master['master_us_per_step']:.0f}" if master else "–"])
+        ok = (r["real_time_factor"] >= DEMO_RTF[dynamics] and r["same_events"]
+              and r["worst_event_time_difference_s"] <= DEMO_EVENT_S
+              and r["final_distance_difference_ft"] <= DEMO_DISTANCE_FT)
+        verdicts.append(f"{dynamics.capitalize()} ≥ {DEMO_RTF[dynamics]:.0f}× real time with the 10 ms reference's "
+                        f"events within {DEMO_EVENT_S:g} s and final distance within {DEMO_DISTANCE_FT:g} ft: {_met(ok)}")
+    return [
+        "## 2. The demo's real-time factors", "", "Script: `benchmarks/demo_speed.py`.", "",
+        "`scenarios/demo.sdl` (two miles, 4 vehicles, 4 BRK events, 3 surface stretches) at the default settings "
+        "(`--step 1`, driver sampled every 0.05 s, the FMUs' error-controlled internal step), best of 3, by wall "
+        "time of the co-simulation loop (`timing.wall_s`), against the 10 ms reference run (`--step 0.01`, same "
+        "driver) and against the same run with the FMUs' fixed 1 ms internal steps (`solver_tolerance` 0). The "
+        "master's own work is the loop's time minus the time inside fmi2DoStep, per communication step.", "",
+        *_table(["dynamics", "simulated s", "wall s", "real-time factor", "steps", "vs the 10 ms reference",
+                 "vs fixed 1 ms internal steps", "master µs / step"], rows), "",
+        _measured(data["measured"]), "",
+        *[f"- {v}" for v in verdicts], ""]
+
+
+def scaling(results: Path) -> list[str]:
+    data = _load("scaling", results)
+    rows = []
+    for part, label in (("vehicles", "A vehicles"), ("lines", "lines")):
+        for r in data[part]:
+            rows.append([f"{r['size']:,} {label}".replace(",", " "), f"{r['simulated_s']:,.0f}".replace(",", " "),
+                         f"{r['steps']:,}".replace(",", " "), f"{r['wall_s']:.2f}", f"{r['cpu_s']:.2f}",
+                         f"{r['peak_rss_simulation_mb']:.0f} MB", f"{r['write_s']:.1f}", f"{r['peak_rss_mb']:.0f} MB"])
+    vehicles = {r["size"]: r for r in data["vehicles"]}
+    lines = sorted(data["lines"], key=lambda r: r["size"])
+    out = []
+    if 1000 in vehicles and 10000 in vehicles:
+        small, large = vehicles[1000], vehicles[10000]
+        ratio = large["cpu_s"] / small["cpu_s"]
+        out.append(f"- Vehicles: 10 000 take {ratio:.1f}× the CPU time of 1 000 "
+                   f"({large['wall_s'] / small['wall_s']:.1f}× the wall time) for "
+                   f"{large['simulated_s'] / small['simulated_s']:.1f}× the simulated time; peak RSS "
+                   f"{small['peak_rss_simulation_mb']:.0f} → {large['peak_rss_simulation_mb']:.0f} MB simulating. "
+                   f"Target ≤ {VEHICLES_TIME_RATIO:g}×: {_met(ratio <= VEHICLES_TIME_RATIO)}.")
+    if len(lines) >= 2:
+        a, b = lines[-2], lines[-1]
+        per_line = (b["peak_rss_mb"] - a["peak_rss_mb"]) * 2**20 / (b["size"] - a["size"])
+        out.append(f"- Length: {b['cpu_s'] / a['cpu_s']:.2f}× the CPU time for {b['size'] / a['size']:.0f}× the lines "
+                   f"({a['size']:,} → {b['size']:,}); peak RSS with writing ".replace(",", " ")
+                   + " / ".join(f"{r['peak_rss_mb']:.0f}" for r in lines)
+                   + f" MB, i.e. {per_line:.0f} B per added line (the parsed scenario, which must be read whole: "
+                   "every problem of a file is reported before a run).")
+    return [
+        "## 3. Scaling", "", "Script: `benchmarks/scaling.py`.", "",
+        "Each size in a fresh process; simulation = the co-simulation loop (`timing.wall_s`), CPU = process time "
+        "of `run_scenario`; writing the results (timeseries.csv, traffic.csv, summary.json; no plot) is shown "
+        "separately; peak RSS covers the whole process. Scenarios (generated by the script): *vehicles*, N oncoming "
+        "vehicles (50 ft/s, opposite lane, 2000 ft ahead when they appear), one every 10 ft of the ego's travel, "
+        "each spawned, passed and despawned; *lines*, blocks of 10 lines at one distance every 15 ft (an oncoming "
+        "vehicle, an RSA under the ego's wheels alternating mu 0.7 / 0.8, three RSA in lanes it never touches, a "
+        "5 % brake for 0.1 s, four comment lines).", "",
+        *_table(["scenario", "simulated s", "steps", "simulation wall s", "CPU s", "peak RSS simulating",
+                 "writing s", "peak RSS with writing"], rows), "",
+        *[_measured(data["measured"][part]).replace("Measured ", f"The {part} rows: measured ", 1)
+          for part in ("vehicles", "lines") if part in data.get("measured", {})], "",
+        "![scaling](benchmarks/results/scaling.png)", "",
+        *out, ""]
+
+
+def sweep_workers(results: Path) -> list[str]:
+    data = _load("sweep_workers", results)
+    rows = [[workers, str(r["runs"]), f"{r['wall_s']:.2f}", f"{r['sum_of_run_wall_s']:.2f}",
+             f"{r['load_average_1min_after']:.1f}"] for workers, r in data.items() if workers in ("1", "2")]
+    return [
+        "## 4. Sweeps: 2 workers against 1", "", "Script: `benchmarks/sweep_workers.py`.", "",
+        "Runs of the demo at different speeds on a LocalCluster of 1 and of 2 worker processes (one thread each), "
+        "timed from submission to the written table (cluster start-up excluded; the ego FMU is built or found in "
+        "the cache before anything is timed). Two worker processes get two cores only on an idle machine.", "",
+        *_table(["workers", "runs", "sweep wall s", "sum of the runs' own wall s", "load average (1 min, after)"],
+                rows), "",
+        _measured(data["measured"]), "",
+        f"- 2 workers against 1: {data['speedup']:.2f}×. Target ≥ {SWEEP_SPEEDUP:g}×: "
+        f"{_met(data['speedup'] >= SWEEP_SPEEDUP)}.", ""]
+
+
+def criticality_overhead(results: Path) -> list[str]:
+    data = _load("criticality_overhead", results)
+    rows = []
+    for c in data["cases"]:
+        detail = ", ".join(f"{c[k]} {label}" for k, label in (("steps", "steps"), ("located", "located instants"))
+                           if c.get(k) is not None)
+        rows.append([c["name"] + (f" ({detail})" if detail else ""), f"{c['plain_s']:.3f}", f"{c['measured_s']:.3f}",
+                     _pct(c["overhead_best"]), f"**{_pct(c['overhead_median'])}** "
+                     f"({_pct(c['overhead_min'])} … {_pct(c['overhead_max'])})",
+                     "" if c.get("added_per_vehicle_s") is None else f"{c['added_per_vehicle_s'] * 1e3:.2f}"])
+    demo = next((c for c in data["cases"] if c["name"] == "demo"), None)
+    verdict = []
+    if demo:
+        ok = demo["overhead_best"] <= CRITICALITY_OVERHEAD and demo["overhead_median"] <= CRITICALITY_OVERHEAD
+        verdict = [f"- The demo: at most {CRITICALITY_OVERHEAD * 100:.0f} % added, by both the best-of ratio and the pairwise "
+                   f"median: {_met(ok)}."]
+    return [
+        "## 5. Criticality measures: what they add to a run", "", "Script: `benchmarks/criticality_overhead.py`.", "",
+        "The master measures them on every run; the benchmark runs it side by side with the same master whose "
+        "criticality hooks do nothing (a subclass: no looks, no FMU snapshots, no located instants), in one "
+        f"process, alternating, {data['repeat']} pairs per scenario, by CPU time (`time.process_time`), Simple FMU, "
+        "default settings: the best of each kind, and the median and spread of the pairwise ratios. The scenarios: "
+        "the demo, and a straight road with N cars oncoming in the next lane, one spawned every 100 ft.", "",
+        *_table(["scenario", "plain CPU s (best)", "with the measures (best)", "best-of ratio",
+                 "pairwise median (spread)", "added CPU per vehicle, ms (median)"], rows), "",
+        _measured(data["measured"]), "",
+        *verdict,
+        "- Linear in the vehicles: the added CPU per passing vehicle should stay about constant as N grows.", ""]
+
+
+def vehicle_path_speed(results: Path) -> list[str]:
+    data = _load("vehicle_path_speed", results)
+    ratio = data["ratio_new_over_reference"]
+    rows = [[name, f"{data[name]['loop_wall_s']:.3f}", f"{data[name]['call_wall_s']:.3f}", f"{data[name]['cpu_s']:.3f}"]
+            for name in ("vehicle_map", "reference")]
+    rows.append(["ratio", f"**{ratio['loop_wall_s']:.3f}**", f"{ratio['call_wall_s']:.3f}", f"{ratio['cpu_s']:.3f}"])
+    return [
+        "## 6. The vehicle-map path against a reference checkout", "", "Script: `benchmarks/vehicle_path_speed.py`.", "",
+        "The demo with the Simple FMU through this checkout's code (the FMU driven through its vehicle map, one "
+        "`EgoModel` per run) and through a reference checkout's code (`--reference`, imported in the same process "
+        f"as the package `sdl_fmu_reference`), on one FMU file, alternating, best of {data['repeat']} each. The ego "
+        f"columns of the two runs are {'identical' if data['identical_ego_columns'] else 'NOT identical'} "
+        "(`numpy.array_equal`).", "",
+        *_table(["code", "loop wall s", "whole call wall s", "CPU s"], rows), "",
+        _measured(data["measured"]), ""]
+
+
+def verify_pack(results: Path) -> list[str]:
+    data = _load("verify_pack", results)
+    rows, verdicts = [], []
+    for model in ("simple", "advanced"):
+        if model not in data:
+            continue
+        r = data[model]
+        rows.append([model.capitalize(), f"**{r['cpu_s']:.1f}**", f"{r['wall_s']:.1f}",
+                     ", ".join(f"{name} {s:g}" for name, s in r["manoeuvres_wall_s"].items())])
+        verdicts.append(f"{model.capitalize()} < {VERIFY_CPU_S[model]:g} s CPU on one core: "
+                        f"{_met(r['cpu_s'] < VERIFY_CPU_S[model])}")
+    return [
+        "## 7. The vehicle test pack", "", "Script: `benchmarks/verify_pack.py`.", "",
+        "`api.verify` of the whole pack (six manoeuvres, results folder with report.html written) per shipped "
+        "model, in one process on one core, the manoeuvres one after the other; the Simple pack includes the 60 "
+        "closed-form stops. CPU time (`time.process_time`) is the figure that counts on a shared machine.", "",
+        *_table(["model", "pack CPU s", "pack wall s", "per manoeuvre, wall s"], rows), "",
+        _measured(data["measured"]), "",
+        *[f"- {v}" for v in verdicts], ""]
+
+
+SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack)
+
+
+def render(results: Path = RESULTS) -> str:
+    head = [
+        "# sdl-fmu benchmarks", "",
+        "<!-- Generated by `python benchmarks/report.py` from benchmarks/results/*.json: edit those (by re-running "
+        "a benchmark) or the script, not this file. -->", "",
+        "What the co-simulation costs, against the alternatives, and how it scales. Speed targets live here, never "
+        "in the timed tests. Each benchmark writes its results, with when and where it measured them, to "
+        "`benchmarks/results/<name>.json`; this page is generated from those files. Ratios are measured side by "
+        "side in one process; absolute times depend on the machine and its load.", "",
+        "## How to reproduce", "",
+        "From the repository, in its venv:", "",
+        "```",
+        "pip install -e '.[bench]'                     # adds pythonfmu",
+        "python benchmarks/fmu_step.py --json benchmarks/results/fmu_step.json",
+        "python benchmarks/demo_speed.py --json benchmarks/results/demo_speed.json",
+        "python benchmarks/scaling.py                  # writes benchmarks/results/scaling.json and scaling.png",
+        "python benchmarks/sweep_workers.py --runs 24 --json benchmarks/results/sweep_workers.json",
+        "python benchmarks/criticality_overhead.py --repeat 25 --json benchmarks/results/criticality_overhead.json",
+        "python benchmarks/vehicle_path_speed.py --reference CHECKOUT --json benchmarks/results/vehicle_path_speed.json",
+        "python benchmarks/verify_pack.py --json benchmarks/results/verify_pack.json",
+        "python benchmarks/report.py                   # regenerates this page",
+        "```", "",
+        "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "
+        "last sample; loading the FMU and writing the results are not in it), `real_time_factor` (simulated s per "
+        "wall s), `steps`, `samples`.", ""]
+    body = [line for section in SECTIONS for line in section(results)]
+    return "\n".join(head + body).rstrip() + "\n"
+
+
+def main() -> int:
+    arguments = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    arguments.add_argument("--check", action="store_true", help="only compare; exit 1 if BENCHMARKS.md differs")
+    args = arguments.parse_args()
+    text = render()
+    if args.check:
+        same = OUT.exists() and OUT.read_text() == text
+        print("BENCHMARKS.md is up to date" if same else "BENCHMARKS.md differs: run python benchmarks/report.py")
+        return 0 if same else 1
+    OUT.write_text(text)
+    print(f"wrote {OUT}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

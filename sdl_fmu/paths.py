@@ -1,0 +1,36 @@
+"""Where the package's files are: every reader of the shipped scenarios, vehicle table, tire files, vehicle maps
+and interface data finds them here.
+
+In the checkout they sit at the top level, scenarios/ and modelDescription/ beside sdl_fmu/; pyproject.toml maps
+them to the packages sdl_fmu.scenarios and sdl_fmu.modelDescription. A wheel (`pip install .`) copies them into
+the installed package, an editable install (`pip install -e .`) maps them to the checkout, and
+importlib.resources finds them in both. A checkout put on PYTHONPATH without an install of its own has no such
+mapping: importlib.resources then finds nothing, or another install's copy, so the checkout's own top-level
+folder is used. Nothing here imports the rest of the package.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+PACKAGE_DIRECTORY = Path(str(resources.files(__package__)))
+
+
+def _data_directory(name: str) -> Path:
+    """The folder of the package data sdl_fmu.<name> that belongs to this copy of sdl_fmu."""
+    inside, beside = PACKAGE_DIRECTORY / name, PACKAGE_DIRECTORY.parent / name  # a wheel's, a checkout's
+    try:
+        found = resources.files(f"{__package__}.{name}")
+    except (ImportError, OSError):  # not installed; or a stale editable install's map to a folder now gone
+        return beside
+    if isinstance(found, Path) and found.resolve() in (inside.resolve(), beside.resolve()):
+        return found
+    return beside
+
+
+SCENARIO_DIRECTORY = _data_directory("scenarios")  # shipped examples, the vehicle table, tires/, vehicles/
+TIRE_DIRECTORY = SCENARIO_DIRECTORY / "tires"  # Tire Attribute File and the .tir files it names
+VEHICLE_MAP_DIRECTORY = SCENARIO_DIRECTORY / "vehicles"  # the shipped models' vehicle maps, <name>.toml
+VEHICLE_TABLE = SCENARIO_DIRECTORY / "vehicles.csv"
+MODEL_DESCRIPTION_DIRECTORY = _data_directory("modelDescription")  # <Model>.json and units.json

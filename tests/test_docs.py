@@ -1,0 +1,86 @@
+"""The documents: every relative link points to a file (and a heading) that exists, no text refers to documents
+outside the repository, and BENCHMARKS.md is what benchmarks/report.py makes of the committed results."""
+
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCUMENTS = sorted({ROOT / "README.md", ROOT / "BENCHMARKS.md", *(ROOT / "docs").glob("*.md"),
+                    *(ROOT / "sdl_fmu").rglob("*.md")})
+LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)|!\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def prose(text: str) -> str:
+    """The text outside fenced code blocks and inline code spans (links there are examples, not links)."""
+    text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+    return re.sub(r"`[^`\n]*`", "", text)
+
+
+def anchors(path: Path) -> set[str]:
+    """GitHub's heading anchors: lower case, punctuation dropped, spaces to hyphens, repeats numbered -1, -2, ..."""
+    seen: dict[str, int] = {}
+    result = set()
+    for line in re.sub(r"^```.*?^```", "", path.read_text(), flags=re.S | re.M).splitlines():
+        heading = re.match(r"#{1,6} (.*)", line)
+        if not heading:
+            continue
+        slug = re.sub(r"[^\w\- ]", "", heading[1].strip().lower()).replace(" ", "-")
+        count = seen.get(slug, 0)
+        seen[slug] = count + 1
+        result.add(slug if count == 0 else f"{slug}-{count}")
+    return result
+
+
+def links(path: Path) -> list[str]:
+    return [a or b for a, b in LINK.findall(prose(path.read_text()))]
+
+
+def test_the_documents_exist():
+    names = {str(p.relative_to(ROOT)) for p in DOCUMENTS}
+    assert {"README.md", "BENCHMARKS.md", "docs/README.md", "sdl_fmu/dynamics/simple.md",
+            "sdl_fmu/dynamics/advanced.md"} <= names
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_resolves(document):
+    broken = []
+    for target in links(document):
+        if re.match(r"[a-z]+:", target):  # https:, mailto: ...
+            continue
+        file, _, anchor = target.partition("#")
+        linked = (document.parent / file).resolve() if file else document
+        if not linked.exists():
+            broken.append(f"{target}: no file {linked}")
+        elif anchor and linked.suffix == ".md" and anchor not in anchors(linked):
+            broken.append(f"{target}: no heading #{anchor} in {linked.relative_to(ROOT)}")
+    assert not broken, "\n".join(broken)
+
+
+def test_the_link_checker_sees_a_broken_link(tmp_path):
+    (tmp_path / "a.md").write_text("# Title A\n\n## Second `part` (x)\n")
+    (tmp_path / "b.md").write_text("[ok](a.md#second-part-x) [gone](a.md#third) [missing](c.md) `[code](d.md)`\n")
+    assert links(tmp_path / "b.md") == ["a.md#second-part-x", "a.md#third", "c.md"]
+    assert anchors(tmp_path / "a.md") == {"title-a", "second-part-x"}
+
+
+# Documents the repository does not hold: the project's contract and issue texts, the SDL seed texts.
+FOREIGN_REFERENCE = re.compile(r"\bSPEC\b|§|\b[Ii]ssues? ?#?\d+|\bthe issue\b|[Ss]eed texts?|the seed's|"
+                               r"seed (?:A|BRK|RSA) example|\bCEO\b")
+
+
+@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_text_refers_to_documents_outside_the_repository(document):
+    found = [f"{document.name}:{number}: {line.strip()}" for number, line in
+             enumerate(document.read_text().splitlines(), 1) if FOREIGN_REFERENCE.search(line)]
+    assert not found, "\n".join(found)
+
+
+def test_benchmarks_md_is_generated_from_the_committed_results():
+    spec = importlib.util.spec_from_file_location("benchmarks_report", ROOT / "benchmarks" / "report.py")
+    report = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(report)
+    assert (ROOT / "BENCHMARKS.md").read_text() == report.render(ROOT / "benchmarks" / "results"), \
+        "BENCHMARKS.md differs from the results: run python benchmarks/report.py"

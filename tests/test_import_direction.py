@@ -1,0 +1,133 @@
+"""Imports flow one way (issue 19): the output stage (run_result, results, plots, results_folder) never imports
+the run stage (sdl_fmu/cosim/), the low modules (paths, storage, lazy_sequence) import nothing of the package but each other (storage's
+EventLog is a lazy_sequence.LazySequence), and
+no module of the package imports itself through a circle.
+
+Read from the source with `ast`, so every import counts: at the top, inside a function, under TYPE_CHECKING."""
+
+import ast
+from pathlib import Path
+
+import sdl_fmu
+
+PACKAGE = Path(sdl_fmu.__file__).parent
+OUTPUT_STAGE = ("sdl_fmu.run_result", "sdl_fmu.results", "sdl_fmu.plots", "sdl_fmu.results_folder")
+LOW = ("sdl_fmu.paths", "sdl_fmu.storage", "sdl_fmu.lazy_sequence")
+RUN_STAGE = "sdl_fmu.cosim"
+
+
+def modules(package: Path) -> dict[str, Path]:
+    """Every module of the package by its dotted name (a package by its __init__.py)."""
+    found = {}
+    for path in sorted(package.rglob("*.py")):
+        parts = path.relative_to(package.parent).with_suffix("").parts
+        found[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return found
+
+
+def import_graph(package: Path) -> dict[str, set[str]]:
+    """Module -> the modules of the same package it imports directly. `from .x import y` imports x.y when y is a
+    module, else x."""
+    known = modules(package)
+    top = package.name
+    graph = {}
+    for name, path in known.items():
+        here = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        imported = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                imported |= {alias.name for alias in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    origin = here
+                    for _ in range(node.level - 1):
+                        origin = origin.rpartition(".")[0]
+                    base = f"{origin}.{node.module}" if node.module else origin
+                imported |= {f"{base}.{alias.name}" if f"{base}.{alias.name}" in known else base
+                             for alias in node.names}
+        graph[name] = {module for module in imported if module.split(".")[0] == top}
+    return graph
+
+
+def reached(graph: dict[str, set[str]], start: str) -> set[str]:
+    """Every module that importing `start` runs: its imports, theirs, and the packages (__init__) around each."""
+    seen, todo = set(), [start]
+    while todo:
+        module = todo.pop()
+        if module in seen:
+            continue
+        seen.add(module)
+        parents = [module.rsplit(".", depth)[0] for depth in range(1, module.count(".") + 1)]
+        todo += [m for m in (*graph.get(module, ()), *parents) if m not in seen]
+    return seen - {start}
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (or a module importing itself): Tarjan."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(module):
+        index[module] = low[module] = len(index)
+        stack.append(module)
+        on_stack.add(module)
+        for other in sorted(graph.get(module, ())):
+            if other not in graph:
+                continue
+            if other not in index:
+                visit(other)
+                low[module] = min(low[module], low[other])
+            elif other in on_stack:
+                low[module] = min(low[module], index[other])
+        if low[module] == index[module]:
+            component = []
+            while not component or component[-1] != module:
+                component.append(stack.pop())
+                on_stack.discard(component[-1])
+            if len(component) > 1 or module in graph[module]:
+                found.append(sorted(component))
+
+    for module in sorted(graph):
+        if module not in index:
+            visit(module)
+    return found
+
+
+def test_the_output_stage_never_imports_the_run_stage():
+    graph = import_graph(PACKAGE)
+    assert set(OUTPUT_STAGE) <= set(graph)
+    for module in OUTPUT_STAGE:
+        assert not [m for m in reached(graph, module) if m == RUN_STAGE or m.startswith(RUN_STAGE + ".")], module
+
+
+def test_the_low_modules_import_nothing_of_the_package_but_each_other():
+    graph = import_graph(PACKAGE)
+    for module in LOW:
+        assert graph[module] <= set(LOW) - {module}, module
+
+
+def test_no_module_imports_itself_through_a_circle():
+    assert circles(import_graph(PACKAGE)) == []
+
+
+def test_the_import_reader_sees_every_kind_of_import(tmp_path):
+    # the checks above pass on an empty graph too, so the reader is shown to find what they look for: a circle made
+    # of a TYPE_CHECKING import and an import inside a function, and a run-stage import reached through a package
+    package = tmp_path / "pkg"
+    (package / "cosim").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "cosim" / "__init__.py").write_text("from .master import run\n")
+    (package / "cosim" / "master.py").write_text("def run(): pass\n")
+    (package / "results.py").write_text("def write():\n    from . import plots\n")
+    (package / "plots.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                                      "    from .results import write\n")
+    (package / "helpers.py").write_text("import pkg.cosim.master as master\n")
+    (package / "output.py").write_text("from .helpers import master\n")
+    graph = import_graph(package)
+    assert graph["pkg.results"] == {"pkg.plots"} and graph["pkg.plots"] == {"pkg.results"}
+    assert circles(graph) == [["pkg.plots", "pkg.results"]]
+    assert {"pkg.cosim", "pkg.cosim.master"} <= reached(graph, "pkg.output")
+    # and the real package's known edges are found
+    real = import_graph(PACKAGE)
+    assert "sdl_fmu.storage" in real["sdl_fmu.results"] and "sdl_fmu.run_result" in real["sdl_fmu.plots"]
+    assert "sdl_fmu.cosim.master" in real["sdl_fmu.api"]

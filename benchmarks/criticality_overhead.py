@@ -67,8 +67,9 @@ def compare(scenario, fmu, table, repeat: int) -> dict:
     return {"pairs": repeat, "plain_s": min(plain), "measured_s": min(measured),
             "overhead_best": min(measured) / min(plain) - 1, "overhead_median": statistics.median(ratios),
             "overhead_q1": q1, "overhead_q3": q3, "overhead_min": min(ratios), "overhead_max": max(ratios),
-            "added_per_vehicle_s": statistics.median([b - a for a, b in zip(plain, measured)]) / len(run.vehicle_ids),
-            "located": run.located, "steps": run.steps}
+            "added_per_vehicle_s": statistics.median([b - a for a, b in zip(plain, measured)])
+            / len(run.recorder.vehicle_ids),
+            "located": run.follower.located, "steps": run.steps}
 
 
 def main() -> None:

@@ -30,9 +30,11 @@ from .paths import SCENARIO_DIRECTORY
 from .results import summary, timeseries_table, write_results
 from .run_result import RunResult
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
+from .units import Units
+from .vehicle.vehicle_map import Dynamics
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
-           "ego_fmu", "ego_model", "LIMITS"]
+           "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -132,7 +134,7 @@ def _vehicle_table():
     return load_vehicle_table(default_vehicle_table_path())
 
 
-def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: str | None = None) -> Scenario:
+def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None) -> Scenario:
     """Reads and checks a scenario file (or a shipped example by name); raises ScenarioError listing every
     problem. skip_unsupported: lines sdl-fmu does not simulate become warnings (one per code). dynamics:
     also apply that model's rules (advanced: RSA values are whole attribute numbers), as `run` does."""
@@ -146,11 +148,9 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamic
     if problems:
         raise ScenarioError(problems)
     if dynamics is not None:
-        from .vehicle import SHIPPED, load_vehicle_map, shipped_map_path
+        from .vehicle import load_vehicle_map
 
-        if dynamics not in SHIPPED:
-            raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
-        friction = load_vehicle_map(shipped_map_path(dynamics)).friction
+        friction = load_vehicle_map(_shipped_map(dynamics)).friction
         if friction is not None and friction.meaning == "attribute":
             _whole_attributes(loaded)
     return loaded
@@ -159,8 +159,9 @@ def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamic
 # --- options -----------------------------------------------------------------------------------
 
 
-def _number(option: str, value, units: str | None = None, low_open: bool = False):
-    """A finite number within LIMITS[option] (given in scenario units when `units`); returns SI."""
+def _checked_option(option: str, value, units: Units | None = None, low_open: bool = False):
+    """A numeric option's value checked: a finite number within LIMITS[option] (given in scenario units when
+    `units`); returns SI."""
     from .units import from_si, length_label, speed_label, to_si
 
     if value is None:
@@ -209,24 +210,32 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0]
 
 
-def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def _shipped_map(dynamics: Dynamics) -> Path:
+    """The shipped vehicle map of `dynamics`; InputError naming `dynamics` for a name that is not shipped."""
+    from .vehicle import SHIPPED, shipped_map_path
+
+    if dynamics not in SHIPPED:
+        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
+    return shipped_map_path(dynamics)
+
+
+def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
               vehicle: str | os.PathLike | None = None):
     """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
     the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use).
     Raises InputError naming the map file and key, or the FMU."""
-    from .vehicle import SHIPPED, EgoModel, VehicleMapError, shipped_map_path
+    from .vehicle import EgoModel, VehicleMapError
 
     if vehicle is not None and dynamics is not None:
         raise _option_error("dynamics", dynamics, "give either a shipped model (dynamics) or a vehicle map "
                             "(vehicle), not both")
     dynamics = "simple" if dynamics is None else dynamics
-    if dynamics not in SHIPPED:
-        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
+    shipped_map = _shipped_map(dynamics)
     try:
         if vehicle is not None:
             return EgoModel.open(fmu, _regular_file("vehicle", vehicle))
         if fmu is not None:
-            return EgoModel.open(_regular_file("fmu", fmu), shipped_map_path(dynamics))
+            return EgoModel.open(_regular_file("fmu", fmu), shipped_map)
     except VehicleMapError as error:
         text = str(error)
         if vehicle is None and not text.startswith("--fmu"):  # the FMU does not fit the shipped map
@@ -239,7 +248,7 @@ def ego_model(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
 
     path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
                                                             f"{path.parent.parent} (first use)", file=sys.stderr))
-    return EgoModel.open(path, shipped_map_path(dynamics))
+    return EgoModel.open(path, shipped_map)
 
 
 def _parameters(params: dict | None, model) -> dict[str, float]:
@@ -275,15 +284,19 @@ def _parameters(params: dict | None, model) -> dict[str, float]:
     return checked
 
 
-def ego_fmu(dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def ego_fmu(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
             vehicle: str | os.PathLike | None = None) -> Path:
     """The ego FMU's path: `fmu` if given (checked against the vehicle map, or the shipped map of `dynamics`), else
     the map's own FMU or the cached build for `dynamics` (built on first use)."""
     return ego_model(dynamics, fmu, vehicle).fmu_path
 
 
-def _tire_starts(tires, model):
-    """The tire slots' start values from a Tire Attribute File, for a vehicle whose map declares tire slots."""
+def tire_slot_starts(tires: str | os.PathLike | None,
+                     model) -> tuple[dict[str, float], dict[int, int] | None, list[str]]:
+    """(the tire slots' start values, attribute -> slot for the attributes the file gives, its warnings) from a
+    Tire Attribute File (None: the shipped one), for a vehicle whose map declares tire slots; for any other
+    vehicle ({}, None, []). Raises InputError naming `tires` for a bad file, or for `tires` given to a vehicle
+    without tire slots."""
     if model.friction is None or model.friction.tire_slots is None:
         if tires is not None:
             raise _option_error("tires", tires, "applies to the advanced dynamics only (a vehicle map whose friction "
@@ -474,7 +487,7 @@ def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
     return check
 
 
-def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
         vehicle: str | os.PathLike | None = None,
         speed: float | None = None, seed: int = 1, step: float | None = None,
         driver_period: float | None = None, until_distance: float | None = None,
@@ -499,18 +512,18 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: str | None = None, 
     seed = _seed(seed)
     from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
 
-    step = DEFAULT_STEP if step is None else _number("step", step)
-    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _number("driver_period", driver_period)
-    until_time = _number("until_time", until_time, low_open=True)
+    step = DEFAULT_STEP if step is None else _checked_option("step", step)
+    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _checked_option("driver_period", driver_period)
+    until_time = _checked_option("until_time", until_time, low_open=True)
     if not isinstance(scenario, Scenario):
         scenario = load(scenario, skip_unsupported=skip_unsupported)
     units = scenario.units
-    speed = _number("speed", speed, units)
-    until_distance = _number("until_distance", until_distance, units, low_open=True)
+    speed = _checked_option("speed", speed, units)
+    until_distance = _checked_option("until_distance", until_distance, units, low_open=True)
     model = ego_model(dynamics, fmu, vehicle)
     if model.surface_meaning == "attribute":
         _whole_attributes(scenario)
-    tire_starts, known_attributes, tire_warnings = _tire_starts(tires, model)
+    tire_starts, known_attributes, tire_warnings = tire_slot_starts(tires, model)
     if out is not None:
         try:
             check_results_folder(out)
@@ -552,7 +565,7 @@ class VerifyResult:
     folder: Path | None
 
 
-def verify(*, dynamics: str | None = None, fmu: str | os.PathLike | None = None,
+def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
            vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
            out: str | os.PathLike | None = None) -> VerifyResult:
     """Runs the vehicle test pack (SPEC section 7) against one vehicle: a shipped model (`dynamics`), or `fmu`

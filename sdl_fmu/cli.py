@@ -154,7 +154,7 @@ def _verify_folder_name(args) -> str:
     return args.dynamics or "simple"
 
 
-def _number(text: str) -> float:
+def _float_argument(text: str) -> float:
     """argparse type for real options; the range checks (finite, limits) are the API's."""
     try:
         return float(text)
@@ -201,14 +201,15 @@ def parser() -> argparse.ArgumentParser:
                      "coefficients) or advanced (Magic Formula tires); not with --vehicle")
     run.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics, built on first use)")
     run.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
-    run.add_argument("--speed", type=_number, help="driver's start and target speed, scenario units (default 88 ft/s)")
+    run.add_argument("--speed", type=_float_argument,
+                     help="driver's start and target speed, scenario units (default 88 ft/s)")
     run.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
-    run.add_argument("--step", type=_number, help="longest communication step, s (default 1); triggers are "
+    run.add_argument("--step", type=_float_argument, help="longest communication step, s (default 1); triggers are "
                      "located exactly at any step; driver samples and triggers cut steps shorter")
-    run.add_argument("--driver-period", type=_number,
+    run.add_argument("--driver-period", type=_float_argument,
                      help="the driver model's sampling period, s (default 0.05)")
-    run.add_argument("--until-distance", type=_number, help="end at this distance, scenario units")
-    run.add_argument("--until-time", type=_number, help="end at this time, s")
+    run.add_argument("--until-distance", type=_float_argument, help="end at this distance, scenario units")
+    run.add_argument("--until-time", type=_float_argument, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="FMU start value, SI, within its declared min/max (repeatable)")
     run.add_argument("--tires", help="Tire Attribute File (advanced dynamics)")
@@ -234,7 +235,8 @@ def parser() -> argparse.ArgumentParser:
                        help="FMU start value for every run, SI (repeatable)")
     sweep.add_argument("--tires", help="Tire Attribute File for every run (advanced dynamics)")
     sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
-    sweep.add_argument("--timeout", type=_number, default=600.0, help="wall-clock limit per run, s (default 600)")
+    sweep.add_argument("--timeout", type=_float_argument, default=600.0,
+                       help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
     sweep.add_argument("--out", help="table folder: new, empty or an interrupted sweep's (resumed); "

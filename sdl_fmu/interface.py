@@ -14,28 +14,38 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from .paths import MODEL_DESCRIPTION_DIRECTORY
 
 WHEELS = ("fl", "fr", "rl", "rr")  # the wheels' order everywhere (FMU variables, contact points, results columns)
 
+# as FMPy's model_description.py types them (the values the interfaces use)
+Causality = Literal["parameter", "calculatedParameter", "input", "output", "local", "independent"]
+Variability = Literal["constant", "fixed", "tunable", "discrete", "continuous"]
+FmiType = Literal["Real", "Integer", "Boolean"]  # FMI 2.0's names; the FMI 3.0 XML writes Float64, Int32, Boolean
 # roles: where a variable lives in the model function arguments (x, d, u, p) or results (y)
-STATE, DISCRETE, INPUT, PARAMETER, OUTPUT = "state", "discrete", "input", "parameter", "output"
+Role = Literal["state", "discrete", "input", "parameter", "output"]
+STATE: Role = "state"
+DISCRETE: Role = "discrete"
+INPUT: Role = "input"
+PARAMETER: Role = "parameter"
+OUTPUT: Role = "output"
 
 
 @dataclass(frozen=True)
 class Variable:
     name: str
-    causality: str  # input, output, parameter, local
-    type: str  # Real, Integer, Boolean
-    role: str  # state, discrete, input, parameter, output
+    causality: Causality
+    type: FmiType
+    role: Role
     index: int  # position within its role's vector
     unit: str | None = None
     start: float | None = None
     min: float | None = None
     max: float | None = None
     nominal: float | None = None
-    variability: str = "continuous"
+    variability: Variability = "continuous"
     description: str = ""
 
 
@@ -47,10 +57,10 @@ class Interface:
     variables: list[Variable]
     units: dict = field(default_factory=dict)
 
-    def of_role(self, role: str) -> list[Variable]:
+    def of_role(self, role: Role) -> list[Variable]:
         return [v for v in self.variables if v.role == role]
 
-    def names(self, role: str) -> list[str]:
+    def names(self, role: Role) -> list[str]:
         return [v.name for v in self.of_role(role)]
 
     def variable(self, name: str) -> Variable:
@@ -60,7 +70,7 @@ class Interface:
         raise KeyError(f"{self.model_name} has no variable {name!r}")
 
 
-def _role(entry: dict) -> str:
+def _role(entry: dict) -> Role:
     if entry.get("state"):
         return STATE
     if entry.get("discrete_state"):
@@ -72,7 +82,7 @@ def _role(entry: dict) -> str:
     return OUTPUT
 
 
-def _variability(entry: dict, role: str, type_: str) -> str:
+def _variability(entry: dict, role: Role, type_: FmiType) -> Variability:
     if role == PARAMETER:
         return entry.get("variability", "fixed")
     if type_ != "Real" or role == DISCRETE:

@@ -11,7 +11,7 @@ import numpy as np
 from .storage import release_pages
 from .results_folder import write_results_folder
 from .run_result import RunResult, VehicleTrack
-from .units import from_si, length_label, speed_label
+from .units import Units, from_si, length_label, speed_label
 from .vehicle.model import WHEELS
 
 
@@ -201,7 +201,7 @@ def _json_ready(value):
 LATERAL_SIGN = "positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: lateral = -y)"
 
 
-def key_units(units: str) -> dict[str, str]:
+def key_units(units: Units) -> dict[str, str]:
     """summary.json's "key_units": the unit of each key of "final" and the events that carries one (the keys
     themselves stay as SPEC names them), and the sign of lateral."""
     length, speed = length_label(units), speed_label(units)

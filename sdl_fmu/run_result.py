@@ -10,6 +10,7 @@ import numpy as np
 
 from .lazy_sequence import LazySequence
 from .sdl.events import Road
+from .units import Units
 
 
 @dataclass
@@ -77,7 +78,7 @@ class RunResult:
     """Everything a run produced, in SI; converted to the scenario's units only when written."""
 
     scenario_path: str
-    units: str  # "English" or "Metric"
+    units: Units
     dynamics: str  # the vehicle's name: "simple" or "advanced" for the shipped maps, else its map's or FMU's
     seed: int
     road: Road

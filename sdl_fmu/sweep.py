@@ -42,6 +42,8 @@ from typing import Callable, Literal
 
 import numpy as np
 
+from .units import Units
+
 Status = Literal["ok", "failed", "timeout"]
 STATUSES: tuple[Status, ...] = ("ok", "failed", "timeout")
 TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
@@ -285,7 +287,7 @@ def _summarise(result) -> dict:
     return row
 
 
-def column_names(varied: list[str], units: str, model=None) -> dict[str, str]:
+def column_names(varied: list[str], units: Units, model=None) -> dict[str, str]:
     """The table's column for each varied name, with its unit: `speed_ft/s`, `until_distance_m`,
     `until_time_s`, an FMU parameter's declared unit (`brake_decel_max_m/s2`); seeds and RSA values (a
     friction coefficient or an attribute number) have none."""
@@ -301,7 +303,7 @@ def column_names(varied: list[str], units: str, model=None) -> dict[str, str]:
     return columns
 
 
-def criticality_columns(criticality: dict | None, units: str) -> dict:
+def criticality_columns(criticality: dict | None, units: Units) -> dict:
     """The table's criticality columns from summary.json's `criticality` (SPEC §5): the run-wide measures,
     then per vehicle N the same prefixed AN_, units in the names (ft or m; DRAC in ft/s2 or m/s2); None
     where a measure never applied."""
@@ -358,7 +360,7 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
     return list(rows.values())
 
 
-def write_table(rows: list[dict], out: Path, varied: list[str], units: str) -> None:
+def write_table(rows: list[dict], out: Path, varied: list[str], units: Units) -> None:
     """sweep.parquet and sweep.csv (same columns: varied values first, then the outcome), and sweep.png.
     `varied`: the varied values' column names."""
     import pyarrow as pa
@@ -400,7 +402,7 @@ def _axis_label(column: str) -> str:
     return f"{match.group(1)} ({match.group(2)})" if match else column
 
 
-def plot_sweep(rows: list[dict], varied: list[str], units: str, path: Path) -> None:
+def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     """One row of panels per varied quantity that takes more than one value: collisions, the first BRK's
     distance and the smallest gap to any vehicle against that quantity; failed and timed-out runs marked
     at the bottom. Axes carry units."""
@@ -460,7 +462,7 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
-        api._tire_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
+        api.tire_slot_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
         fixed["tires"] = str(Path(fixed["tires"]).absolute())
     if fixed.get("vehicle") is not None:
         fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())

@@ -421,18 +421,19 @@ def counted_run(scenario, fmu) -> tuple[dict, object]:
                 source[0] = previous
         return wrapped
 
-    look = cosim.extremes.look
+    follower = cosim.follower  # the looks happen there (the master's hooks hand them on)
+    look = follower.extremes.look
 
     def count(*args, **kwargs):
         counts[source[0]] += 1
         return look(*args, **kwargs)
 
-    cosim.extremes.look = count
+    follower.extremes.look = count
     # a look at every vehicle is the run's end (or start) one, else a fire's
-    cosim.look = counting(cosim.look, lambda state, everyone=False, ahead=None, only=None:
+    follower.look = counting(follower.look, lambda state, everyone=False, ahead=None, only=None:
                           ("end" if cosim.finished or state.time == 0.0 else "fire") if everyone
                           else "fire" if only is not None else "ahead" if ahead is not None else "due")
-    cosim.look_before_change = counting(cosim.look_before_change, lambda *_: "fire")
+    follower.look_before_change = counting(follower.look_before_change, lambda *_: "fire")
     return counts, cosim.run()
 
 

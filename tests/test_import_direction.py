@@ -1,5 +1,6 @@
 """Imports flow one way (issue 19): the output stage (run_result, results, plots, results_folder) never imports
-the run stage (sdl_fmu/cosim/), the low modules (paths, storage, lazy_sequence) import nothing of the package, and
+the run stage (sdl_fmu/cosim/), the low modules (paths, storage, lazy_sequence) import nothing of the package but each other (storage's
+EventLog is a lazy_sequence.LazySequence), and
 no module of the package imports itself through a circle.
 
 Read from the source with `ast`, so every import counts: at the top, inside a function, under TYPE_CHECKING."""
@@ -99,10 +100,10 @@ def test_the_output_stage_never_imports_the_run_stage():
         assert not [m for m in reached(graph, module) if m == RUN_STAGE or m.startswith(RUN_STAGE + ".")], module
 
 
-def test_the_low_modules_import_nothing_of_the_package():
+def test_the_low_modules_import_nothing_of_the_package_but_each_other():
     graph = import_graph(PACKAGE)
     for module in LOW:
-        assert graph[module] == set(), module
+        assert graph[module] <= set(LOW) - {module}, module
 
 
 def test_no_module_imports_itself_through_a_circle():

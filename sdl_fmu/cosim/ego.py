@@ -4,22 +4,25 @@ tests and tools. The instance itself is sdl_fmu.vehicle's EgoInstance."""
 
 from __future__ import annotations
 
+import tomllib
+from functools import cache
 from pathlib import Path
 
-from ..vehicle import EgoInstance, EgoModel, EgoState, FmuError, parameter_defaults, read_description
+from ..vehicle import EgoInstance, EgoModel, EgoState, FmuError, parameter_defaults, read_description, shipped_map_path
 from ..vehicle.vehicle_map import parse_vehicle_map
+from .locate import first_instant
 
 __all__ = ["EgoFMU", "EgoState", "FmuError", "parameter_defaults", "step_until", "step_until_time"]
 
-# SPEC §2's interface, common to the shipped FMUs, as a vehicle map (friction inputs are set by name)
-SPEC_INTERFACE = {
-    "inputs": {name: {"variable": name} for name in ("throttle", "brake", "steer")},
-    "outputs": {"x": {"variable": "x"}, "y": {"variable": "y"}, "yaw": {"variable": "psi"}, "speed": {"variable": "v"},
-                "distance": {"variable": "s"}, **{name: {"variable": name} for name in
-                                                   ("vx", "vy", "yaw_rate", "ax", "ay", "stopped")}},
-    "start": {"speed": {"variable": "v0"}, "x": {"variable": "x0"}, "y": {"variable": "y0"}, "yaw": {"variable": "psi0"}},
-    "vehicle": {"length": {"parameter": "length"}, "width": {"parameter": "width"}},
-}
+@cache
+def spec_interface() -> dict:
+    """SPEC §2's interface, common to the shipped FMUs, as a vehicle map: the shipped Simple map's inputs (but its
+    friction: the shipped FMUs' friction inputs differ, and EgoFMU sets them by name), outputs, start values and
+    footprint."""
+    data = tomllib.loads(shipped_map_path("simple").read_text(encoding="utf-8"))
+    return {"inputs": {key: value for key, value in data["inputs"].items() if key != "friction"},
+            "outputs": data["outputs"], "start": data["start"],
+            "vehicle": {key: data["vehicle"][key] for key in ("length", "width")}}
 
 
 class EgoFMU(EgoInstance):
@@ -27,7 +30,7 @@ class EgoFMU(EgoInstance):
 
     def __init__(self, fmu_path: str | Path, start_values: dict[str, float] | None = None, instance_name: str = "ego"):
         try:
-            model = EgoModel(Path(fmu_path), parse_vehicle_map(SPEC_INTERFACE, complete=False),
+            model = EgoModel(Path(fmu_path), parse_vehicle_map(spec_interface(), complete=False),
                              read_description(Path(fmu_path)))
         except ValueError as error:  # VehicleMapError: not an FMU of this interface
             raise FmuError(str(error)) from None
@@ -61,24 +64,27 @@ def step_until(ego: EgoInstance, h: float, condition, tolerance: float = 1e-9) -
 
 
 def step_until_time(ego: EgoInstance, end: float, condition, tolerance: float = 1e-9) -> bool:
-    """step_until to the absolute time `end`, every probe stepped to an absolute time."""
-    base = ego.save()  # the snapshot sits at time `low`
+    """step_until to the absolute time `end`, every probe stepped to an absolute time from a snapshot at the
+    bracket's low end (locate.first_instant)."""
+    snapshot = ego.save()  # the snapshot sits at the bracket's low end
     low = ego.time
     ego.step_to(end)
     if not condition(ego.read()):
-        ego.discard(base)
+        ego.discard(snapshot)
         return False
-    high = end
-    while high - low > tolerance:
-        middle = 0.5 * (low + high)
-        ego.restore(base)
-        ego.step_to(middle)
-        if condition(ego.read()):
-            high = middle
-        else:
-            ego.discard(base)
-            base, low = ego.save(), middle
-    ego.restore(base)
+
+    def probe(t: float) -> EgoState:
+        ego.restore(snapshot)
+        ego.step_to(t)
+        return ego.read()
+
+    def below(t: float) -> None:  # the condition is false at t, where the instance now is: the snapshot moves here
+        nonlocal snapshot
+        ego.discard(snapshot)
+        snapshot = ego.save()
+
+    high, _, _ = first_instant(probe, low, end, condition, tolerance, below=below)
+    ego.restore(snapshot)
     ego.step_to(high)
-    ego.discard(base)
+    ego.discard(snapshot)
     return True

@@ -1,121 +1,120 @@
-"""The run's samples and its event log, streamed to temporary files in chunks instead of held per sample or
-per event in Python objects: memory stays bounded however long the run and however many vehicles pass.
-
-The sample arrays handed to the results are read-only maps of those files (or plain arrays for a run that
-fits in one chunk); whoever reads through a long one in order (the CSV writers) calls `storage.release_pages`
-now and then, so that the pages already read leave the process's resident memory again."""
+"""The run's record: the ego's samples at every communication point and the traffic vehicles' spans, kept in
+disk-backed tables (storage.py), and the traffic's samples and TTC curve made from them at the end."""
 
 from __future__ import annotations
 
-import mmap
-import pickle
-import tempfile
+import math
+from array import array
 
 import numpy as np
 
-from ..lazy_sequence import LazySequence
+from ..run_result import VehicleTracks
+from ..storage import ChunkedTable, release_pages
+from ..vehicle import EgoState
+from .criticality import RANGE, Footprint, distances, ttcs
+from .traffic import Traffic
+from .triggers import EgoBounds
 
-CHUNK_ROWS = 8192
+RELEASE_ROWS = 20_000  # sample rows read from a disk-backed table between releases of its pages (~3.5 MB)
 
-
-class ChunkedTable:
-    """Rows of floats appended one at a time or as a block; `finish` returns a (rows, columns) array."""
-
-    def __init__(self, columns: int):
-        self.columns = columns
-        self.buffer = np.empty((CHUNK_ROWS, columns))
-        self.pending: list = []  # rows appended since the last block was copied into the buffer
-        self.filled = 0
-        self.rows = 0
-        self.file = None
-
-    def append(self, row) -> None:
-        """One row (a tuple of floats): kept in a list, copied into the buffer a block at a time."""
-        self.pending.append(row)
-        if len(self.pending) == 1024:
-            self._take_pending()
-
-    def _take_pending(self) -> None:
-        if self.pending:
-            block, self.pending = np.array(self.pending, dtype=float), []
-            self.extend(block)
-
-    def extend(self, block: np.ndarray) -> None:
-        for start in range(0, len(block), CHUNK_ROWS):
-            part = block[start:start + CHUNK_ROWS]
-            if self.filled + len(part) > CHUNK_ROWS:
-                self._flush()
-            self.buffer[self.filled:self.filled + len(part)] = part
-            self.filled += len(part)
-            self.rows += len(part)
-
-    def _flush(self) -> None:
-        if self.file is None:
-            self.file = tempfile.TemporaryFile(prefix="sdl-fmu-samples-")
-        self.file.write(self.buffer[:self.filled].tobytes())
-        self.filled = 0
-
-    def finish(self) -> np.ndarray:
-        self._take_pending()
-        if self.file is None:
-            return self.buffer[:self.filled].copy()
-        self._flush()
-        self.file.flush()
-        self.buffer = None
-        if self.rows == 0:
-            return np.empty((0, self.columns))
-        # a read-only map of the whole file; the map keeps its own handle, the unlinked file goes with it
-        pages = mmap.mmap(self.file.fileno(), 0, access=mmap.ACCESS_READ)
-        self.file.close()
-        return np.frombuffer(pages, dtype=float).reshape(self.rows, self.columns)
+# Recorder.record copies the state's fields in their order, then these, then the model's wheel columns
+EGO_COLUMNS = (*EgoState._fields, "station", "lateral", "throttle", "brake", "steer", "brk")
+STOPPED = EgoState._fields.index("stopped")
 
 
-EVENT_BATCH = 1024  # events pickled to the file at a time
+class Recorder:
+    """The ego's samples (one row per communication point, EGO_COLUMNS then the wheel inputs) and, per traffic
+    vehicle, its id and the samples it spawned and left at; the vehicles' own samples come from their
+    closed-form motions at the end (`vehicle_tracks`)."""
+
+    def __init__(self, wheel_columns: list[str]):
+        self.wheel_columns = wheel_columns
+        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(wheel_columns))
+        self.sample_count = 0
+        self.vehicle_ids = array("q")  # per vehicle (index = id - 1), its id
+        # per vehicle, its first sample and the sample it left at (-1 while on the road); compact arrays
+        self.spawn_sample = array("q")
+        self.leave_sample = array("q")
+
+    def record(self, state: EgoState, controls: tuple, braking: bool, wheel_values: tuple) -> None:
+        # EGO_COLUMNS: the state's fields in their order (time ... yaw_rate, stopped), station, lateral, the
+        # controls, brk, then the wheel inputs
+        self.ego_rows.append((*state[:STOPPED], float(state.stopped), state.x, -state.y, *controls,
+                              float(braking), *wheel_values))
+        self.sample_count += 1
+
+    def spawned(self, vehicle_id: int) -> None:
+        self.vehicle_ids.append(vehicle_id)
+        self.spawn_sample.append(self.sample_count)
+        self.leave_sample.append(-1)
+
+    def left(self, i: int) -> None:
+        self.leave_sample[i] = self.sample_count
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The ego's samples by column name (ends the recording)."""
+        table = self.ego_rows.finish()
+        return {name: table[:, i] for i, name in enumerate((*EGO_COLUMNS, *self.wheel_columns))}
+
+    def vehicle_tracks(self, traffic: Traffic, times: np.ndarray) -> VehicleTracks:
+        """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, into
+        one disk-backed table; the sample times are read in order and their pages released as it goes
+        (memory stays bounded)."""
+        first = np.array(self.spawn_sample, dtype=np.int64)
+        last = np.array(self.leave_sample, dtype=np.int64)
+        last[last < 0] = self.sample_count  # still on the road at the end
+        track_rows = ChunkedTable(3)
+        unreleased = 0
+        for i in range(len(first)):
+            track_rows.extend(np.column_stack(traffic.track(i, np.asarray(times[first[i]:last[i]]))))
+            unreleased += last[i] - first[i]
+            if unreleased > RELEASE_ROWS:
+                release_pages(times)
+                unreleased = 0
+        release_pages(times)
+        offsets = np.concatenate([[0], np.cumsum(last - first)])
+        return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), traffic.models,
+                             first, offsets)
+
+    def spans(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per vehicle, its first sample and the sample it left at (-1: still on the road)."""
+        return np.array(self.spawn_sample, dtype=np.int64), np.array(self.leave_sample, dtype=np.int64)
 
 
-class EventLog(LazySequence):
-    """The run's event log (one dict per event, in order), appended to a temporary file in batches: its
-    memory stays bounded however many events a run logs. Reads back as a sequence of dicts (each read
-    unpickles afresh: a dict taken from it is the caller's own)."""
+def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: EgoBounds, columns: dict) -> np.ndarray:
+    """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle is on
+    a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions (each
+    vehicle from its first sample to the one it left at, -1: still on the road), computed when asked for
+    (RunResult.ttc_series), not during the run; not part of timeseries.csv."""
+    times = np.asarray(columns["time"])
+    series = np.full(len(times), np.inf)
+    last = np.where(last < 0, len(times), last)
+    for i in range(len(first)):
+        rows = slice(first[i], last[i])
+        t = times[rows]
+        motions = traffic.history(i)
+        k = np.maximum(np.searchsorted(motions[:, 0], t, side="right") - 1, 0)
+        t0, _, lateral0, _, lateral1, _, duration = motions[k].T
+        moving = t - t0 < duration
+        lateral_rate = np.where(moving, (lateral1 - lateral0) / np.where(moving, duration, 1.0), 0.0)
+        station, lateral, speed = traffic.track(i, t)
+        dx, dy = station - np.asarray(columns["x"][rows]), -lateral - np.asarray(columns["y"][rows])
+        length, width = float(traffic.length[i]), float(traffic.width[i])
+        # only where the centres are within RANGE plus both footprints' radii can the footprints be
+        near = np.flatnonzero(np.sqrt(dx * dx + dy * dy) <= RANGE + bounds.radius
+                              + 0.5 * math.sqrt(length * length + width * width))
+        if not len(near):
+            continue
+        dx, dy = dx[near], dy[near]
+        psi = np.asarray(columns["psi"][rows])[near]
+        c, s = np.cos(psi), np.sin(psi)
+        vx, vy = np.asarray(columns["vx"][rows])[near], np.asarray(columns["vy"][rows])[near]
+        ego = Footprint(bounds.length / 2, bounds.width / 2, c, s)
+        value = ttcs(ego, dx, dy, -speed[near] - (vx * c - vy * s), -lateral_rate[near] - (vx * s + vy * c),
+                     length, width)
+        value = np.where(distances(ego, dx, dy, length, width) <= RANGE, value, np.inf)
+        index = near + first[i]
+        series[index] = np.minimum(series[index], value)
+    series[~np.isfinite(series)] = np.nan
+    return series
 
-    def __init__(self):
-        self.pending: list[dict] = []  # events since the last batch went to the file
-        self.offsets: list[int] = []  # file offset of each (full) batch written
-        self.file = None
-
-    def append(self, event: dict) -> None:
-        self.pending.append(event)
-        if len(self.pending) == EVENT_BATCH:
-            if self.file is None:
-                self.file = tempfile.TemporaryFile(prefix="sdl-fmu-events-")
-            self.file.seek(0, 2)
-            self.offsets.append(self.file.tell())
-            pickle.dump(self.pending, self.file, protocol=pickle.HIGHEST_PROTOCOL)
-            self.pending = []
-
-    def _batch(self, k: int) -> list[dict]:
-        if k == len(self.offsets):
-            return pickle.loads(pickle.dumps(self.pending, protocol=pickle.HIGHEST_PROTOCOL))
-        self.file.seek(self.offsets[k])
-        return pickle.load(self.file)
-
-    def __len__(self) -> int:
-        return len(self.offsets) * EVENT_BATCH + len(self.pending)
-
-    def __iter__(self):
-        for k in range(len(self.offsets) + 1):
-            yield from self._batch(k)
-
-    def _item(self, index: int) -> dict:
-        return self._batch(index // EVENT_BATCH)[index % EVENT_BATCH]
-
-    def __eq__(self, other) -> bool:
-        if isinstance(other, (EventLog, list, tuple)):
-            return len(self) == len(other) and all(a == b for a, b in zip(self, other))
-        return NotImplemented
-
-    def __repr__(self) -> str:
-        return f"EventLog({len(self)} events)"
-
-    def __reduce__(self):
-        return list, (list(self),)  # pickled (e.g. sent to another process) as a plain list

@@ -17,9 +17,13 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .. import __version__, paths
-from .package import MODELS, build_fmus, fmu_path, mingw_compiler
+from .package import MODELS, FmiVersion, build_fmus, fmu_path, mingw_compiler
+
+if TYPE_CHECKING:
+    from ..vehicle.vehicle_map import Dynamics
 
 CACHE_VARIABLE = "SDL_FMU_CACHE"
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
@@ -62,7 +66,7 @@ def _input_files() -> list[tuple[str, Path]]:
     return files
 
 
-def build_key(dynamics: str, fmi_version: int = 2) -> str:
+def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     """SHA-256 of every input of one FMU build: sources, data, compiler identity and flags, versions."""
     import casadi
     import fmpy
@@ -95,11 +99,12 @@ def _remove_abandoned_builds(root: Path) -> None:
             pass  # alive, someone else's
 
 
-def _cache_folder(dynamics: str, fmi_version: int) -> Path:
+def _cache_folder(dynamics: Dynamics, fmi_version: FmiVersion) -> Path:
     return cache_directory() / f"{MODELS[dynamics][0]}-fmi{fmi_version}-{build_key(dynamics, fmi_version)[:24]}"
 
 
-def cached_fmus(dynamics: str = "simple", fmi_versions: tuple[int, ...] = (2,), announce=None) -> list[Path]:
+def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, ...] = (2,),
+                announce=None) -> list[Path]:
     """The FMUs of these dynamics in these FMI versions from the cache; the missing ones are built together
     (one code generation, announced through `announce(path)`) and each is renamed into its own folder."""
     folders = {version: _cache_folder(dynamics, version) for version in fmi_versions}
@@ -128,6 +133,6 @@ def cached_fmus(dynamics: str = "simple", fmi_versions: tuple[int, ...] = (2,), 
     return [targets[version] for version in fmi_versions]
 
 
-def cached_fmu(dynamics: str = "simple", fmi_version: int = 2, announce=None) -> Path:
+def cached_fmu(dynamics: Dynamics = "simple", fmi_version: FmiVersion = 2, announce=None) -> Path:
     """The FMU for these dynamics from the cache, built (and announced through `announce(path)`) if missing."""
     return cached_fmus(dynamics, (fmi_version,), announce)[0]

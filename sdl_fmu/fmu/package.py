@@ -12,12 +12,18 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
                       generate_model_source, model_guid, runtime_sources, variable_table)
 from .documentation import DOCUMENTATION, LICENSE_ENTRY, index_html, license_text
 from .structure import declared_dependencies, reinitialized_states
 from .xml import build_description, model_description, model_description_fmi3
+
+if TYPE_CHECKING:
+    from ..vehicle.vehicle_map import Dynamics
+
+FmiVersion = Literal[2, 3]  # the FMI standard's major version an FMU is built for
 
 # dynamics name -> (model name, module with equations())
 MODELS = {
@@ -29,7 +35,7 @@ WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
 EXPORT_FLAGS = ["-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
 # mingw-w64 cross compiler (Debian gcc-mingw-w64-x86-64); override with SDL_FMU_MINGW_CC
 MINGW_COMPILER = "x86_64-w64-mingw32-gcc"
-FMI_VERSIONS = (2, 3)
+FMI_VERSIONS: tuple[FmiVersion, ...] = (2, 3)
 # binaries/<platform>/ of each binary, as each FMI version names the platform
 LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
 WINDOWS_BINARY_DIRECTORY = {2: "win64", 3: "x86_64-windows"}
@@ -49,7 +55,7 @@ def fmi_headers() -> Path:
     return Path(fmpy.__file__).parent / "c-code"
 
 
-def fmu_path(out_dir: Path, dynamics: str, fmi_version: int = 2) -> Path:
+def fmu_path(out_dir: Path, dynamics: Dynamics, fmi_version: FmiVersion = 2) -> Path:
     return Path(out_dir) / f"fmi{fmi_version}" / f"{MODELS[dynamics][0]}.fmu"
 
 
@@ -109,13 +115,13 @@ def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler
     _run_compilers([_binary_command(sources_dir, sources, output, compiler, objects, windows, extra_flags)])
 
 
-def build_fmu(dynamics: str = "simple", out_dir: Path = Path("dist"), fmi_version: int = 2) -> Path:
+def build_fmu(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"), fmi_version: FmiVersion = 2) -> Path:
     """Builds dist/fmi<version>/<Model>.fmu (FMI 2.0 or 3.0) for one dynamics model and returns its path."""
     return build_fmus(dynamics, out_dir, (fmi_version,))[0]
 
 
-def build_fmus(dynamics: str = "simple", out_dir: Path = Path("dist"),
-               fmi_versions: tuple[int, ...] = FMI_VERSIONS) -> list[Path]:
+def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
+               fmi_versions: tuple[FmiVersion, ...] = FMI_VERSIONS) -> list[Path]:
     """Builds the FMUs of one dynamics model in several FMI versions from one code generation; the model
     code (CasADi's C and the variable table) is compiled once per platform and linked into each version's
     binaries. Without mingw-w64, one line on stderr says so and the FMUs carry the Linux binary only."""

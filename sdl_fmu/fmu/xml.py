@@ -22,7 +22,8 @@ LOG_CATEGORIES = {
 }
 
 
-def _number(value) -> str:
+def _xml_number(value) -> str:
+    """A number as an XML attribute: exact (repr), a whole number without '.0'."""
     number = float(value)
     return str(int(number)) if number.is_integer() and abs(number) < 1e15 else repr(number)
 
@@ -105,16 +106,16 @@ def _value_attributes(v) -> dict[str, str]:
     FMI 3.0 on the variable itself."""
     attributes = {}
     if v.role in (INPUT, PARAMETER):
-        attributes["start"] = _number(v.start) if v.type != "Boolean" else ("true" if v.start else "false")
+        attributes["start"] = _xml_number(v.start) if v.type != "Boolean" else ("true" if v.start else "false")
     if v.type == "Real":
         attributes["unit"] = v.unit
         if v.nominal is not None:
-            attributes["nominal"] = _number(v.nominal)
+            attributes["nominal"] = _xml_number(v.nominal)
     if v.type in ("Real", "Integer"):
         if v.min is not None:
-            attributes["min"] = _number(v.min)
+            attributes["min"] = _xml_number(v.min)
         if v.max is not None:
-            attributes["max"] = _number(v.max)
+            attributes["max"] = _xml_number(v.max)
     return attributes
 
 
@@ -125,7 +126,7 @@ def _log_categories_and_experiment(root: ET.Element, interface: Interface) -> No
         ET.SubElement(categories, "Category", name=name, description=description)
     experiment = interface.default_experiment
     if experiment:
-        ET.SubElement(root, "DefaultExperiment", {k: _number(v) for k, v in experiment.items()})
+        ET.SubElement(root, "DefaultExperiment", {k: _xml_number(v) for k, v in experiment.items()})
 
 
 def _source_files(parent: ET.Element, sources: list[str]) -> None:

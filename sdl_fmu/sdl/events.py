@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Union
+from typing import ClassVar, Literal, Union
 
-from ..units import ENGLISH, to_si
+from ..units import ENGLISH, Units, to_si
 
 RIGHT_SHOULDER = 101
 LEFT_SHOULDER = -101
 
-BRAKE_THRESHOLDS = ("time", "distance", "velocity", "relative_velocity")
+BrakeThreshold = Literal["time", "distance", "velocity", "relative_velocity"]
+BRAKE_THRESHOLDS: tuple[BrakeThreshold, ...] = ("time", "distance", "velocity", "relative_velocity")
 """BRK parameter 2 values 0..3, by name."""
 
 SUPPORTED_CODES = ("A", "BRK", "RSA", "ROAD", "ES")
@@ -81,7 +82,7 @@ class Brake:
     line: int
     distance: float
     pedal: float
-    threshold: str
+    threshold: BrakeThreshold
     magnitude: float
     code: ClassVar[str] = "BRK"
 
@@ -174,7 +175,7 @@ class Scenario:
     file order breaking ties (ROAD excluded)."""
 
     path: str
-    units: str
+    units: Units
     road: Road
     events: tuple[Event, ...]
     end_distance: float | None

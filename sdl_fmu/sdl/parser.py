@@ -11,7 +11,7 @@ import re
 from dataclasses import dataclass
 from typing import Callable
 
-from ..units import ENGLISH, METRIC, from_si, length_label, speed_label, to_si
+from ..units import ENGLISH, METRIC, Units, from_si, length_label, speed_label, to_si
 from .events import (
     BRAKE_THRESHOLDS,
     DEFAULT_ROAD,
@@ -105,7 +105,7 @@ def _short_enough(text: str) -> None:
                        "format reads")
 
 
-def _limit_text(kind: str, units: str) -> str:
+def _limit_text(kind: str, units: Units) -> str:
     if kind == "time":
         return f"{MAX_DURATION:g} s"
     label = length_label(units) if kind == "length" else speed_label(units)
@@ -124,8 +124,8 @@ def _shared(parse: Callable) -> Callable:
 
 
 @_shared
-def _number(text: str) -> float:
-    """A plain decimal number (no '*')."""
+def _plain_number(text: str) -> float:
+    """A field holding a plain decimal number (no '*'), parsed."""
     if text == "":
         raise _Invalid("empty; expected a number")
     _short_enough(text)
@@ -143,12 +143,12 @@ def _whole(text: str) -> int:
     """A whole number written without a decimal point (at most MAX_NUMBER_CHARS characters)."""
     _short_enough(text)
     if not _WHOLE.fullmatch(text):
-        _number(text)  # the more specific reason when it is not a number at all
+        _plain_number(text)  # the more specific reason when it is not a number at all
         raise _Invalid(f"{_shown(text)} is not a whole number")
     return int(text)
 
 
-def _within(value: float, kind: str, units: str, text: str) -> float:
+def _within(value: float, kind: str, units: Units, text: str) -> float:
     """value (SI) if its magnitude is within the format's limit for its kind, else _Invalid."""
     if abs(value) > _LIMITS[kind]:
         raise _Invalid(f"{_shown(text)} is beyond the format's limit of {_limit_text(kind, units)} in magnitude")
@@ -156,14 +156,14 @@ def _within(value: float, kind: str, units: str, text: str) -> float:
 
 
 @_shared
-def _quantity(text: str, units: str, kind: str) -> float:
+def _quantity(text: str, units: Units, kind: str) -> float:
     """A plain number that is a length, speed (converted to SI) or time, within the format's limit."""
-    value = _number(text)
+    value = _plain_number(text)
     return _within(value if kind == "time" else to_si(value, units), kind, units, text)
 
 
 @_shared
-def _relative(text: str, units: str, kind: str) -> Relative:
+def _relative(text: str, units: Units, kind: str) -> Relative:
     """A distance or speed, '*' meaning the ego's current value plus this one."""
     if text == "":
         raise _Invalid("empty; expected a number or '*number'")
@@ -172,7 +172,7 @@ def _relative(text: str, units: str, kind: str) -> Relative:
     body = text[1:].strip() if relative else text
     if not _NUMBER.fullmatch(body):
         raise _Invalid(f"{_shown(text)} is not a number or '*number' (relative to the ego)")
-    return Relative(_within(to_si(_number(body), units), kind, units, text), relative)
+    return Relative(_within(to_si(_plain_number(body), units), kind, units, text), relative)
 
 
 @_shared
@@ -206,9 +206,9 @@ def _closure_trigger(text: str) -> ClosureTrigger:
     match = _CLOSURE.fullmatch(text)
     if not match:
         if text == "" or text.startswith("*"):
-            _number(text)  # the reason for an empty or relative field
+            _plain_number(text)  # the reason for an empty or relative field
         raise _Invalid(f"{_shown(text)}: expected seconds with an optional F or B suffix, such as 10, -5 or 10F")
-    seconds = _within(_number(match[1]), "time", ENGLISH, text)
+    seconds = _within(_plain_number(match[1]), "time", ENGLISH, text)
     # A zero closure time could never be met by a finite gap, so the action would never fire.
     if seconds == 0:
         raise _Invalid(f"{_shown(text)}: closure time 0 can never fire; use > 0 (closing) or < 0 (separating)")
@@ -260,7 +260,7 @@ def _a_field(number: int) -> str:
     return f"A parameter {number} (action {action} {_ACTION_FIELDS[(number - 5) % 4]})"
 
 
-def _approaching_vehicle(line: int, distance: float, params: list[str], units: str, report: Report):
+def _approaching_vehicle(line: int, distance: float, params: list[str], units: Units, report: Report):
     """A: speed, gap, lateral, model, then 0..5 sets of (closure time, lateral, speed, transition time)."""
     if len(params) < 4 or len(params) > 24 or len(params) % 4:
         report("A parameters", "A takes 4 parameters plus 0 to 5 action sets of 4 (4, 8, 12, 16, 20 or 24 "
@@ -294,13 +294,13 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: s
     )
 
 
-def _brake(line: int, distance: float, params: list[str], units: str, report: Report):
+def _brake(line: int, distance: float, params: list[str], units: Units, report: Report):
     """BRK: pedal %, threshold type 0..3, magnitude (s, distance or speed)."""
     if len(params) != 3:
         report("BRK parameters", f"BRK takes 3 parameters (pedal %, threshold type, magnitude); got {len(params)}")
         return None
     field = [f"BRK parameter {n} ({name})" for n, name in enumerate(_BRK_FIELDS, start=1)]
-    pedal = _checked(report, field[0], _number, params[0])
+    pedal = _checked(report, field[0], _plain_number, params[0])
     if pedal is not None and not 0 <= pedal <= 100:
         report(field[0], f"{_shown(params[0])} must be a percentage from 0 to 100")
         pedal = None
@@ -317,7 +317,7 @@ def _brake(line: int, distance: float, params: list[str], units: str, report: Re
     return Brake(line=line, distance=distance, pedal=pedal / 100, threshold=name, magnitude=magnitude)
 
 
-def _surface_attribute(line: int, distance: float, params: list[str], units: str, report: Report):
+def _surface_attribute(line: int, distance: float, params: list[str], units: Units, report: Report):
     """RSA: (lane, value) pairs; lanes are checked against the road once the whole file is read."""
     if not params or len(params) % 2:
         report("RSA parameters", f"RSA takes pairs of (lane, value), at least one pair; got {len(params)} parameters")
@@ -331,7 +331,7 @@ def _surface_attribute(line: int, distance: float, params: list[str], units: str
             report(lane_field, f"lane {lane} is set twice in this event")
             lane = None
         lanes.add(lane)
-        value = _checked(report, value_field, _number, params[first])
+        value = _checked(report, value_field, _plain_number, params[first])
         value = _at_least(value, 0, report, value_field, params[first])
         value = _at_most(value, MAX_SURFACE_VALUE, report, value_field, params[first], f"{MAX_SURFACE_VALUE:g}")
         ok = ok and lane is not None and value is not None
@@ -340,14 +340,14 @@ def _surface_attribute(line: int, distance: float, params: list[str], units: str
         else None
 
 
-def _road(line: int, distance: float, params: list[str], units: str, report: Report):
+def _road(line: int, distance: float, params: list[str], units: Units, report: Report):
     """ROAD: lane width, number of lanes, lanes right of the dividing line."""
     if len(params) != 3:
         report("ROAD parameters", "ROAD takes 3 parameters (lane width, lanes, lanes right of the dividing line); "
                f"got {len(params)}")
         return None
     field = [f"ROAD parameter {n} ({name})" for n, name in enumerate(_ROAD_FIELDS, start=1)]
-    width = _checked(report, field[0], _number, params[0])
+    width = _checked(report, field[0], _plain_number, params[0])
     width = _at_least(width, 0, report, field[0], params[0], strict=True)
     width = _at_most(width, from_si(MAX_LANE_WIDTH, units), report, field[0], params[0],
                      f"{from_si(MAX_LANE_WIDTH, units):.7g} {length_label(units)}")
@@ -370,7 +370,7 @@ def _road(line: int, distance: float, params: list[str], units: str, report: Rep
     return Road(line=line, distance=distance, lane_width=to_si(width, units), lanes=lanes, lanes_right=lanes_right)
 
 
-def _end_of_scenario(line: int, distance: float, params: list[str], units: str, report: Report):
+def _end_of_scenario(line: int, distance: float, params: list[str], units: Units, report: Report):
     """ES: no parameters."""
     if params:
         report("ES parameters", f"ES takes no parameters; got {len(params)}")
@@ -646,20 +646,21 @@ def load_scenario(path: str | os.PathLike, skip_unsupported: bool = False) -> Sc
 # --- the report for `sdl-fmu check` --------------------------------------------------------------
 
 
-def _num(value: float) -> str:
+def _number_text(value: float) -> str:
+    """A number as the check report shows it (10 significant digits)."""
     return f"{value:.10g}"
 
 
-def _length(value: float, units: str) -> str:
-    return f"{_num(from_si(value, units))} {length_label(units)}"
+def _length_text(value: float, units: Units) -> str:
+    return f"{_number_text(from_si(value, units))} {length_label(units)}"
 
 
-def _speed(value: float, units: str) -> str:
-    return f"{_num(from_si(value, units))} {speed_label(units)}"
+def _speed_text(value: float, units: Units) -> str:
+    return f"{_number_text(from_si(value, units))} {speed_label(units)}"
 
 
-def _relative_text(value: Relative, units: str, label: str) -> str:
-    shown = _num(from_si(value.value, units))
+def _relative_text(value: Relative, units: Units, label: str) -> str:
+    shown = _number_text(from_si(value.value, units))
     if value.relative:
         return f"ego{'' if shown.startswith('-') else '+'}{shown} {label}"
     return f"{shown} {label}"
@@ -667,36 +668,37 @@ def _relative_text(value: Relative, units: str, label: str) -> str:
 
 def _trigger_text(trigger: ClosureTrigger) -> str:
     if trigger.seconds > 0:
-        text = f"closing within {_num(trigger.seconds)} s"
+        text = f"closing within {_number_text(trigger.seconds)} s"
     else:
-        text = f"separating for {_num(-trigger.seconds)} s or more"
+        text = f"separating for {_number_text(-trigger.seconds)} s or more"
     return text + {"F": " (vehicle in front)", "B": " (vehicle behind)", None: ""}[trigger.where]
 
 
-def _event_text(event: Event, units: str) -> list[str]:
+def _event_text(event: Event, units: Units) -> list[str]:
     """One line (A: plus one per action) describing an event in the file's units."""
     if isinstance(event, ApproachingVehicle):
         model = event.model
         model_text = f"{model.low}~{model.high} (random)" if model.is_random else str(model.low)
         place = "ahead" if event.gap > 0 else "behind"
-        lines = [f"A model {model_text}, {_length(abs(event.gap), units)} {place}, lateral "
+        lines = [f"A model {model_text}, {_length_text(abs(event.gap), units)} {place}, lateral "
                  f"{_relative_text(event.lateral, units, length_label(units))}, speed "
                  f"{_relative_text(event.speed, units, speed_label(units))}"]
         for index, action in enumerate(event.actions, start=1):
             lines.append(f"action {index}: {_trigger_text(action.trigger)} -> lateral "
                          f"{_relative_text(action.lateral, units, length_label(units))}, speed "
-                         f"{_relative_text(action.speed, units, speed_label(units))} over {_num(action.duration)} s")
+                         f"{_relative_text(action.speed, units, speed_label(units))} "
+                         f"over {_number_text(action.duration)} s")
         return lines
     if isinstance(event, Brake):
         until = {
-            "time": f"time {_num(event.magnitude)} s",
-            "distance": f"distance {_length(event.magnitude, units)}",
-            "velocity": f"speed below {_speed(event.magnitude, units)}",
-            "relative_velocity": f"speed dropped by {_speed(event.magnitude, units)}",
+            "time": f"time {_number_text(event.magnitude)} s",
+            "distance": f"distance {_length_text(event.magnitude, units)}",
+            "velocity": f"speed below {_speed_text(event.magnitude, units)}",
+            "relative_velocity": f"speed dropped by {_speed_text(event.magnitude, units)}",
         }[event.threshold]
-        return [f"BRK {_num(event.pedal * 100)} % until {until} (or stopped)"]
+        return [f"BRK {_number_text(event.pedal * 100)} % until {until} (or stopped)"]
     if isinstance(event, SurfaceAttribute):
-        return ["RSA " + ", ".join(f"lane {lane} = {_num(value)}" for lane, value in event.settings)]
+        return ["RSA " + ", ".join(f"lane {lane} = {_number_text(value)}" for lane, value in event.settings)]
     return ["ES end of scenario"]
 
 
@@ -707,13 +709,13 @@ def describe(scenario: Scenario) -> str:
     lines = [
         f"{scenario.path}",
         f"  units: {units} ({length_label(units)}, {speed_label(units)})",
-        f"  road: {road.lanes} lanes of {_length(road.lane_width, units)}, {road.lanes_right} right and "
+        f"  road: {road.lanes} lanes of {_length_text(road.lane_width, units)}, {road.lanes_right} right and "
         f"{road.lanes_left} left of the dividing line ({source})",
-        f"  end: {_length(scenario.end_distance, units)}" if scenario.end_distance is not None
+        f"  end: {_length_text(scenario.end_distance, units)}" if scenario.end_distance is not None
         else "  end: none (no ES event)",
         f"  events: {len(scenario.events)}",
     ]
-    heads = [(f"line {event.line}", _length(event.distance, units)) for event in scenario.events]
+    heads = [(f"line {event.line}", _length_text(event.distance, units)) for event in scenario.events]
     line_width = max((len(line) for line, _ in heads), default=0)
     distance_width = max((len(distance) for _, distance in heads), default=0)
     for event, (line, distance) in zip(scenario.events, heads):

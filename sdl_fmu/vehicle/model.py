@@ -9,10 +9,14 @@ import math
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from ..interface import WHEELS
-from .vehicle_map import (Channel, FrictionMeaning, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path)
+from .vehicle_map import (Channel, Dynamics, FrictionMeaning, VehicleMap, VehicleMapError, load_vehicle_map,
+                          shipped_map_path)
+
+if TYPE_CHECKING:
+    from ..fmu.package import FmiVersion
 
 # surface value of a lane nobody set, per friction meaning: 10 x the nominal mu 0.8, or attribute 0
 DEFAULT_SURFACE = {"mu": 8.0, "attribute": 0.0, None: 8.0}
@@ -392,7 +396,7 @@ def _read_description(path: str, mtime: int, size: int):
     return read_model_description(path, validate=False)
 
 
-def shipped_model(name: str = "simple", fmi_version: int = 2, announce=None) -> EgoModel:
+def shipped_model(name: Dynamics = "simple", fmi_version: FmiVersion = 2, announce=None) -> EgoModel:
     """A shipped model: its cached build (built on first use) driven through its shipped map."""
     from ..fmu.cache import cached_fmu
 

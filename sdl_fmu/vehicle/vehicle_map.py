@@ -13,6 +13,7 @@ from typing import Literal
 from ..paths import VEHICLE_MAP_DIRECTORY
 
 FrictionMeaning = Literal["mu", "attribute"]
+Dynamics = Literal["simple", "advanced"]  # the shipped vehicles, each a map scenarios/vehicles/<name>.toml
 
 INPUTS = ("throttle", "brake", "steer")  # required; `friction` is optional
 OUTPUTS_REQUIRED = ("x", "y", "yaw", "speed")
@@ -26,7 +27,7 @@ VEHICLE_NUMBERS = (*VEHICLE_GEOMETRY, "mass", "drive_accel_max", "drive_power_ma
                    "max_acceleration", "max_yaw_rate")
 VEHICLE_FLAGS = ("brk_acts", "spec_closed_forms")
 TOP_LEVEL = ("name", "fmu", "inputs", "outputs", "start", "parameters", "vehicle")
-SHIPPED = ("simple", "advanced")  # the shipped maps, scenarios/vehicles/<name>.toml
+SHIPPED: tuple[Dynamics, ...] = ("simple", "advanced")  # the shipped maps, scenarios/vehicles/<name>.toml
 
 
 class VehicleMapError(ValueError):
@@ -72,7 +73,7 @@ class VehicleMap:
         return str(self.path) if self.path is not None else "<vehicle map>"
 
 
-def shipped_map_path(name: str) -> Path:
+def shipped_map_path(name: Dynamics) -> Path:
     """The shipped map of the shipped model `name` ("simple" or "advanced")."""
     if name not in SHIPPED:
         raise VehicleMapError(f"--dynamics {name}: must be one of {', '.join(SHIPPED)}")

@@ -3,12 +3,10 @@ function objects (the master's fast path), reading sdl-fmu's quantities in SI an
 
 from __future__ import annotations
 
-import atexit
 import functools
-import hashlib
 import math
 import shutil
-from ctypes import CDLL, POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_uint32, c_void_p, pointer
+from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_uint32, c_void_p, pointer
 from typing import NamedTuple
 
 
@@ -46,30 +44,6 @@ class FmuError(RuntimeError):
     """The FMU refused a call or could not be loaded."""
 
 
-# An FMU's binary is loaded once per process and stays loaded: each FMU content is unzipped once (a folder
-# removed at exit) and its library held by one extra reference, so the instances' free (fmpy unloads the library
-# in freeInstance) never unloads it and the next instance reuses it. Some FMU runtimes cannot be loaded a second
-# time into one process (PythonFMU-built FMUs corrupt the heap when loaded again after an unload).
-_UNZIPPED: dict[str, str] = {}
-_PINNED: dict[str, CDLL] = {}
-
-
-def _unzipped(fmu_path) -> str:
-    from fmpy import extract
-
-    with open(fmu_path, "rb") as file:
-        key = hashlib.sha256(file.read()).hexdigest()
-    if key not in _UNZIPPED:
-        _UNZIPPED[key] = extract(str(fmu_path))
-    return _UNZIPPED[key]
-
-
-@atexit.register
-def _remove_unzipped() -> None:
-    for folder in _UNZIPPED.values():
-        shutil.rmtree(folder, ignore_errors=True)
-
-
 class EgoInstance:
     """An ego FMU instantiated for co-simulation and initialized; see EgoModel.instantiate."""
 
@@ -78,19 +52,19 @@ class EgoInstance:
         self.time = 0.0
         self.warnings: list[str] = []
         self.fmi3 = model.fmi_version == "3.0"
-        unzipped = _unzipped(model.fmu_path)
+        from fmpy import extract
+
+        self._unzipped = extract(str(model.fmu_path))
         try:
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Slave as Slave
             else:
                 from fmpy.fmi2 import FMU2Slave as Slave
-            self.slave = Slave(guid=model.guid, unzipDirectory=unzipped,
+            self.slave = Slave(guid=model.guid, unzipDirectory=self._unzipped,
                                modelIdentifier=model.model_identifier, instanceName=instance_name)
         except Exception as error:  # fmpy reports a binary that cannot be loaded as a plain Exception
+            shutil.rmtree(self._unzipped, ignore_errors=True)
             raise FmuError(f"{model.fmu_path}: the FMU's binary cannot be loaded: {error}") from None
-        library = self.slave.dll._name
-        if library not in _PINNED:
-            _PINNED[library] = CDLL(library)
         try:
             self.slave.instantiate()
             self._bind_step_path()
@@ -374,6 +348,7 @@ class EgoInstance:
             self.slave.freeInstance()
         except Exception:
             pass
+        shutil.rmtree(self._unzipped, ignore_errors=True)
 
     def __enter__(self) -> EgoInstance:
         return self

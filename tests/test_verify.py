@@ -127,7 +127,10 @@ def test_folder_of_someone_else_is_refused_before_running(tmp_path, simple_fmu):
 
 @pytest.mark.slow
 def test_pack_on_a_foreign_fmu(tmp_path, foreign_vehicle):
-    fmu, vehicle_map = foreign_vehicle(3)
+    # The FMI 2.0 build (PythonFMU): the pythonfmu3 build's runtime corrupts the heap at the exit of a process
+    # that ran the whole pack with it, in about a third of the runs, after every result is written (docs/decisions.md,
+    # "Known problems"); the FMI 3.0 foreign car goes through the pack in the tests below.
+    fmu, vehicle_map = foreign_vehicle(2)
     out = tmp_path / "foreign"
     completed = sdl_fmu("verify", "--fmu", fmu, "--vehicle", vehicle_map, "--out", out, cwd=tmp_path)
     assert completed.returncode == 0, completed.stderr

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoState
+from .criticality import SCALAR_VEHICLES
 from .inputs import Inputs
 from .road import SurfaceMap, WheelGeometry
 from .traffic import Traffic
@@ -25,9 +26,6 @@ from .triggers import (EgoBounds, EgoKinematics, reach_time_scalar, vehicle_cond
 TriggerKind = Literal["event", "end", "brake", "surface", "traffic"]
 
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
-# up to this many vehicles are checked one by one in plain floats, more at once in NumPy arrays: on a few
-# vehicles NumPy's per-operation overhead (about 1 µs on small arrays) costs more than the arithmetic
-SCALAR_VEHICLES = 4
 
 
 class TriggerSchedule:

@@ -28,11 +28,17 @@ class Symbols:
         return self.by_name[name]
 
 
-def make_symbols(interface: Interface) -> Symbols:
+# A parameter the runtime sets, not the importer: 1 in a model-exchange instance, 0 in a co-simulation one. A model
+# that asks for it (make_symbols(..., runtime=True)) finds it after the interface's parameters in p; it is in no
+# modelDescription and no dependency list (ModelInfo.model_exchange_parameter, instance.c).
+MODEL_EXCHANGE = "model_exchange"
+
+
+def make_symbols(interface: Interface, runtime: bool = False) -> Symbols:
     vectors = {}
     by_name = {}
     for role, letter in ((STATE, "x"), (DISCRETE, "d"), (INPUT, "u"), (PARAMETER, "p")):
-        names = interface.names(role)
+        names = interface.names(role) + ([MODEL_EXCHANGE] if runtime and role == PARAMETER else [])
         vector = ca.SX.sym(letter, len(names))
         vectors[letter] = vector
         for i, name in enumerate(names):

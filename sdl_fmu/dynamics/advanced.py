@@ -46,6 +46,24 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
              T_drive = throttle min(T_max, P_max / mean omega of the driven wheels), split by
              drive_front_share and equally left/right (open differentials);
              T_brake = brake brake_decel_max m R, split by brake_front_share and equally left/right.
+  Quasi-static wheels (wheel_spin = 2, or 0 "automatic" in a model-exchange instance; 1 and co-simulation's
+             automatic are the dynamic wheels above). The spin equation is stiff (time constant I_w v / (C_kappa
+             R^2), about 0.5 ms per m/s), so explicit fixed-step integrators cannot integrate it; its fast
+             transient is dropped (singular perturbation). A rolling wheel (mode +-1) gives the force its torque
+             balance asks for, with its spin's inertia riding on the body's longitudinal acceleration:
+               R Fx_i(kappa_i) = T_drive_i - mode (T_brake_i + f_r Fz_i R) - (I_w / R) a_x,
+               a_x = (sum_rolling (T_drive_i - mode (T_brake_i + f_r Fz_i R)) / R + sum_locked Fx_i + drag)
+                     / (m + n_rolling I_w / R^2)     (straight ahead; the steer angle is ignored in a_x),
+             solved for 0 <= |kappa_i| <= the peak of the pure-slip curve (Newton, from the closed-form peak
+             equation) by bisection and Newton steps (exact derivatives through the last Newton steps); Fy_i
+             follows from the same slip. A demand beyond the peak gives the peak force; if it is a braking
+             demand, the wheel locks (event: mode 0, the locked wheel of the dynamic model, released as there
+             when |T_net| reaches T_brake). Indicator while rolling: min(R (capacity - braking demand),
+             mode v_cx + 1e-6 m/s), positive; it turns back (lock or reverse) when its contact point does.
+             The spin state follows without stiffness, d(omega)/dt = a_x / R + (omega_qs - omega) / 0.1 s,
+             omega_qs = (v_cx + kappa sqrt(v_cx^2 + v_low^2)) / R; no force reads it. The power limit uses
+             vx / R. While no wheel rolls backward the stop is the half-line max(vx, |vy|) <= STOP_SPEED (a
+             locked car is a stiff damper near standstill, so one Euler step can reverse its speed).
   Body       m (dvx/dt - r vy) = sum Fx_b - rho CdA vx |vx| / 2,  m (dvy/dt + r vx) = sum Fy_b,
              Iz dr/dt = sum (x_i Fy_b,i - y_i Fx_b,i),  dx/dt = vx cos psi - vy sin psi,
              dy/dt = vx sin psi + vy cos psi, dpsi/dt = r, ds/dt = speed.
@@ -305,6 +323,7 @@ def equations() -> Equations:
     friction_used = 0
     spin_derivatives, wheel_indicators, wheel_modes = [], [], []
     all_forward = 1  # every wheel rolls forward (all modes +1)
+    none_backward = 1  # no wheel rolls backward (all modes 0 or +1)
     for w in WHEELS:
         c = wheel[w]
         x_i, y_i, fz, delta, mode, omega = c["x_i"], c["y_i"], c["fz"], c["delta"], c["mode"], c["omega"]
@@ -357,6 +376,7 @@ def equations() -> Equations:
         released = ca.if_else(holds, 0, ca.if_else(net_torque >= 0, 1, -1))
         wheel_modes.append(ca.if_else(mode == 0, released, ca.if_else(quasi_static, rolling_quasi, rolling)))
         all_forward = all_forward * (mode > 0)
+        none_backward = none_backward * (mode >= 0)
         friction_used += ca.sqrt((fx / ca.fmax(mux * fz, TINY)) ** 2 + (fy / ca.fmax(muy * fz, TINY)) ** 2) / 4
 
     ax = moving * (force_x + drag) / m
@@ -380,7 +400,12 @@ def equations() -> Equations:
     # on every wheel, the speed is the forward speed: the half-line vx <= STOP_SPEED, which no step can pass
     # through. Held: event when the drive exceeds the holding forces. The moving indicator equals drive_excess
     # (the held indicator) at a start, and both are <= 0 at a stop: neither event changes its sign.
-    at_rest = ca.if_else(all_forward, vx, speed) - STOP_SPEED
+    # Quasi-static (explicit fixed-step integrators): a car on locked wheels is a stiff damper near standstill (the
+    # slip's speed floor), so one step can carry vx from above STOP_SPEED to below -STOP_SPEED; while no wheel rolls
+    # backward the stop is the half-line max(vx, |vy|) <= STOP_SPEED too (a car sliding backward on locked wheels
+    # after a spin is held once its sideways speed has fallen to STOP_SPEED).
+    at_rest = ca.if_else(ca.logic_and(quasi_static, none_backward), ca.fmax(vx, ca.fabs(vy)),
+                         ca.if_else(all_forward, vx, speed)) - STOP_SPEED
     moving_indicator = ca.fmax(at_rest, drive_excess)
     indicator = ca.if_else(stopped, drive_excess, moving_indicator)
     next_stopped = ca.if_else(stopped, drive_excess <= 0, moving_indicator <= 0)

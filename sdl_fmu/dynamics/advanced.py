@@ -57,8 +57,9 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
              solved for 0 <= |kappa_i| <= the peak of the pure-slip curve (Newton, from the closed-form peak
              equation) by bisection and Newton steps (exact derivatives through the last Newton steps); Fy_i
              follows from the same slip. A demand beyond the peak gives the peak force; if it is a braking
-             demand, the wheel locks (event: mode 0, the locked wheel of the dynamic model, released as there
-             when |T_net| reaches T_brake). Indicator while rolling: min(R (capacity - braking demand),
+             demand, the wheel locks (event: mode 0, the locked wheel of the dynamic model, released when
+             T_brake falls below both |T_net| and T_drive + 0.95 R (peak force): a locked, steered tire can push
+             harder along its axis than the rolling tire's peak, and a wheel released there would lock again). Indicator while rolling: min(R (capacity - braking demand),
              mode v_cx + 1e-6 m/s), positive; it turns back (lock or reverse) when its contact point does.
              The spin state follows without stiffness, d(omega)/dt = a_x / R + (omega_qs - omega) / 0.1 s,
              omega_qs = (v_cx + kappa sqrt(v_cx^2 + v_low^2)) / R; no force reads it. The power limit uses
@@ -109,6 +110,7 @@ PEAK_NEWTON_STEPS = 6
 BISECTIONS = 6
 NEWTON_STEPS = 3
 DIRECTION_HYSTERESIS = 1e-6  # m/s: a quasi-static wheel rolling forward turns back below -this contact speed
+RELEASE_SHARE = 0.95  # a quasi-static locked wheel is released when its brake falls below this share of the peak
 SPIN_RELAXATION_TIME = 0.1  # s: a quasi-static wheel's spin state follows the spin of its slip (forces never read it)
 WHEEL_SPIN = {"automatic": 0, "dynamic": 1, "quasi_static": 2}  # values of the wheel_spin parameter
 
@@ -361,7 +363,12 @@ def equations() -> Equations:
         # forward, keeps its indicator's sign through the event.
         # Quasi-static rolling: event when the brake asks more than the tire's peak force (the wheel locks), or when
         # the contact point has turned back (by DIRECTION_HYSTERESIS); positive while it rolls.
-        hold_margin = wheel_brake - ca.fabs(net_torque)
+        # quasi-static: a locked wheel is also held while its brake exceeds the drive by RELEASE_SHARE of the rolling
+        # tire's peak torque (a locked, steered tire can push harder than the rolling one's peak along its axis;
+        # without this a wheel released below that force would lock again at once)
+        hold_margin = ca.if_else(quasi_static,
+                                 wheel_brake - ca.fmin(ca.fabs(net_torque), wheel_drive + RELEASE_SHARE * radius * capacity),
+                                 wheel_brake - ca.fabs(net_torque))
         holds = hold_margin > 0
         spin_indicator = omega + mode * SPIN_HYSTERESIS
         lock_margin = radius * (capacity - ca.fmax(-mode * demand, 0))

@@ -1,6 +1,7 @@
 """The Advanced ego FMU (two-track vehicle on Magic Formula tires), loaded through fmpy, against analytic
 references computed here from the FMU's own parameters (its tire slots come from sdl_fmu/scenarios/tires/)."""
 
+import itertools
 import math
 
 import casadi as ca
@@ -412,9 +413,12 @@ def test_jacobian_is_finite_at_standstill_and_low_speed():
     functions = equations.functions()
     interface = equations.interface
     states, inputs = interface.names("state"), interface.names("input")
-    parameters = np.array([v.start for v in interface.of_role("parameter")], dtype=float)
+    declared = [v.start for v in interface.of_role("parameter")]
     rng = np.random.default_rng(1)
-    for stopped in (0, 1):
+    # the runtime's own parameter (equations.MODEL_EXCHANGE) last: co-simulation (dynamic wheels) and model
+    # exchange (quasi-static wheels)
+    for stopped, model_exchange in itertools.product((0, 1), (0.0, 1.0)):
+        parameters = np.array(declared + [model_exchange], dtype=float)
         for mode in (-1, 0, 1):
             for speed in (0.0, 1e-9, 1e-3, 0.05, 0.3, 5.0):
                 x = np.zeros(len(states))

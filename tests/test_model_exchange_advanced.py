@@ -26,8 +26,10 @@ OUTPUTS = ["x", "s", "vx", "stopped", *[f"wheel_mode_{w}" for w in WHEELS]]
 # rounding of the Euler sums (at most 10^4 additions of ~20 m/s x h) and of the quasi-static slip (Newton-converged
 # to ~1e-15 relative): far below a millimetre
 ROUNDING = 1e-9
-# CVode's own error at relative tolerance 1e-10 over a 27 m stop: below 1e-7 m; events located to 1e-10 s (x 20 m/s)
-CVODE_ERROR = 1e-6
+# The CVode reference's own error: fmpy's CVode at relative tolerance 1e-10 (its absolute tolerance and event
+# location included) gives 27.35760 m with the FMI 2.0 FMU and 27.35785 m with the FMI 3.0 one, the same equations:
+# 2.5e-4 m apart. 1e-3 m covers that and stays far below the Euler excess, v0 h / 2 >= 0.01 m, that the bounds test.
+CVODE_ERROR = 1e-3
 
 
 def euler(fmu, step, stop_time, start, inputs=None):

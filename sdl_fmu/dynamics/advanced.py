@@ -77,6 +77,8 @@ Tire coefficients per wheel come from the slot chosen by its surface input (tire
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 
 from ..interface import DISCRETE, STATE, WHEELS, Interface, load_interface
@@ -256,6 +258,17 @@ def smooth_sign(value, width):
 def equations() -> Equations:
     interface = advanced_interface()
     s = make_symbols(interface, runtime=True)
+    # the wheel spin model: automatic (0) is quasi-static in a model-exchange instance, dynamic in co-simulation
+    quasi_static = ca.if_else(s["wheel_spin"] == WHEEL_SPIN["automatic"], s[MODEL_EXCHANGE],
+                              s["wheel_spin"] == WHEEL_SPIN["quasi_static"])
+    # the generated code runs one case (dynamic 0, quasi-static 1): co-simulation never pays for the slip solve
+    cases = tuple(wheel_equations(interface, s, ca.SX(value)) for value in (0, 1))
+    return replace(wheel_equations(interface, s, quasi_static), cases=cases, case=quasi_static)
+
+
+def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
+    """The equations with the wheels' spin model quasi_static (1 quasi-static, 0 dynamic; an expression of p or a
+    constant, which CasADi folds into the expressions of one case)."""
     g = STANDARD_GRAVITY
     m, radius = s["mass"], s["wheel_radius"]
     a, b, h = s["cg_to_front_axle"], s["cg_to_rear_axle"], s["cg_height"]
@@ -263,9 +276,6 @@ def equations() -> Equations:
     vx, vy, r, psi, stopped = s["vx"], s["vy"], s["yaw_rate"], s["psi"], s["stopped"]
     moving = 1 - stopped
     inertia = s["wheel_inertia"]
-    # the wheel spin model: automatic (0) is quasi-static in a model-exchange instance, dynamic in co-simulation
-    quasi_static = ca.if_else(s["wheel_spin"] == WHEEL_SPIN["automatic"], s[MODEL_EXCHANGE],
-                              s["wheel_spin"] == WHEEL_SPIN["quasi_static"])
 
     position = {"fl": (a, s["track_front"] / 2), "fr": (a, -s["track_front"] / 2),
                 "rl": (-b, s["track_rear"] / 2), "rr": (-b, -s["track_rear"] / 2)}

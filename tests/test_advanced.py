@@ -1,6 +1,7 @@
 """The Advanced ego FMU (two-track vehicle on Magic Formula tires), loaded through fmpy, against analytic
 references computed here from the FMU's own parameters (its tire slots come from scenarios/tires/)."""
 
+import itertools
 import math
 from functools import partial
 
@@ -398,9 +399,12 @@ def test_jacobian_is_finite_at_standstill_and_low_speed():
     functions = equations.functions()
     interface = equations.interface
     states, inputs = interface.names("state"), interface.names("input")
-    parameters = np.array([v.start for v in interface.of_role("parameter")], dtype=float)
+    declared = [v.start for v in interface.of_role("parameter")]
     rng = np.random.default_rng(1)
-    for stopped in (0, 1):
+    # the runtime's own parameter (equations.MODEL_EXCHANGE) last: co-simulation (dynamic wheels) and model
+    # exchange (quasi-static wheels)
+    for stopped, model_exchange in itertools.product((0, 1), (0.0, 1.0)):
+        parameters = np.array(declared + [model_exchange], dtype=float)
         for mode in (-1, 0, 1):
             for speed in (0.0, 1e-9, 1e-3, 0.05, 0.3, 5.0):
                 x = np.zeros(len(states))
@@ -414,3 +418,36 @@ def test_jacobian_is_finite_at_standstill_and_low_speed():
                 u[inputs.index("surface_fl")] = ICE
                 for name in ("derivatives", "jacobian", "event_indicators", "outputs"):
                     assert np.all(np.isfinite(np.array(functions[name](x, d, u, parameters)))), (name, x, d)
+
+
+def test_generated_functions_run_one_wheel_spin_case():
+    # Each generated function is a CasADi Switch over the two wheel-spin cases (dynamic, quasi-static), the
+    # fixed selection folded into each case's expressions. Folding if_else(0, a, b) to b (and if_else(1, a, b)
+    # to a) changes no floating-point operation on the selected branch, so the switched functions equal the
+    # union expressions (both branches, as the dependencies are read) bit for bit, in every selection.
+    equations = advanced.equations()
+    switched, union = equations.functions(), equations._functions("")
+    interface = equations.interface
+    states, inputs = interface.names("state"), interface.names("input")
+    parameters = interface.names("parameter")
+    declared = [v.start for v in interface.of_role("parameter")]
+    rng = np.random.default_rng(2)
+    for model_exchange, wheel_spin in itertools.product((0.0, 1.0), advanced.WHEEL_SPIN.values()):
+        p = np.array(declared + [model_exchange], dtype=float)
+        p[parameters.index("wheel_spin")] = wheel_spin
+        for stopped, mode, speed in itertools.product((0, 1), (-1, 0, 1), (1e-3, 0.3, 20.0)):
+            x = rng.normal(size=len(states))
+            x[states.index("vx")] = speed
+            d = np.array([stopped] + [mode] * 4, dtype=float)
+            u = rng.uniform(0, 1, len(inputs))
+            for name, function in switched.items():
+                for ours, theirs in zip(function.call([x, d, u, p]), union[name].call([x, d, u, p])):
+                    assert np.array_equal(np.array(ours), np.array(theirs), equal_nan=True), (name, x, d, p)
+    # the solver Jacobian switches between the cases' own functions; co-simulation's (dynamic) case has none of the
+    # quasi-static slip solve (per wheel a peak search, bisection and Newton steps on the tire curve: about 4/5 of
+    # the union's operations, so the dynamic case has well under a third of them)
+    model = interface.model_name
+    called = {function.name() for function in switched["jacobian"].find_functions()}
+    assert {f"{model}_case0_jacobian", f"{model}_case1_jacobian"} <= called
+    dynamic = next(f for f in switched["jacobian"].find_functions() if f.name() == f"{model}_case0_jacobian")
+    assert dynamic.n_instructions() < union["jacobian"].n_instructions() / 3

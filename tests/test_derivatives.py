@@ -12,7 +12,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Model, FMU2Slave
 from fmpy.fmi3 import FMU3Model
 
-from sdl_fmu.dynamics.advanced import SPIN_HYSTERESIS
+from sdl_fmu.dynamics.advanced import SPIN_HYSTERESIS, WHEEL_SPIN
 
 EPS = np.finfo(float).eps
 RELATIVE_STEP = 1e-5  # ~ cube root of eps: balances O(h^2) truncation against O(eps/h) round-off
@@ -330,18 +330,22 @@ def test_advanced_derivatives_against_finite_differences(advanced_fmus, tmp_path
     rng = np.random.default_rng(9)
     failures, stats = [], {"entries": 0, "tight": 0, "points": 0, "product_error": 0.0}
     surfaces = {"surface_fl": 0, "surface_fr": 1, "surface_rl": 2, "surface_rr": 4}
-    probe = Probe(advanced_fmus[version], version, tmp_path / "rolling", start={"v0": 20.0, **surfaces})
-    probe.start_continuous_time()
-    radius = probe.get_real([probe.variables["wheel_radius"].valueReference])[0]
-    for regime, count in (("driving", 40), ("standstill", 30), ("lock", 30)):
-        for _ in range(count):
-            point = random_point(probe, rng, regime, radius)
-            check_point(probe, point, failures, stats)
-    probe.free()
+    # model exchange: the quasi-static wheels (automatic) and the dynamic ones (selected)
+    for wheel_spin in (WHEEL_SPIN["automatic"], WHEEL_SPIN["dynamic"]):
+        probe = Probe(advanced_fmus[version], version, tmp_path / f"rolling{wheel_spin}",
+                      start={"v0": 20.0, "wheel_spin": wheel_spin, **surfaces})
+        probe.start_continuous_time()
+        radius = probe.get_real([probe.variables["wheel_radius"].valueReference])[0]
+        for regime, count in (("driving", 40), ("standstill", 30), ("lock", 30)):
+            for _ in range(count):
+                point = random_point(probe, rng, regime, radius)
+                check_point(probe, point, failures, stats)
+        probe.free()
 
     # locked wheels: on ice under full brake, spins that cross zero lock every wheel at the next event
     ice = {f"surface_{w}": 3 for w in ("fl", "fr", "rl", "rr")}
-    locked = Probe(advanced_fmus[version], version, tmp_path / "locked", start={"v0": 20.0, "brake": 1.0, **ice})
+    locked = Probe(advanced_fmus[version], version, tmp_path / "locked",
+                   start={"v0": 20.0, "brake": 1.0, "wheel_spin": WHEEL_SPIN["dynamic"], **ice})
     locked.start_continuous_time()
     x = locked.known_values()[:len(locked.states)]
     spin_names = [f"wheel_speed_{w}" for w in ("fl", "fr", "rl", "rr")]
@@ -364,7 +368,8 @@ def test_cosimulation_derivatives_equal_model_exchange(simple_fmus, advanced_fmu
     """fmi2/fmi3GetDirectionalDerivative of a co-simulation instance between steps: the same exact numbers as
     model exchange at the same states and inputs (both evaluate the same generated function)."""
     for name, fmus, start in (("simple", simple_fmus, {"v0": 25.0, "steer": 0.05, "brake": 0.3}),
-                              ("advanced", advanced_fmus, {"v0": 25.0, "steer": 0.05, "brake": 0.3})):
+                              ("advanced", advanced_fmus,
+                               {"v0": 25.0, "steer": 0.05, "brake": 0.3, "wheel_spin": WHEEL_SPIN["dynamic"]})):
         slave = Probe(fmus[version], version, tmp_path / f"{name}-cs", start=start, cosimulation=True)
         slave.start_continuous_time()
         for step in range(50):

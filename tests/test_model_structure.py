@@ -38,7 +38,9 @@ def structural_dependencies(equations, initial):
         depends = set()
         for argument, letter in known_arguments.items():
             sparsity = function.sparsity_jac(argument, 0)
-            depends |= {names[letter][column] for column in sparsity.get_col()}
+            # columns past the interface's parameters are the runtime's own (equations.MODEL_EXCHANGE): no
+            # variable, in no dependency list
+            depends |= {names[letter][column] for column in sparsity.get_col() if column < len(names[letter])}
         result[name] = depends
     return result
 

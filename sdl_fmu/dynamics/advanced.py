@@ -46,6 +46,25 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
              T_drive = throttle min(T_max, P_max / mean omega of the driven wheels), split by
              drive_front_share and equally left/right (open differentials);
              T_brake = brake brake_decel_max m R, split by brake_front_share and equally left/right.
+  Quasi-static wheels (wheel_spin = 2, or 0 "automatic" in a model-exchange instance; 1 and co-simulation's
+             automatic are the dynamic wheels above). The spin equation is stiff (time constant I_w v / (C_kappa
+             R^2), about 0.5 ms per m/s), so explicit fixed-step integrators cannot integrate it; its fast
+             transient is dropped (singular perturbation). A rolling wheel (mode +-1) gives the force its torque
+             balance asks for, with its spin's inertia riding on the body's longitudinal acceleration:
+               R Fx_i(kappa_i) = T_drive_i - mode (T_brake_i + f_r Fz_i R) - (I_w / R) a_x,
+               a_x = (sum_rolling (T_drive_i - mode (T_brake_i + f_r Fz_i R)) / R + sum_locked Fx_i + drag)
+                     / (m + n_rolling I_w / R^2)     (straight ahead; the steer angle is ignored in a_x),
+             solved for 0 <= |kappa_i| <= the peak of the pure-slip curve (Newton, from the closed-form peak
+             equation) by bisection and Newton steps (exact derivatives through the last Newton steps); Fy_i
+             follows from the same slip. A demand beyond the peak gives the peak force; if it is a braking
+             demand, the wheel locks (event: mode 0, the locked wheel of the dynamic model, released when
+             T_brake falls below both |T_net| and T_drive + 0.95 R (peak force): a locked, steered tire can push
+             harder along its axis than the rolling tire's peak, and a wheel released there would lock again). Indicator while rolling: min(R (capacity - braking demand),
+             mode v_cx + 1e-6 m/s), positive; it turns back (lock or reverse) when its contact point does.
+             The spin state follows without stiffness, d(omega)/dt = a_x / R + (omega_qs - omega) / 0.1 s,
+             omega_qs = (v_cx + kappa sqrt(v_cx^2 + v_low^2)) / R; no force reads it. The power limit uses
+             vx / R. While no wheel rolls backward the stop is the half-line max(vx, |vy|) <= STOP_SPEED (a
+             locked car is a stiff damper near standstill, so one Euler step can reverse its speed).
   Body       m (dvx/dt - r vy) = sum Fx_b - rho CdA vx |vx| / 2,  m (dvy/dt + r vx) = sum Fy_b,
              Iz dr/dt = sum (x_i Fy_b,i - y_i Fx_b,i),  dx/dt = vx cos psi - vy sin psi,
              dy/dt = vx sin psi + vy cos psi, dpsi/dt = r, ds/dt = speed.
@@ -58,11 +77,13 @@ Tire coefficients per wheel come from the slot chosen by its surface input (tire
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 
 from ..interface import DISCRETE, STATE, WHEELS, Interface, load_interface
 from ..units import STANDARD_GRAVITY
-from .equations import Equations, make_symbols
+from .equations import MODEL_EXCHANGE, Equations, make_symbols
 from .planar import body_derivatives
 from .tires import DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, slot_parameter_name, slot_parameters
 
@@ -82,6 +103,18 @@ SPIN_HYSTERESIS = 1e-6
 # Event indicator of a wheel while the vehicle is held: constant, negative like the indicators of the wheels
 # that stop or lock as the vehicle comes to rest, so the stop does not flip their sign.
 HELD_WHEEL_INDICATOR = -1.0
+# Quasi-static wheels (wheel_spin 2, or 0 in model exchange): the slip of a rolling wheel solves its torque balance.
+# The longitudinal force rises with the slip up to the peak of the pure-slip curve (peak_slip); the slip of a force
+# is found by BISECTIONS bisections on 0..peak, then NEWTON_STEPS Newton steps, which also give the slip's exact
+# derivatives (implicit function theorem) whatever the bisection left.
+KAPPA_SEARCH = 1.0
+PEAK_NEWTON_STEPS = 6
+BISECTIONS = 6
+NEWTON_STEPS = 3
+DIRECTION_HYSTERESIS = 1e-6  # m/s: a quasi-static wheel rolling forward turns back below -this contact speed
+RELEASE_SHARE = 0.95  # a quasi-static locked wheel is released when its brake falls below this share of the peak
+SPIN_RELAXATION_TIME = 0.1  # s: a quasi-static wheel's spin state follows the spin of its slip (forces never read it)
+WHEEL_SPIN = {"automatic": 0, "dynamic": 1, "quasi_static": 2}  # values of the wheel_spin parameter
 
 
 def advanced_interface(attribute_file=DEFAULT_ATTRIBUTE_FILE) -> Interface:
@@ -114,14 +147,21 @@ def _weighting(b, c, e, slip):
     return ca.fmax(ca.cos(c * ca.atan(bs - e * (bs - ca.atan(bs)))), 0)
 
 
-def tire_forces(c: dict, fz, kappa, alpha):
-    """Combined-slip Magic Formula forces (Fx, Fy) in the wheel frame and the friction coefficients (mux, muy)."""
+def longitudinal_shape(c: dict, fz):
+    """The pure-slip longitudinal Magic Formula's load change dfz, friction mux and factors Bx, Ex (Cx = PCX1)."""
     fz0 = c["FNOMIN"] * c["LFZO"]
     dfz = (fz - fz0) / fz0
     mux = ca.fabs((c["PDX1"] + c["PDX2"] * dfz) * c["LMUX"])
     ex = ca.fmin(c["PEX1"] + c["PEX2"] * dfz + c["PEX3"] * dfz**2, 1)
     kx_per_fz = ca.fabs((c["PKX1"] + c["PKX2"] * dfz) * ca.exp(c["PKX3"] * dfz) * c["LKX"])
     bx = kx_per_fz / ca.fmax(c["PCX1"] * mux, TINY)
+    return dfz, mux, bx, ex
+
+
+def tire_forces(c: dict, fz, kappa, alpha):
+    """Combined-slip Magic Formula forces (Fx, Fy) in the wheel frame and the friction coefficients (mux, muy)."""
+    fz0 = c["FNOMIN"] * c["LFZO"]
+    dfz, mux, bx, ex = longitudinal_shape(c, fz)
     fx0 = mux * fz * _magic_formula(bx, c["PCX1"], ex, kappa)
 
     muy = ca.fabs((c["PDY1"] + c["PDY2"] * dfz) * c["LMUY"])
@@ -168,6 +208,48 @@ def wheel_forces(c: dict, fz, wheel_x, wheel_y, surface_speed):
     return fx, fy, mux, muy
 
 
+def force_curve() -> ca.Function:
+    """(kappa, Fz, v_cx, v_cy, the slot's coefficients in SLOT_KEYS order) -> (Fx, Fy, dFx/dkappa) of a wheel
+    whose slip is kappa: one function, so the solver's many calls repeat only the tire formula."""
+    kappa, fz, wheel_x, wheel_y = (ca.SX.sym(name) for name in ("kappa", "fz", "wheel_x", "wheel_y"))
+    values = ca.SX.sym("coefficients", len(SLOT_KEYS))
+    coefficients = {key: values[i] for i, key in enumerate(SLOT_KEYS)}
+    slip_speed = ca.sqrt(wheel_x**2 + SLIP_SPEED_FLOOR**2)
+    fx, fy, _, _ = wheel_forces(coefficients, fz, wheel_x, wheel_y, wheel_x + kappa * slip_speed)
+    return ca.Function("force_curve", [kappa, fz, wheel_x, wheel_y, values], [fx, fy, ca.jacobian(fx, kappa)])
+
+
+def peak_slip(c: dict, fz):
+    """The slip 0 < kappa <= KAPPA_SEARCH of the pure-slip longitudinal force's peak: C atan(u - E (u - atan u))
+    = pi/2 at u = B kappa, i.e. (1 - E) u + E atan u = tan(pi / (2 C)) for C > 1 (no peak for C <= 1: the search
+    bound). The left side is increasing, concave for E > 0 and convex for E < 0, so Newton's method from u = t
+    approaches the root from one side."""
+    _, _, bx, ex = longitudinal_shape(c, fz)
+    shape = c["PCX1"]
+    target = ca.tan(ca.pi / (2 * ca.fmax(shape, 1 + 1e-9)))
+    u = target
+    for _ in range(PEAK_NEWTON_STEPS):
+        u = u - ((1 - ex) * u + ex * ca.atan(u) - target) / ca.fmax((1 - ex) + ex / (1 + u**2), TINY)
+    return ca.if_else(shape > 1, ca.fmin(ca.fmax(u, 0) / ca.fmax(bx, TINY), KAPPA_SEARCH), KAPPA_SEARCH)
+
+
+def quasi_static_slip(curve, peak, target):
+    """The slip 0 <= kappa <= peak at which the longitudinal force curve(kappa) = (Fx, Fy, dFx/dkappa) reaches
+    target (clipped to the force at the peak), and that force (the tire's capacity): bisection, then Newton."""
+    capacity = curve(peak)[0]
+    goal = ca.fmin(target, capacity)
+    low, high = 0, 1  # the slip as a share of the peak's: the bisection's steps are constants (no derivatives)
+    for _ in range(BISECTIONS):
+        middle = (low + high) / 2
+        below = curve(middle * peak)[0] < goal
+        low, high = ca.if_else(below, middle, low), ca.if_else(below, high, middle)
+    kappa = (low + high) / 2 * peak
+    for _ in range(NEWTON_STEPS):
+        force, _, slope = curve(kappa)
+        kappa = ca.fmin(ca.fmax(kappa - (force - goal) / ca.fmax(slope, TINY), 0), peak)
+    return kappa, capacity
+
+
 def smooth_sign(value, width):
     """value / sqrt(value^2 + width^2): a differentiable sign for Coulomb friction."""
     return value / ca.sqrt(value**2 + width**2)
@@ -175,13 +257,25 @@ def smooth_sign(value, width):
 
 def equations() -> Equations:
     interface = advanced_interface()
-    s = make_symbols(interface)
+    s = make_symbols(interface, runtime=True)
+    # the wheel spin model: automatic (0) is quasi-static in a model-exchange instance, dynamic in co-simulation
+    quasi_static = ca.if_else(s["wheel_spin"] == WHEEL_SPIN["automatic"], s[MODEL_EXCHANGE],
+                              s["wheel_spin"] == WHEEL_SPIN["quasi_static"])
+    # the generated code runs one case (dynamic 0, quasi-static 1): co-simulation never pays for the slip solve
+    cases = tuple(wheel_equations(interface, s, ca.SX(value)) for value in (0, 1))
+    return replace(wheel_equations(interface, s, quasi_static), cases=cases, case=quasi_static)
+
+
+def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
+    """The equations with the wheels' spin model quasi_static (1 quasi-static, 0 dynamic; an expression of p or a
+    constant, which CasADi folds into the expressions of one case)."""
     g = STANDARD_GRAVITY
     m, radius = s["mass"], s["wheel_radius"]
     a, b, h = s["cg_to_front_axle"], s["cg_to_rear_axle"], s["cg_height"]
     wheelbase = a + b
     vx, vy, r, psi, stopped = s["vx"], s["vy"], s["yaw_rate"], s["psi"], s["stopped"]
     moving = 1 - stopped
+    inertia = s["wheel_inertia"]
 
     position = {"fl": (a, s["track_front"] / 2), "fr": (a, -s["track_front"] / 2),
                 "rl": (-b, s["track_rear"] / 2), "rr": (-b, -s["track_rear"] / 2)}
@@ -191,9 +285,11 @@ def equations() -> Equations:
     roll_share = {True: s["roll_stiffness_front_share"], False: 1 - s["roll_stiffness_front_share"]}
     track = {True: s["track_front"], False: s["track_rear"]}
 
-    # drive: power-limited total torque, split front/rear, equal left/right
+    # drive: power-limited total torque, split front/rear, equal left/right; the quasi-static wheels' spin is
+    # the body's speed over the radius (their slip is not known before the drive torque)
     drive_share = {True: s["drive_front_share"], False: 1 - s["drive_front_share"]}
-    driven_spin = sum(drive_share[front[w]] * s[f"wheel_speed_{w}"] / 2 for w in WHEELS)
+    driven_spin = ca.if_else(quasi_static, vx / radius,
+                             sum(drive_share[front[w]] * s[f"wheel_speed_{w}"] / 2 for w in WHEELS))
     drive_torque = s["throttle"] * ca.fmin(
         s["drive_torque_max"], s["drive_power_max"] / ca.fmax(driven_spin, POWER_LIMIT_MIN_SPIN))
     brake_torque = s["brake"] * s["brake_decel_max"] * m * radius
@@ -202,10 +298,7 @@ def equations() -> Equations:
     # lateral-force compliance steer of the front wheels (steering system and suspension): the front axle
     # carries m a_y b / L in steady state; a_y lagged as for the load transfer (no algebraic loop)
     steer_front = s["steer"] - s["steer_compliance"] * m * s["load_ay"] * b / wheelbase
-    force_x = force_y = yaw_moment = 0
-    friction_used = 0
-    spin_derivatives, wheel_indicators, wheel_modes = [], [], []
-    all_forward = 1  # every wheel rolls forward (all modes +1)
+    wheel = {}
     for w in WHEELS:
         x_i, y_i = position[w]
         is_front = front[w]
@@ -218,7 +311,48 @@ def equations() -> Equations:
         wheel_x = contact_x * ca.cos(delta) + contact_y * ca.sin(delta)
         wheel_y = -contact_x * ca.sin(delta) + contact_y * ca.cos(delta)
         omega, mode = s[f"wheel_speed_{w}"], s[f"wheel_mode_{w}"]
-        fx, fy, mux, muy = wheel_forces(wheel_coefficients(s, w), fz, wheel_x, wheel_y, omega * radius)
+        coefficients = wheel_coefficients(s, w)
+        fx, fy, mux, muy = wheel_forces(coefficients, fz, wheel_x, wheel_y, omega * radius)
+        wheel_brake = brake_share[is_front] * brake_torque / 2
+        wheel_drive = drive_share[is_front] * drive_torque / 2
+        # quasi-static: the torque on a rolling wheel besides the tire's, its brake and rolling resistance
+        # against its direction of rolling (the mode)
+        applied = wheel_drive - mode * (wheel_brake + s["rolling_resistance"] * fz * radius)
+        wheel[w] = dict(x_i=x_i, y_i=y_i, is_front=is_front, fz=fz, delta=delta, wheel_x=wheel_x, wheel_y=wheel_y,
+                        omega=omega, mode=mode, coefficients=coefficients, fx=fx, fy=fy, mux=mux, muy=muy,
+                        wheel_brake=wheel_brake, wheel_drive=wheel_drive, applied=applied)
+
+    # quasi-static: every rolling wheel's spin accelerates with the body, I_w a_x / R^2 of force per wheel:
+    # m a_x = sum over rolling wheels (applied / R - I_w a_x / R^2) + sum over locked wheels Fx + drag, so
+    # a_x = (sum applied / R + sum locked Fx + drag) / (m + n_rolling I_w / R^2) (straight ahead; steer ignored)
+    rolling_mass = sum(wheel[w]["mode"] ** 2 for w in WHEELS) * inertia / radius**2
+    drag = -0.5 * s["air_density"] * s["drag_area"] * vx * ca.fabs(vx)
+    ax_estimate = (sum(wheel[w]["mode"] ** 2 * wheel[w]["applied"] / radius
+                       + (1 - wheel[w]["mode"] ** 2) * wheel[w]["fx"] for w in WHEELS) + drag) / (m + rolling_mass)
+
+    curve = force_curve()
+    force_x = force_y = yaw_moment = 0
+    friction_used = 0
+    spin_derivatives, wheel_indicators, wheel_modes = [], [], []
+    all_forward = 1  # every wheel rolls forward (all modes +1)
+    none_backward = 1  # no wheel rolls backward (all modes 0 or +1)
+    for w in WHEELS:
+        c = wheel[w]
+        x_i, y_i, fz, delta, mode, omega = c["x_i"], c["y_i"], c["fz"], c["delta"], c["mode"], c["omega"]
+        wheel_x, wheel_y, wheel_brake, wheel_drive = c["wheel_x"], c["wheel_y"], c["wheel_brake"], c["wheel_drive"]
+        fx_dynamic, fy_dynamic, mux, muy = c["fx"], c["fy"], c["mux"], c["muy"]
+
+        # quasi-static rolling wheel: the slip at which the tire gives the force the torque balance asks for
+        slip_speed = ca.sqrt(wheel_x**2 + SLIP_SPEED_FLOOR**2)
+        arguments = (fz, wheel_x, wheel_y, ca.vertcat(*[c["coefficients"][key] for key in SLOT_KEYS]))
+        demand = c["applied"] / radius - inertia * ax_estimate / radius**2  # the force the wheel needs
+        slip, capacity = quasi_static_slip(lambda kappa: curve(kappa, *arguments), peak_slip(c["coefficients"], fz),
+                                           ca.fabs(demand))
+        kappa = ca.if_else(demand >= 0, slip, -slip)
+        fx_quasi, fy_quasi = curve(kappa, *arguments)[:2]
+        quasi_rolling = ca.logic_and(quasi_static, mode != 0)
+        fx = ca.if_else(quasi_rolling, fx_quasi, fx_dynamic)
+        fy = ca.if_else(quasi_rolling, fy_quasi, fy_dynamic)
 
         body_x = fx * ca.cos(delta) - fy * ca.sin(delta)
         body_y = fx * ca.sin(delta) + fy * ca.cos(delta)
@@ -226,28 +360,42 @@ def equations() -> Equations:
         force_y += body_y
         yaw_moment += x_i * body_y - y_i * body_x
 
-        wheel_brake = brake_share[is_front] * brake_torque / 2
-        net_torque = drive_share[is_front] * drive_torque / 2 - fx * radius
+        net_torque = wheel_drive - fx * radius
         spin_torque = (net_torque - mode * wheel_brake
                        - s["rolling_resistance"] * fz * radius * smooth_sign(omega, SPIN_SMOOTHING))
-        spin_derivatives.append(moving * mode**2 * spin_torque / s["wheel_inertia"])
+        # quasi-static: the spin follows the slip's spin (wheel_x + kappa slip_speed) / R without stiffness
+        spin_quasi = ax_estimate / radius + ((wheel_x + kappa * slip_speed) / radius - omega) / SPIN_RELAXATION_TIME
+        spin_derivatives.append(ca.if_else(quasi_static, moving * mode**2 * spin_quasi,
+                                           moving * mode**2 * spin_torque / s["wheel_inertia"]))
         # rolling: event when the spin has passed 0 (by SPIN_HYSTERESIS against the mode); locked: event when the
         # brake can no longer hold (indicator |T_net| - T_brake, negative while it holds). Forward rolling is
         # positive, locked and backward rolling negative: a wheel that locks from forward rolling, or is released
         # forward, keeps its indicator's sign through the event.
-        hold_margin = wheel_brake - ca.fabs(net_torque)
+        # Quasi-static rolling: event when the brake asks more than the tire's peak force (the wheel locks), or when
+        # the contact point has turned back (by DIRECTION_HYSTERESIS); positive while it rolls.
+        # quasi-static: a locked wheel is also held while its brake exceeds the drive by RELEASE_SHARE of the rolling
+        # tire's peak torque (a locked, steered tire can push harder than the rolling one's peak along its axis;
+        # without this a wheel released below that force would lock again at once)
+        hold_margin = ca.if_else(quasi_static,
+                                 wheel_brake - ca.fmin(ca.fabs(net_torque), wheel_drive + RELEASE_SHARE * radius * capacity),
+                                 wheel_brake - ca.fabs(net_torque))
         holds = hold_margin > 0
         spin_indicator = omega + mode * SPIN_HYSTERESIS
+        lock_margin = radius * (capacity - ca.fmax(-mode * demand, 0))
+        direction = mode * wheel_x + DIRECTION_HYSTERESIS
+        rolling_indicator = ca.if_else(quasi_static, ca.fmin(lock_margin, direction), spin_indicator)
         wheel_indicators.append(ca.if_else(stopped, HELD_WHEEL_INDICATOR,
-                                           ca.if_else(mode == 0, -hold_margin, spin_indicator)))
+                                           ca.if_else(mode == 0, -hold_margin, rolling_indicator)))
         reversed_spin = mode * spin_indicator <= 0
         rolling = ca.if_else(reversed_spin, ca.if_else(holds, 0, -mode), mode)
+        turned = ca.if_else(wheel_brake > ca.fabs(wheel_drive), 0, -mode)
+        rolling_quasi = ca.if_else(direction <= 0, turned, ca.if_else(lock_margin <= 0, 0, mode))
         released = ca.if_else(holds, 0, ca.if_else(net_torque >= 0, 1, -1))
-        wheel_modes.append(ca.if_else(mode == 0, released, rolling))
+        wheel_modes.append(ca.if_else(mode == 0, released, ca.if_else(quasi_static, rolling_quasi, rolling)))
         all_forward = all_forward * (mode > 0)
+        none_backward = none_backward * (mode >= 0)
         friction_used += ca.sqrt((fx / ca.fmax(mux * fz, TINY)) ** 2 + (fy / ca.fmax(muy * fz, TINY)) ** 2) / 4
 
-    drag = -0.5 * s["air_density"] * s["drag_area"] * vx * ca.fabs(vx)
     ax = moving * (force_x + drag) / m
     ay = moving * force_y / m
     speed = ca.sqrt(vx**2 + vy**2)
@@ -269,7 +417,12 @@ def equations() -> Equations:
     # on every wheel, the speed is the forward speed: the half-line vx <= STOP_SPEED, which no step can pass
     # through. Held: event when the drive exceeds the holding forces. The moving indicator equals drive_excess
     # (the held indicator) at a start, and both are <= 0 at a stop: neither event changes its sign.
-    at_rest = ca.if_else(all_forward, vx, speed) - STOP_SPEED
+    # Quasi-static (explicit fixed-step integrators): a car on locked wheels is a stiff damper near standstill (the
+    # slip's speed floor), so one step can carry vx from above STOP_SPEED to below -STOP_SPEED; while no wheel rolls
+    # backward the stop is the half-line max(vx, |vy|) <= STOP_SPEED too (a car sliding backward on locked wheels
+    # after a spin is held once its sideways speed has fallen to STOP_SPEED).
+    at_rest = ca.if_else(ca.logic_and(quasi_static, none_backward), ca.fmax(vx, ca.fabs(vy)),
+                         ca.if_else(all_forward, vx, speed)) - STOP_SPEED
     moving_indicator = ca.fmax(at_rest, drive_excess)
     indicator = ca.if_else(stopped, drive_excess, moving_indicator)
     next_stopped = ca.if_else(stopped, drive_excess <= 0, moving_indicator <= 0)

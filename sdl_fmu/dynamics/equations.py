@@ -28,11 +28,17 @@ class Symbols:
         return self.by_name[name]
 
 
-def make_symbols(interface: Interface) -> Symbols:
+# A parameter the runtime sets, not the importer: 1 in a model-exchange instance, 0 in a co-simulation one. A model
+# that asks for it (make_symbols(..., runtime=True)) finds it after the interface's parameters in p; it is in no
+# modelDescription and no dependency list (ModelInfo.model_exchange_parameter, instance.c).
+MODEL_EXCHANGE = "model_exchange"
+
+
+def make_symbols(interface: Interface, runtime: bool = False) -> Symbols:
     vectors = {}
     by_name = {}
     for role, letter in ((STATE, "x"), (DISCRETE, "d"), (INPUT, "u"), (PARAMETER, "p")):
-        names = interface.names(role)
+        names = interface.names(role) + ([MODEL_EXCHANGE] if runtime and role == PARAMETER else [])
         vector = ca.SX.sym(letter, len(names))
         vectors[letter] = vector
         for i, name in enumerate(names):
@@ -51,6 +57,11 @@ class Equations:
     discrete_update: ca.SX  # d after the discrete update at an event
     initial_states: ca.SX  # x at initialization, from the parameters
     initial_discrete: ca.SX  # d at initialization
+    # Optional cases of the same equations with a branch fixed: case (a function of p) selects cases[case] at run
+    # time, and the generated functions evaluate only that case; the expressions above are their union (both
+    # branches), from which the dependencies are read.
+    cases: tuple = ()
+    case: ca.SX | None = None
 
     def check(self) -> None:
         """Sizes and names agree with the interface (caught at build time, not in C)."""
@@ -70,12 +81,37 @@ class Equations:
             raise ValueError(f"{self.interface.model_name}: outputs and interface disagree on {sorted(missing)}")
 
     def functions(self) -> dict[str, ca.Function]:
-        """The six CasADi functions the C runtime calls, all with arguments (x, d, u, p)."""
+        """The six CasADi functions the C runtime calls, all with arguments (x, d, u, p). With cases, each function
+        runs only the selected case's expressions (a CasADi Switch: the other case is neither evaluated nor
+        differentiated); its outputs keep the sparsity of the union expressions."""
+        full = self._functions("")
+        if not self.cases:
+            return full
+        s = self.symbols
+        model = self.interface.model_name
+        args = [s.x, s.d, s.u, s.p]
+        names = ["x", "d", "u", "p"]
+        selector = ca.Function(f"{model}_case", args, [self.case], names, ["case"])
+        per_case = [case._functions(f"_case{index}") for index, case in enumerate(self.cases)]
+        switched = {}
+        for key, function in full.items():
+            *earlier, last = [functions[key] for functions in per_case]
+            switch = ca.Function.conditional(f"{model}_{key}_switch", earlier, last)
+            symbols = [ca.MX.sym(name, function.sparsity_in(i)) for i, name in enumerate(names)]
+            results = switch(selector(*symbols), *symbols)
+            results = results if isinstance(results, (list, tuple)) else [results]
+            switched[key] = ca.Function(
+                function.name(), symbols,
+                [ca.project(result, function.sparsity_out(i)) for i, result in enumerate(results)],
+                names, function.name_out())
+        return switched
+
+    def _functions(self, suffix: str) -> dict[str, ca.Function]:
         self.check()
         s = self.symbols
         args = [s.x, s.d, s.u, s.p]
         names = ["x", "d", "u", "p"]
-        model = self.interface.model_name
+        model = self.interface.model_name + suffix
         outputs = ca.vertcat(*[self.outputs[name] for name in self.interface.names(OUTPUT)])
         return {
             "derivatives": ca.Function(f"{model}_derivatives", args, [self.derivatives], names, ["xdot"]),

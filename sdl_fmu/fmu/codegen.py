@@ -10,7 +10,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from ..dynamics.equations import Equations
+from ..dynamics.equations import MODEL_EXCHANGE, Equations
 from ..interface import DISCRETE, INPUT, OUTPUT, PARAMETER, STATE, Interface, Variable
 from .structure import DERIVATIVE_FUNCTIONS, derivative_functions
 
@@ -139,6 +139,8 @@ def generate_model_source(equations: Equations, functions: dict, guid: str, dire
     states = interface.of_role(STATE)
     solver_step = next((p.index for p in parameters if p.name == "solver_step"), -1)
     solver_tolerance = next((p.index for p in parameters if p.name == "solver_tolerance"), -1)
+    runtime_parameters = equations.symbols.p.numel() - len(parameters)  # after the interface's, set by the runtime
+    model_exchange = len(parameters) if MODEL_EXCHANGE in equations.symbols.by_name else -1
     rows = ",\n".join(
         f'    {{{i + 1}u, "{e.name}", {e.kind}, {e.store}, {e.index}, {e.settable}, {_c_range(e)}}}'
         for i, e in enumerate(table)
@@ -167,13 +169,13 @@ static const ModelVariable variables[] = {{
 }};
 
 {_c_array("input_start", [v.start for v in inputs])}
-{_c_array("parameter_start", [v.start for v in parameters])}
+{_c_array("parameter_start", [v.start for v in parameters] + [0.0] * runtime_parameters)}
 {_c_array("state_nominal", [v.nominal or 1.0 for v in states])}
 
 const ModelInfo model_info = {{
     "{model}",
     "{guid}",
-    {len(states)}, {len(interface.of_role(DISCRETE))}, {len(inputs)}, {len(parameters)}, {len(interface.of_role(OUTPUT))}, {nz},
+    {len(states)}, {len(interface.of_role(DISCRETE))}, {len(inputs)}, {len(parameters) + runtime_parameters}, {len(interface.of_role(OUTPUT))}, {nz},
     input_start,
     parameter_start,
     state_nominal,
@@ -181,6 +183,7 @@ const ModelInfo model_info = {{
     {len(table)},
     {solver_step},
     {solver_tolerance},
+    {model_exchange},
 {function_fields}
 }};
 """

@@ -145,6 +145,7 @@ def dependencies(equations: Equations, initial: bool) -> list[list[Dependency]]:
     real_unknown = _real_unknowns(interface, system.sizes)
     real_known = ([True] * s.x.numel() + [v.type == "Real" for v in interface.of_role(INPUT)]
                   + [v.type == "Real" for v in interface.of_role(PARAMETER)])
+    declared = len(real_known)  # the runtime's own parameters (equations.MODEL_EXCHANGE) come after: no variable
     inputs = interface.of_role(INPUT)
     parameters = interface.of_role(PARAMETER)
 
@@ -162,6 +163,8 @@ def dependencies(equations: Equations, initial: bool) -> list[list[Dependency]]:
 
     result: list[list[Dependency]] = [[] for _ in range(expression.numel())]
     for entry, (row, column) in enumerate(zip(rows, columns)):
+        if column >= declared:
+            continue
         if not (real_unknown[row] and real_known[column]):
             kind = "dependent"  # the other kinds are only defined for Real variables
         else:
@@ -212,7 +215,7 @@ def declared_dependencies(equations: Equations, table) -> DeclaredDependencies:
     for vr, entry in enumerate(table, start=1):
         if entry.variable is not None:
             reference[(entry.variable.role, entry.variable.index)] = vr
-    known_references = [reference[role_index] for role_index in known_roles(sizes)]
+    known_references = [reference.get(role_index) for role_index in known_roles(sizes)]  # None: the runtime's own
     known_role = [role for role, _ in known_roles(sizes)]
 
     def position(entry) -> int | None:

@@ -187,6 +187,7 @@ void instance_reset(Instance *instance) {
     instance->now.solver_step_next = 0.0;
     memcpy(instance->now.u, info->input_start, sizeof(double) * (size_t)info->nu);
     memcpy(instance->now.p, info->parameter_start, sizeof(double) * (size_t)info->np);
+    if (info->model_exchange_parameter >= 0) instance->now.p[info->model_exchange_parameter] = !instance->is_cosimulation;
     memset(instance->now.x, 0, sizeof(double) * (size_t)info->nx);
     memset(instance->now.d, 0, sizeof(double) * (size_t)info->nd);
     instance->start_time = 0.0;

@@ -65,6 +65,8 @@ typedef struct {
     int n_variables;
     int solver_step_parameter;      /* index in p of the internal step size [s] (the longest, with error control) */
     int solver_tolerance_parameter; /* index in p of the internal solver's error tolerance (0: fixed steps) */
+    int model_exchange_parameter;   /* index in p the runtime sets to 1 in model-exchange instances, 0 in
+                                     * co-simulation ones (-1: none); after the declared parameters, no variable */
     ModelFunction derivatives;      /* (x,d,u,p) -> xdot[nx] */
     ModelFunction jacobian;         /* (x,d,u,p) -> d xdot / d x, dense nx*nx, column-major */
     ModelFunction outputs;          /* (x,d,u,p) -> y[ny] */

@@ -1,6 +1,6 @@
 """Model exchange in fixed-step importers: fmpy's forward Euler drives the FMUs as fmusim and the FMI Compliance
 Checker do (start values only, inputs from a table, fixed steps of 1 to 50 ms), and the event indicators are
-what such an integrator needs (README, "Event indicators a fixed-step integrator can see").
+what such an integrator needs (docs/fmu-runtime.md, "Event indicators a fixed-step integrator can see").
 
 Closed form of every stop here (straight line, no drag, no rolling resistance, mu = 0.6 on every wheel): the
 locked or braked wheels decelerate the car by a = min(brake brake_decel_max, mu g) = mu g (brake_decel_max =
@@ -118,7 +118,7 @@ def initialized(model, references, version, values):
 def test_no_event_indicator_is_zero(simple_fmus, advanced_fmus, tmp_path, version, model_name, case):
     """Held at rest (with and without the brake), rolling, and 1 ms (one Euler step) after the start from rest:
     every indicator is nonzero (an indicator at 0 over an interval is invisible to an integrator). At the instant
-    of the start the Simple model's wheel indicators are 0 (its wheels' motion; no hysteresis, README)."""
+    of the start the Simple model's wheel indicators are 0 (its wheels' motion; no hysteresis, docs/fmu-runtime.md)."""
     fmu = (simple_fmus if model_name == "simple" else advanced_fmus)[version]
     values = {"held": {"v0": 0.0}, "held_braking": {"v0": 0.0, "brake": 1.0}, "moving": {"v0": 20.0},
               "starting": {"v0": 0.0, "throttle": 1.0}}[case]
@@ -137,3 +137,93 @@ def test_no_event_indicator_is_zero(simple_fmus, advanced_fmus, tmp_path, versio
     assert np.all(indicators != 0.0), indicators
     model.terminate()
     model.freeInstance()
+
+
+# ---- an integrator that restarts only when the FMU says its states changed -----------------------------------
+
+
+def cvode_restarting_when_told(fmu, version, start, table, stop_time, interval, tolerance, honour_flag=True):
+    """fmusim v0.0.39's model-exchange loop (FMI2MESimulation.c) with fmpy's CVode: integrate to the next output
+    point or input event, enter Event Mode at an input event or a root, apply the inputs after the event there, and
+    restart the integrator only if the event iteration reports valuesOfContinuousStatesChanged (or never, with
+    honour_flag False). Returns the time and distance at each output point."""
+    from fmpy.simulation import Input
+    from fmpy.sundials import CVodeSolver
+    description = read_model_description(str(fmu))
+    model, references, nz, nx = model_instance(fmu, version, fmu.parent / f"unzipped{version}")
+    model.instantiate()
+    if version == 2:
+        model.setupExperiment(startTime=0.0)
+        model.enterInitializationMode()
+        model.setReal([references[name] for name in start], list(start.values()))
+    else:
+        model.enterInitializationMode(startTime=0.0)
+        model.setFloat64([references[name] for name in start], list(start.values()))
+    inputs = Input(model, description, table)
+    inputs.apply(0.0)
+    model.exitInitializationMode()
+    update = model.newDiscreteStates if version == 2 else model.updateDiscreteStates
+    while update()[0]:
+        pass
+    model.enterContinuousTimeMode()
+    solver = CVodeSolver(nx=nx, nz=nz, get_x=model.getContinuousStates, set_x=model.setContinuousStates,
+                         get_dx=model.getDerivatives if version == 2 else model.getContinuousStateDerivatives,
+                         get_z=model.getEventIndicators, get_nominals=model.getNominalsOfContinuousStates,
+                         set_time=model.setTime, input=inputs, startTime=0.0, maxStep=stop_time / 50,
+                         relativeTolerance=tolerance)
+    s = references["s"]
+    read = (lambda: model.getReal([s])[0]) if version == 2 else (lambda: model.getFloat64([s])[0])
+    time, n, samples = 0.0, 0, [(0.0, read())]
+    while time < stop_time - interval / 2:
+        regular = (n + 1) * interval
+        next_input = inputs.nextEvent(time)
+        target = min(regular, next_input)
+        input_event = np.isclose(target, next_input)
+        state_event, _, time = solver.step(time, target)
+        model.setTime(time)
+        inputs.apply(time, discrete=False)
+        if np.isclose(time, regular):
+            n += 1
+            samples.append((time, read()))
+        if input_event or state_event:
+            model.enterEventMode()
+            if input_event:
+                inputs.apply(time, after_event=True)
+            states_changed = False
+            while True:
+                needed, _, _, values_changed, _, _ = update()
+                states_changed |= values_changed
+                if not needed:
+                    break
+            model.enterContinuousTimeMode()
+            if states_changed and honour_flag:
+                solver.reset(time)
+    model.terminate()
+    model.freeInstance()
+    return np.array(samples)
+
+
+@VERSIONS
+def test_an_input_jump_restarts_an_integrator_that_waits_for_the_flag(simple_fmus, version):
+    """fmusim's CVode restarts only when the FMU reports changed continuous states. At an input table's jump the
+    states do not change, but the right-hand side does: an integrator that keeps its history integrates across the
+    jump with a model that no longer holds (measured with fmusim before the FMU raised the flag: +7.9 m at its
+    default tolerance, and CVode failed at 1e-8). So a value change of an input in Event Mode raises
+    valuesOfContinuousStatesChanged once.
+
+    Closed form: start at v0 on a straight road (no drag, no rolling resistance, no pedal: the speed stays v0),
+    full brake from t_b; the car then decelerates at mu g (module docstring) and stops at
+    s = v0 t_b + v0^2 / (2 mu g). CVode at relative tolerance 1e-8 keeps each step's local error below 1e-8 of
+    the state (plus the nominal-scaled absolute part) and the stop instant is a root it locates to ~1e-10 s; the
+    global error over its few hundred steps stays below 1e-8 x (number of steps) x 60 m < 1e-4 m. A loop that
+    ignores the flag (the importer without the FMU's help) misses by far more."""
+    fmu = simple_fmus[version]
+    v0, brake_time, stop_time = 20.0, 2.0, 8.0
+    table = np.array([(0.0, 0.0), (brake_time, 0.0), (brake_time, 1.0), (stop_time, 1.0)],
+                     dtype=[("time", float), ("brake", float)])
+    start = {**STRAIGHT, "v0": v0}
+    exact = v0 * brake_time + v0**2 / (2 * DECELERATION)
+    told = cvode_restarting_when_told(fmu, version, start, table, stop_time, 0.01, 1e-8)
+    assert abs(told[-1, 1] - exact) < 1e-4, (told[-1, 1], exact)
+    untold = cvode_restarting_when_told(fmu, version, start, table, stop_time, 0.01, 1e-8, honour_flag=False)
+    assert abs(untold[-1, 1] - exact) > 1e-2, (untold[-1, 1], exact)

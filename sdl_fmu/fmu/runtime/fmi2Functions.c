@@ -365,6 +365,7 @@ fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
     Status status;
     if (!instance || !present(instance, "fmi2NewDiscreteStates", eventInfo, "eventInfo")) return fmi2Error;
     status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    states_changed |= instance_take_input_jump(instance);
     eventInfo->newDiscreteStatesNeeded = fmi2False;
     eventInfo->terminateSimulation = fmi2False;
     eventInfo->nominalsOfContinuousStatesChanged = fmi2False;

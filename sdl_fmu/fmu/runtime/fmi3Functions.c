@@ -644,6 +644,7 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesN
     if (!instance) return fmi3Error;
     /* the event iteration runs to its fixed point here, so no further update is needed */
     status = instance_event_iteration(instance, &states_changed, &discrete_changed);
+    states_changed |= instance_take_input_jump(instance);
     if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
     if (terminateSimulation) *terminateSimulation = fmi3False;
     if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;

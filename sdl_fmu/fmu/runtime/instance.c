@@ -195,6 +195,7 @@ void instance_reset(Instance *instance) {
     instance->stop_time_defined = 0;
     instance->steps = 0;
     instance->event_count = 0;
+    instance->input_jumped = 0;
     instance_invalidate(instance);
     instance->initial_state_valid = 0;
 }
@@ -400,8 +401,11 @@ Status instance_set(Instance *instance, const unsigned int vr[], size_t nvr, Kin
     for (i = 0; i < nvr; i++) {
         const ModelVariable *variable = &instance->info->variables[vr[i] - 1];
         double value = given_value(kind, values, i);
-        if (variable->store == STORE_INPUT)
+        if (variable->store == STORE_INPUT) {
+            if ((instance->now.mode & MODE_EVENT) && instance->now.u[variable->index] != value)
+                instance->input_jumped = 1;
             instance->now.u[variable->index] = value;
+        }
         else
             instance->now.p[variable->index] = value;
     }
@@ -437,6 +441,12 @@ Status instance_set_states(Instance *instance, const double x[], size_t nx) {
     memcpy(instance->now.x, x, sizeof(double) * nx);
     instance_invalidate(instance);
     return STATUS_OK;
+}
+
+int instance_take_input_jump(Instance *instance) {
+    int jumped = instance->input_jumped;
+    instance->input_jumped = 0;
+    return jumped;
 }
 
 /* ---- FMU state ---------------------------------------------------------------------------- */

@@ -53,6 +53,9 @@ typedef struct {
     Snapshot now;          /* time, mode and all values that define the instance */
     double *y, *z, *xdot;  /* cached results */
     int outputs_valid, derivatives_valid, initial_state_valid;
+    /* an input changed its value in Event Mode: the next event iteration reports the continuous states as
+     * changed, so an integrator that restarts only on that flag does not carry its history across the jump */
+    int input_jumped;
     double start_time;
     double stop_time;
     int stop_time_defined;
@@ -107,6 +110,7 @@ Status instance_derivatives(Instance *instance, const double *x, const double *d
 Status instance_event_indicators(Instance *instance, const double *x, const double *d, double *z);
 /* Applies the discrete update until nothing changes; reports whether x or d changed. */
 Status instance_event_iteration(Instance *instance, int *states_changed, int *discrete_changed);
+int instance_take_input_jump(Instance *instance);
 
 /* Co-simulation: check the arguments of a step (nothing changes), then advance the instance's time by h
  * with its internal solver. */

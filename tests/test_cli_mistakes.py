@@ -242,6 +242,13 @@ def test_user_mistake_is_one_line_per_problem_and_writes_nothing(argv, code, nee
     assert snapshot(workspace) == before
 
 
+def interruptible() -> None:
+    """In the child before exec: Ctrl-C's default action. A shell without job control starts background commands
+    with SIGINT ignored, a child inherits that, and Python then installs no KeyboardInterrupt handler (the run would
+    wait at the hold for ever)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_during_a_run_exits_130_with_one_line_and_no_partial_folder(tmp_path, simple_fmu):
     # The run is held at its first communication step (the api's test hook: it says so in hold.running and
     # waits while the hold file exists): the signal arrives mid-simulation however fast the machine is.
@@ -251,7 +258,7 @@ def test_ctrl_c_during_a_run_exits_130_with_one_line_and_no_partial_folder(tmp_p
     out = work / "results"
     process = subprocess.Popen([sys.executable, "-m", "sdl_fmu.cli", "run", "demo", "--fmu", str(simple_fmu),
                                 "--out", str(out)], cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, env={**os.environ, HOLD_VARIABLE: str(hold)})
+                               text=True, env={**os.environ, HOLD_VARIABLE: str(hold)}, preexec_fn=interruptible)
     try:
         running = tmp_path / "hold.running"
         deadline = time.monotonic() + 300  # only against a hang: the loop ends when the run is held

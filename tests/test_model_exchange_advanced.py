@@ -1,9 +1,9 @@
 """The Advanced model in fixed-step model exchange: fmpy's forward Euler drives the FMUs with start values only (and,
 as fmusim and the FMI Compliance Checker do, with the pedals from a table), at steps of 1 to 50 ms.
 
-In a model-exchange instance the Advanced model's wheels are quasi-static (wheel_spin = 0, automatic; docs/fmu-runtime.md,
-"The Advanced model in fixed-step model exchange"): a rolling wheel's slip solves its torque balance, a locked
-wheel slides. Nothing stiff is left at these speeds, so forward Euler converges to the model's own solution with
+In a model-exchange instance the Advanced model's wheels are quasi-static (wheel_spin = 0, automatic;
+docs/fmu-runtime.md, "The Advanced model in fixed-step model exchange"): a rolling wheel's slip solves its torque
+balance, a locked wheel slides. Nothing stiff is left at these speeds, so forward Euler converges to the model's own solution with
 the error of a left Riemann sum: with the speed decreasing, each step adds at most h (v(t_k) - v(t_k+1)) to the
 exact distance, h v0 over the whole stop (the same bound as the Simple model's, tests/test_model_exchange.py).
 
@@ -166,3 +166,22 @@ def test_quasi_static_wheels_follow_the_dynamic_ones(advanced_fmus, version):
     # and model exchange with the dynamic wheels selected is co-simulation's model
     selected = cvode(advanced_fmus[version], 10.0, {**start, "wheel_spin": WHEEL_SPIN["dynamic"]})
     assert abs(selected["s"][-1] - dynamic["s"][-1]) <= 1e-4
+
+
+@VERSIONS
+@pytest.mark.parametrize("rolling_resistance", [0.012, 2.0])
+def test_rolling_resistance_beyond_the_peak_locks_the_wheels_for_good(advanced_fmus, version, rolling_resistance):
+    """A rolling wheel locks when its brake and rolling-resistance torque ask more of the tire than its peak force
+    R mu_peak Fz (mu_peak ~ 0.85 on the standard tire); a locked wheel is held while the same torque exceeds what
+    would release it. With f_r = 2.0, f_r Fz R > R mu_peak Fz on every wheel at any load: no wheel can roll, so
+    every wheel locks at the initial event and stays locked (before both tests counted rolling resistance, the
+    event iteration locked and released the wheels until it gave up: found by the fuzzer). With the default
+    f_r = 0.012 and no pedal every wheel rolls. Either way the car comes to rest and never moves backwards."""
+    result = euler(advanced_fmus[version], 0.01, 1.0, {**STRAIGHT, "v0": 0.2, "rolling_resistance": rolling_resistance})
+    locked = rolling_resistance > 0.85
+    for w in WHEELS:
+        modes = result[f"wheel_mode_{w}"][result["stopped"] == 0]
+        assert np.all(modes == (0 if locked else 1)), (w, modes)
+    assert np.all(np.diff(result["x"]) >= 0.0)
+    if locked:  # sliding at mu ~ 0.75 from 0.2 m/s stops within a few hundredths of a second
+        assert result["stopped"][-1]

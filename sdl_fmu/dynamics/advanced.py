@@ -58,8 +58,9 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
              equation) by bisection and Newton steps (exact derivatives through the last Newton steps); Fy_i
              follows from the same slip. A demand beyond the peak gives the peak force; if it is a braking
              demand, the wheel locks (event: mode 0, the locked wheel of the dynamic model, released when
-             T_brake falls below both |T_net| and T_drive + 0.95 R (peak force): a locked, steered tire can push
-             harder along its axis than the rolling tire's peak, and a wheel released there would lock again). Indicator while rolling: min(R (capacity - braking demand),
+             T_brake + f_r Fz R falls below both |T_net| and T_drive + 0.95 R (peak force): a locked, steered
+             tire can push harder along its axis than the rolling tire's peak, and a wheel released there would
+             lock again). Indicator while rolling: min(R (capacity - braking demand),
              mode v_cx + 1e-6 m/s), positive; it turns back (lock or reverse) when its contact point does.
              The spin state follows without stiffness, d(omega)/dt = a_x / R + (omega_qs - omega) / 0.1 s,
              omega_qs = (v_cx + kappa sqrt(v_cx^2 + v_low^2)) / R; no force reads it. The power limit uses
@@ -361,8 +362,8 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
         yaw_moment += x_i * body_y - y_i * body_x
 
         net_torque = wheel_drive - fx * radius
-        spin_torque = (net_torque - mode * wheel_brake
-                       - s["rolling_resistance"] * fz * radius * smooth_sign(omega, SPIN_SMOOTHING))
+        rolling_torque = s["rolling_resistance"] * fz * radius
+        spin_torque = net_torque - mode * wheel_brake - rolling_torque * smooth_sign(omega, SPIN_SMOOTHING)
         # quasi-static: the spin follows the slip's spin (wheel_x + kappa slip_speed) / R without stiffness
         spin_quasi = ax_estimate / radius + ((wheel_x + kappa * slip_speed) / radius - omega) / SPIN_RELAXATION_TIME
         spin_derivatives.append(ca.if_else(quasi_static, moving * mode**2 * spin_quasi,
@@ -375,9 +376,12 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
         # the contact point has turned back (by DIRECTION_HYSTERESIS); positive while it rolls.
         # quasi-static: a locked wheel is also held while its brake exceeds the drive by RELEASE_SHARE of the rolling
         # tire's peak torque (a locked, steered tire can push harder than the rolling one's peak along its axis;
-        # without this a wheel released below that force would lock again at once)
+        # without this a wheel released below that force would lock again at once). Its rolling resistance counts
+        # with the brake, as in the lock test: a rolling resistance above the peak force locks the wheel for good
+        # instead of locking and releasing it in one event iteration.
         hold_margin = ca.if_else(quasi_static,
-                                 wheel_brake - ca.fmin(ca.fabs(net_torque), wheel_drive + RELEASE_SHARE * radius * capacity),
+                                 wheel_brake + rolling_torque
+                                 - ca.fmin(ca.fabs(net_torque), wheel_drive + RELEASE_SHARE * radius * capacity),
                                  wheel_brake - ca.fabs(net_torque))
         holds = hold_margin > 0
         spin_indicator = omega + mode * SPIN_HYSTERESIS

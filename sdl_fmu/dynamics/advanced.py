@@ -234,10 +234,9 @@ def peak_slip(c: dict, fz):
     return ca.if_else(shape > 1, ca.fmin(ca.fmax(u, 0) / ca.fmax(bx, TINY), KAPPA_SEARCH), KAPPA_SEARCH)
 
 
-def quasi_static_slip(curve, peak, target):
+def quasi_static_slip(curve, peak, capacity, target):
     """The slip 0 <= kappa <= peak at which the longitudinal force curve(kappa) = (Fx, Fy, dFx/dkappa) reaches
-    target (clipped to the force at the peak), and that force (the tire's capacity): bisection, then Newton."""
-    capacity = curve(peak)[0]
+    target, clipped to the tire's capacity (the force at the peak, curve(peak)[0]): bisection, then Newton."""
     goal = ca.fmin(target, capacity)
     low, high = 0, 1  # the slip as a share of the peak's: the bisection's steps are constants (no derivatives)
     for _ in range(BISECTIONS):
@@ -248,7 +247,7 @@ def quasi_static_slip(curve, peak, target):
     for _ in range(NEWTON_STEPS):
         force, _, slope = curve(kappa)
         kappa = ca.fmin(ca.fmax(kappa - (force - goal) / ca.fmax(slope, TINY), 0), peak)
-    return kappa, capacity
+    return kappa
 
 
 def smooth_sign(value, width):
@@ -325,13 +324,23 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
 
     # quasi-static: every rolling wheel's spin accelerates with the body, I_w a_x / R^2 of force per wheel:
     # m a_x = sum over rolling wheels (applied / R - I_w a_x / R^2) + sum over locked wheels Fx + drag, so
-    # a_x = (sum applied / R + sum locked Fx + drag) / (m + n_rolling I_w / R^2) (straight ahead; steer ignored)
+    # a_x = (sum applied / R + sum locked Fx + drag) / (m + n_rolling I_w / R^2) (straight ahead; steer ignored),
+    # each rolling wheel's applied / R clipped to its tire's capacity (a demand beyond the peak gets the peak force:
+    # unclipped, a light car's full drive gave an a_x whose inertia demand locked the undriven wheels, which the
+    # hold test then released, without end)
+    curve = force_curve()
+    for w in WHEELS:
+        c = wheel[w]
+        c["arguments"] = (c["fz"], c["wheel_x"], c["wheel_y"],
+                          ca.vertcat(*[c["coefficients"][key] for key in SLOT_KEYS]))
+        c["peak"] = peak_slip(c["coefficients"], c["fz"])
+        c["capacity"] = curve(c["peak"], *c["arguments"])[0]
     rolling_mass = sum(wheel[w]["mode"] ** 2 for w in WHEELS) * inertia / radius**2
     drag = -0.5 * s["air_density"] * s["drag_area"] * vx * ca.fabs(vx)
-    ax_estimate = (sum(wheel[w]["mode"] ** 2 * wheel[w]["applied"] / radius
+    ax_estimate = (sum(wheel[w]["mode"] ** 2 * ca.fmin(ca.fmax(wheel[w]["applied"] / radius, -wheel[w]["capacity"]),
+                                                        wheel[w]["capacity"])
                        + (1 - wheel[w]["mode"] ** 2) * wheel[w]["fx"] for w in WHEELS) + drag) / (m + rolling_mass)
 
-    curve = force_curve()
     force_x = force_y = yaw_moment = 0
     friction_used = 0
     spin_derivatives, wheel_indicators, wheel_modes = [], [], []
@@ -345,10 +354,10 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
 
         # quasi-static rolling wheel: the slip at which the tire gives the force the torque balance asks for
         slip_speed = ca.sqrt(wheel_x**2 + SLIP_SPEED_FLOOR**2)
-        arguments = (fz, wheel_x, wheel_y, ca.vertcat(*[c["coefficients"][key] for key in SLOT_KEYS]))
+        arguments = c["arguments"]
         demand = c["applied"] / radius - inertia * ax_estimate / radius**2  # the force the wheel needs
-        slip, capacity = quasi_static_slip(lambda kappa: curve(kappa, *arguments), peak_slip(c["coefficients"], fz),
-                                           ca.fabs(demand))
+        capacity = c["capacity"]
+        slip = quasi_static_slip(lambda kappa: curve(kappa, *arguments), c["peak"], capacity, ca.fabs(demand))
         kappa = ca.if_else(demand >= 0, slip, -slip)
         fx_quasi, fy_quasi = curve(kappa, *arguments)[:2]
         quasi_rolling = ca.logic_and(quasi_static, mode != 0)

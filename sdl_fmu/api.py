@@ -33,8 +33,8 @@ from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_mode
 from .units import Units
 from .vehicle.vehicle_map import Dynamics
 
-__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
-           "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
+__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios",
+           "resolve_scenario", "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -487,8 +487,8 @@ def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
     return check
 
 
-def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
-        vehicle: str | os.PathLike | None = None,
+def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = None,
+        fmu: str | os.PathLike | None = None, vehicle: str | os.PathLike | None = None,
         speed: float | None = None, seed: int = 1, step: float | None = None,
         driver_period: float | None = None, until_distance: float | None = None,
         until_time: float | None = None, params: dict[str, float] | None = None,

@@ -198,7 +198,8 @@ def _json_ready(value):
     return value
 
 
-LATERAL_SIGN = "positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: lateral = -y)"
+LATERAL_SIGN = ("positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: "
+                "lateral = -y)")
 
 
 def key_units(units: Units) -> dict[str, str]:

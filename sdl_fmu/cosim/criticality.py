@@ -731,8 +731,9 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 # m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
 # follows encounters within device.ssm.range (default 50 m); the distance everywhere
 RANGE = 50.0
-# course_horizon: s, the longest horizon tried; how many times it shortens its first guess (by a quarter) before giving up; m,
-# the least lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
+# course_horizon: s, the longest horizon tried; how many times it shortens its first guess (by a quarter) before
+# giving up; m, the least lateral margin it accepts (far above the rounding of ttc's and headway's few operations
+# on metres)
 COURSE_WINDOW = 1.0
 COURSE_TRIES = 8
 COURSE_MARGIN = 1e-6

@@ -360,7 +360,8 @@ class Cosimulation:
         model, bounds = self.model, self.bounds
         vehicle = {**model.summary(), "bounds": {
             "acceleration_m/s2": bounds.acceleration, "yaw_rate_rad/s": bounds.yaw_rate,
-            "source": model.bounds["source"], "defaults": model.defaulted if model.bounds["acceleration"] is None else []}}
+            "source": model.bounds["source"],
+            "defaults": model.defaulted if model.bounds["acceleration"] is None else []}}
         return RunResult(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
             friction_meaning=model.surface_meaning,

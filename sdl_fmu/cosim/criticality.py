@@ -1055,9 +1055,10 @@ class Extremes:
     # -- the results
 
     def summary(self, vehicle_ids, to_scenario_units) -> dict:
-        """SPEC §5's `criticality` object: run-wide extremes and one entry per vehicle, lengths (and DRAC, a
-        length per s^2) through `to_scenario_units` (units.from_si), null where a measure never applied.
-        Keys added to the SPEC's: max_drac_time_s, min_headway_s, min_headway_time_s."""
+        """summary.json's `criticality` object (docs/results.md): run-wide extremes and one entry per vehicle,
+        lengths (and DRAC, a length per s^2) through `to_scenario_units` (units.from_si), null where a measure
+        never applied.
+        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s."""
         def number(x):
             return None if x != x else float(x)
 

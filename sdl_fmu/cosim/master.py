@@ -374,7 +374,7 @@ class Cosimulation:
         )
 
     def criticality_summary(self) -> dict:
-        """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
+        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
         back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
         return self.follower.summary(self.recorder.vehicle_ids, self._scenario_units)
 

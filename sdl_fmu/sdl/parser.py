@@ -411,7 +411,7 @@ def _lanes_text(road: Road) -> str:
 
 
 def _lane_warnings(event: SurfaceAttribute, road: Road) -> list[str]:
-    """RSA lanes that the road layout does not have: kept, but they never apply (SPEC section 3)."""
+    """RSA lanes that the road layout does not have: kept, but they never apply (docs/scenarios.md, Reading files)."""
     return [f"line {event.line}: RSA parameter {2 * index + 1} (lane): lane {lane} is not on the road (it has lanes "
             f"{_lanes_text(road)} and the shoulders {RIGHT_SHOULDER}, {LEFT_SHOULDER}): this setting never applies"
             for index, (lane, _value) in enumerate(event.settings) if not road.has_lane(lane)]

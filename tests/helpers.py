@@ -45,7 +45,7 @@ def input_table(time, **signals):
     return np.array(list(zip(time, *signals.values())), dtype=[("time", float)] + [(n, float) for n in signals])
 
 
-# ---- the straight stop of SPEC §2 (Simple FMU) ---------------------------------------------------------------
+# ---- the straight stop of the closed-form braking distances (Simple FMU; docs/verification.md) ---------------
 
 MU = 0.6
 V0 = 30.0

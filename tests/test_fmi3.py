@@ -1,5 +1,5 @@
 """The FMI 3.0 FMUs, loaded through fmpy: valid, the same trajectories as the FMI 2.0 FMUs (same model code),
-the SPEC §2 closed forms at the FMI 2.0 tests' tolerances, FMU state, variable communication steps, misuse."""
+the closed-form braking distances at the FMI 2.0 tests' tolerances, FMU state, variable communication steps, misuse."""
 
 import zipfile
 
@@ -111,7 +111,7 @@ def test_fmi3_reproduces_fmi2_trajectories(fmus, model, fmi_type):
         assert two["stopped"][-1]  # the scenario reaches the event of interest
 
 
-# ---- SPEC §2 closed forms with the FMI 3.0 FMU (tolerances derived in test_simple_fmu.py) ----------------
+# ---- closed-form braking distances with the FMI 3.0 FMU (tolerances derived in test_simple_fmu.py) -------
 
 
 @pytest.mark.parametrize("step", [0.001, 0.1])

@@ -253,7 +253,8 @@ class Raw:
 
     def set_real(self, **values):
         vrs = [self.vr[n] for n in values]
-        return self("SetReal", (ctypes.c_uint * len(vrs))(*vrs), len(vrs), (ctypes.c_double * len(vrs))(*values.values()))
+        return self("SetReal", (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+                    (ctypes.c_double * len(vrs))(*values.values()))
 
     def get_real(self, *names):
         values = (ctypes.c_double * len(names))()

@@ -1,8 +1,7 @@
-"""BRK releases at a complete stop whatever its threshold type (issue 21, item 1): the seed says "in any
-braking case, if the brakes are applied long enough so that the vehicle comes to a complete stop, then the
-brakes will automatically be released". Each threshold type gets a threshold the car cannot reach before it
-stops; the release instant is compared with the stop instant of the closed-form braking distances, and the events
-after it must still fire."""
+"""BRK releases at a complete stop whatever its threshold type: the STISIM text says "in any braking case, if the
+brakes are applied long enough so that the vehicle comes to a complete stop, then the brakes will automatically be
+released". Each threshold type gets a threshold the car cannot reach before it stops; the release instant is
+compared with the stop instant of the closed-form braking distances, and the events after it must still fire."""
 
 import math
 
@@ -72,7 +71,7 @@ FRICTIONLESS = {"drag_area": 0.0, "rolling_resistance": 0.0}
 @pytest.mark.parametrize("threshold, magnitude", [
     (0, "100"),  # 100 s of braking: the car stops after 3.4 s
     (1, "10000"),  # 10000 ft of braking: it stops within 151 ft
-    (3, "200"),  # a drop of 200 ft/s from 88 ft/s: the speed would have to go below 0 (the issue's bug)
+    (3, "200"),  # a drop of 200 ft/s from 88 ft/s: the speed would have to go below 0 (it once held the run)
 ], ids=["time", "distance", "relative_velocity"])
 def test_brk_releases_at_the_stop_when_its_threshold_lies_beyond(tmp_path, simple_fmu, threshold, magnitude):
     t_stop, s_stop = frictionless_stop(SPEED_FT * FOOT)

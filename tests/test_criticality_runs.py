@@ -1,5 +1,5 @@
-"""Criticality measures located by the master on runs of the real Simple FMU (issue 18 item 4), against hand
-computations written here, and the same values whatever --step (0.001 ... 10 s)."""
+"""Criticality measures located by the master on runs of the real Simple FMU, against hand computations written
+here, and the same values whatever --step (0.001 ... 10 s)."""
 
 import math
 

@@ -1,5 +1,5 @@
-"""One friction scale (issue 10): the shipped tire surfaces against the road values they cite, and the same
-full-brake stop on each surface in both FMUs."""
+"""One friction scale (sdl_fmu/dynamics/advanced.md): the shipped tire surfaces against the road values they cite,
+and the same full-brake stop on each surface in both FMUs."""
 
 import math
 

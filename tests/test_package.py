@@ -1,7 +1,6 @@
-"""A real package (issue 7, item 2): a wheel built from the checkout runs the demo from any folder and
-leaves only its results there; FMUs come from a per-user cache keyed by everything that goes into them.
-The top-level scenarios/ and modelDescription/ ship as package data (issue 19): importlib.resources reads them
-from a wheel and from an editable install."""
+"""A real package: a wheel built from the checkout runs the demo from any folder and leaves only its results there;
+FMUs come from a per-user cache keyed by everything that goes into them. The top-level scenarios/ and
+modelDescription/ ship as package data: importlib.resources reads them from a wheel and from an editable install."""
 
 import os
 import shutil

@@ -1,5 +1,4 @@
-"""Results folders never destroy what sdl-fmu did not write (issue 7, item 1): real folders, real runs,
-a real killed process."""
+"""Results folders never destroy what sdl-fmu did not write: real folders, real runs, a real killed process."""
 
 import json
 import os

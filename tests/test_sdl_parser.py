@@ -25,7 +25,7 @@ from sdl_fmu.sdl import (
 )
 from sdl_fmu.units import ENGLISH, FOOT, METRIC
 
-WIDE_ROAD = "0,ROAD,12,10,5\n"  # 5 lanes each way, so the seed's lane -5 exists
+WIDE_ROAD = "0,ROAD,12,10,5\n"  # 5 lanes each way, so the RSA example's lane -5 exists
 
 
 def only_event(text):

@@ -1,7 +1,6 @@
-"""The Simple FMU as a planar vehicle with side slip and yaw (issue 10): split-mu braking, rear wheels that
-slide, steady cornering against the linear bicycle model of the model's own cornering stiffnesses, and
-the friction circle. Loaded for real through fmpy; every reference is computed here from the FMU's
-parameter defaults."""
+"""The Simple FMU as a planar vehicle with side slip and yaw: split-mu braking, rear wheels that slide, steady
+cornering against the linear bicycle model of the model's own cornering stiffnesses, and the friction circle. Loaded
+for real through fmpy; every reference is computed here from the FMU's parameter defaults."""
 
 import ctypes
 import math

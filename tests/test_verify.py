@@ -1,5 +1,5 @@
 """`sdl-fmu verify`: the vehicle test pack run on the shipped Simple and Advanced FMUs, on a foreign FMU built by the
-test suite, and on a vehicle that cannot reach the entry speed (issue 16, items 1, 3 and 5)."""
+test suite, and on a vehicle that cannot reach the entry speed."""
 
 import base64
 import csv

@@ -1,5 +1,5 @@
-"""The vehicle test pack against analytic references for the shipped models (issue 16, item 2). Each test derives
-its reference and its tolerance next to the assertion."""
+"""The vehicle test pack against analytic references for the shipped models. Each test derives its reference and its
+tolerance next to the assertion."""
 
 import math
 

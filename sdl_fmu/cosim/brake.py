@@ -1,4 +1,4 @@
-"""The BRK controller: holds the pedals from the event until its threshold or a stop (seed text)."""
+"""The BRK controller: holds the pedals from the event until its threshold or a stop (docs/scenarios.md)."""
 
 from __future__ import annotations
 

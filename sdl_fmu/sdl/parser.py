@@ -278,7 +278,7 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: U
     for first in range(5, len(params) + 1, 4):
         trigger_text, lateral_text, speed_text, duration_text = params[first - 1:first + 3]
         trigger = _checked(report, _a_field(first), _closure_trigger, trigger_text)
-        # The seed calls this a move relative to the vehicle's own position, but its worked example
+        # The STISIM text calls this a move relative to the vehicle's own position, but its worked example
         # (*0 = into the driver's lane, -6 = back into its own lane) only works as a roadway position.
         action_lateral = _checked(report, _a_field(first + 1), _relative, lateral_text, units, "length")
         action_speed = _checked(report, _a_field(first + 2), _relative, speed_text, units, "speed")

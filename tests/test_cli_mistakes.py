@@ -188,7 +188,8 @@ def workspace(tmp_path_factory, simple_fmu):
     dry = DRY_TIRE.read_text()
     tire_files = {
         "syntax.tir": dry.replace("PDX1", "PDX1 = = 1\nXX", 1),
-        "fnomin.tir": "\n".join("FNOMIN = 0" if line.strip().startswith("FNOMIN") else line for line in dry.splitlines()),
+        "fnomin.tir": "\n".join("FNOMIN = 0" if line.strip().startswith("FNOMIN") else line
+                                for line in dry.splitlines()),
         "no_pdx1.tir": "\n".join(line for line in dry.splitlines() if not line.strip().startswith("PDX1")),
         "inch.tir": dry.replace("[UNITS]", "[UNITS]\nLENGTH = 'inch'", 1),
     }

@@ -9,9 +9,9 @@ at most 1 ms, fires what has become true at the end of that step, and reports th
 r has passed its threshold by at most r u when it is reported (one-sided). The event acts from the reported instant
 on (the pedals change there), so a BRK hold's own dynamics start exactly at its reported onset state. What the
 car itself adds is Runge-Kutta 4 rounding (below 1e-9, test_foreign_vehicle.py). The distance sdl-fmu reports is
-not the car's (it has none): sdl-fmu integrates the car's speed between communication points by the trapezoid rule, whose error
-per step h is h^3 |v''| / 12, so over T seconds of braking at most T h_max^2 max|v''| / 12 with h_max the
-driver's sampling period (the longest step while the driver or a BRK holds the pedals).
+not the car's (it has none): sdl-fmu integrates the car's speed between communication points by the trapezoid
+rule, whose error per step h is h^3 |v''| / 12, so over T seconds of braking at most T h_max^2 max|v''| / 12 with
+h_max the driver's sampling period (the longest step while the driver or a BRK holds the pedals).
 """
 
 import math

@@ -323,8 +323,9 @@ BAD += [("BRK parameter 3 (magnitude)", "1" + digits) for digits in NON_ASCII_DI
 
 
 def test_a_bad_numeric_field_is_refused_naming_it(tmp_path, simple_fmu):
-    cases = [(f"{field} = {value!r}", "English\n// generated\n" + _with(FIELDS[field][0], FIELDS[field][1], value) + "\n",
-              []) for field, value in BAD]
+    cases = [(f"{field} = {value!r}",
+              "English\n// generated\n" + _with(FIELDS[field][0], FIELDS[field][1], value) + "\n", [])
+             for field, value in BAD]
     assert len(cases) == 3 * len(FIELDS) + 2 * len(NON_ASCII_DIGITS)
 
     def check(name, result, path, out):

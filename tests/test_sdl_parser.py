@@ -123,7 +123,8 @@ def test_units_header_is_case_insensitive(header):
 
 
 def test_comments_blank_lines_crlf_whitespace_and_bom():
-    text = "\ufeff// header comment\r\n\r\n  Metric // units\r\n\r\n 10 , brk , 50 , 0 , 2  // brake\r\n// end\r\n20,es\r\n"
+    text = ("\ufeff// header comment\r\n\r\n  Metric // units\r\n\r\n 10 , brk , 50 , 0 , 2  // brake\r\n"
+            "// end\r\n20,es\r\n")
     scenario = parse_text(text)
     assert scenario.units == METRIC
     assert scenario.events == (

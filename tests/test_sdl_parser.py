@@ -1,4 +1,4 @@
-"""SDL parser: the seed examples parse to the right typed events in SI, and every bad input is reported."""
+"""SDL parser: the STISIM text's examples parse to the right typed events in SI, and every bad input is reported."""
 
 import pytest
 
@@ -39,7 +39,7 @@ def errors_of(text, path="s.sdl"):
     return caught.value.errors
 
 
-# --- the seed examples ---------------------------------------------------------------------------
+# --- the STISIM text's examples ------------------------------------------------------------------
 
 
 def test_seed_approaching_vehicle_example_in_si():

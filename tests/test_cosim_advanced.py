@@ -49,7 +49,7 @@ def test_brk_is_ignored_with_a_warning(advanced_fmu):
     result = run_scenario(parse_text("100,BRK,100,0,3", "brk.sdl"), advanced_fmu, options(until_distance=200 * FOOT),
                           TABLE)
     assert not [e for e in result.events if e["code"] == "BRK"]
-    assert result.warnings == ["line 1: BRK ignored: brake events act only with simple dynamics (seed text)"]
+    assert result.warnings == ["line 1: BRK ignored: brake events act only with simple dynamics"]
     assert (result.columns["brake"] == 0).all()
 
 

@@ -301,8 +301,7 @@ class Cosimulation:
         elif isinstance(event, Brake):
             brake_hold = self.inputs.brake_hold
             if not self.model.brk_acts:
-                self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics "
-                                     "(seed text)")
+                self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics")
             elif brake_hold is not None:
                 self.warnings.append(f"line {event.line}: BRK ignored: the brake event of line "
                                      f"{brake_hold.event.line} is still on")

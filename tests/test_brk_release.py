@@ -104,7 +104,7 @@ def test_brk_relative_velocity_releases_at_the_stop_with_drag_and_rolling_resist
 
 
 def test_brake_examples_at_25_ft_s_release_every_brk_and_end_by_runout(simple_fmu):
-    # The reproducer: at 25 ft/s the fourth example (drop by 30 ft/s) cannot be met; the car stops and
+    # At 25 ft/s the fourth example (drop by 30 ft/s) cannot be met; the car stops and
     # must be released there, not held until the 3600 s limit.
     result = api.run("brake_examples", fmu=simple_fmu, speed=25.0, plot=False)
     offs = [e for e in result.events if e["code"] == "BRK" and e["action"] == "off"]

@@ -314,7 +314,8 @@ def test_a_sliding_tire_pushes_against_its_sliding_velocity(defaults_advanced):
         u, w = speed * math.cos(beta), speed * math.sin(beta)
         fx, fy = (float(value) for value in forces(fz, u, w, 0.0))
         angle = math.atan2(fx * w - fy * u, -(fx * u + fy * w))  # from -(u, w) to F
-        print(f"beta {beta}: force angle to the sliding direction {angle:.2e} rad, |F| / Fz {math.hypot(fx, fy) / fz:.4f}")
+        print(f"beta {beta}: force angle to the sliding direction {angle:.2e} rad, "
+              f"|F| / Fz {math.hypot(fx, fy) / fz:.4f}")
         assert abs(angle) <= 5e-5 * beta * 1.01
     u = 20.0
     surface, across = u * (1 - 0.02), u * math.tan(0.02)

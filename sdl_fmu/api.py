@@ -33,8 +33,8 @@ from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_mode
 from .units import Units
 from .vehicle.vehicle_map import Dynamics
 
-__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios", "resolve_scenario",
-           "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
+__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios",
+           "resolve_scenario", "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -51,7 +51,7 @@ LIMITS = {
 
 
 def _shipped_variables() -> tuple[str, ...]:
-    """The FMU variables both shipped vehicle maps name (SPEC §2's common interface)."""
+    """The FMU variables both shipped vehicle maps name (their common interface: docs/fmu-runtime.md, Variables)."""
     from .vehicle import SHIPPED, load_vehicle_map, shipped_map_path
 
     named = []
@@ -382,7 +382,7 @@ class Result:
 
     @property
     def criticality(self) -> dict | None:
-        """summary.json's `criticality` (SPEC §5): min_distance (scenario units) and its instant, min_ttc_s,
+        """summary.json's `criticality` (docs/results.md): min_distance (scenario units) and its instant, min_ttc_s,
         max_drac (scenario units/s2), min_pet_s, min_headway_s, ..., run-wide and per vehicle (`vehicles`)."""
         return self.raw.criticality
 
@@ -487,8 +487,8 @@ def _with_deadline(progress: Callable | None, timeout: float) -> Callable:
     return check
 
 
-def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
-        vehicle: str | os.PathLike | None = None,
+def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = None,
+        fmu: str | os.PathLike | None = None, vehicle: str | os.PathLike | None = None,
         speed: float | None = None, seed: int = 1, step: float | None = None,
         driver_period: float | None = None, until_distance: float | None = None,
         until_time: float | None = None, params: dict[str, float] | None = None,
@@ -500,9 +500,10 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     step is the longest communication step (default 1 s; results do not depend on it), driver_period the
     driver model's sampling period (default 0.05 s),
     params are FMU start values (SI) within each parameter's declared min/max. vehicle: a vehicle map (TOML,
-    SPEC §6) driving `fmu` (or the map's own `fmu`); without it `dynamics` (default simple) names a shipped map
-    and fmu defaults to its cached build. tires: Tire Attribute File (vehicles with tire slots: advanced). progress: a bar on stderr (None: only
-    when stderr is a terminal). out: also write the results folder; it is checked before the simulation.
+    docs/vehicle-maps.md) driving `fmu` (or the map's own `fmu`); without it `dynamics` (default simple) names a
+    shipped map and fmu defaults to its cached build. tires: Tire Attribute File (vehicles with tire slots:
+    advanced). progress: a bar on stderr (None: only when stderr is a terminal). out: also write the results
+    folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
     Raises InputError or ScenarioError for user mistakes."""
     from .cosim.ego import FmuError
@@ -568,7 +569,7 @@ class VerifyResult:
 def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
            vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
            out: str | os.PathLike | None = None) -> VerifyResult:
-    """Runs the vehicle test pack (SPEC section 7) against one vehicle: a shipped model (`dynamics`), or `fmu`
+    """Runs the vehicle test pack (docs/verification.md) against one vehicle: a shipped model (`dynamics`), or `fmu`
     driven through the vehicle map `vehicle`. A manoeuvre the vehicle cannot be driven through fails with its
     reason; only user mistakes (options, FMU, map, results folder) raise InputError."""
     from . import verify as pack

@@ -198,12 +198,13 @@ def _json_ready(value):
     return value
 
 
-LATERAL_SIGN = "positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: lateral = -y)"
+LATERAL_SIGN = ("positive to the driver's right of the dividing line (roadway frame; ISO 8855's y points left: "
+                "lateral = -y)")
 
 
 def key_units(units: Units) -> dict[str, str]:
     """summary.json's "key_units": the unit of each key of "final" and the events that carries one (the keys
-    themselves stay as SPEC names them), and the sign of lateral."""
+    themselves keep their first names: docs/results.md), and the sign of lateral."""
     length, speed = length_label(units), speed_label(units)
     return {"time_s": "s", "distance": length, "speed": speed, "lateral": f"{length}, {LATERAL_SIGN}",
             "timing.wall_s": "s", "timing.real_time_factor": "simulated s per wall-clock s"}
@@ -227,7 +228,7 @@ def _summary_fields(result: RunResult, events) -> dict:
 
 
 def summary(result: RunResult) -> dict:
-    """summary.json content (SPEC section 4): final state, events and warnings in scenario units."""
+    """summary.json content (docs/results.md, The files): final state, events and warnings in scenario units."""
     return _json_ready(_summary_fields(result, list(result.events)))
 
 

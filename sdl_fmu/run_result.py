@@ -97,7 +97,7 @@ class RunResult:
     timing: dict = field(default_factory=dict)  # summary "timing": wall_s, real_time_factor, steps, samples
     friction_meaning: str | None = "mu"  # what an RSA value means for the vehicle: "mu", "attribute" or None
     vehicle: dict = field(default_factory=dict)  # summary "vehicle": the EgoModel's summary and the bounds used
-    # summary "criticality" (SPEC §5): run-wide and per-vehicle extremes, scenario units; None: not measured
+    # summary "criticality" (docs/results.md): run-wide and per-vehicle extremes, scenario units; None: not measured
     criticality: dict | None = None
     # s per sample, the smallest time to collision (nan: none defined), computed when called (the plot)
     ttc_series: Callable[[], np.ndarray] | None = None

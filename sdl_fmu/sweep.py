@@ -304,7 +304,7 @@ def column_names(varied: list[str], units: Units, model=None) -> dict[str, str]:
 
 
 def criticality_columns(criticality: dict | None, units: Units) -> dict:
-    """The table's criticality columns from summary.json's `criticality` (SPEC §5): the run-wide measures,
+    """The table's criticality columns from summary.json's `criticality` (docs/results.md): the run-wide measures,
     then per vehicle N the same prefixed AN_, units in the names (ft or m; DRAC in ft/s2 or m/s2); None
     where a measure never applied."""
     if criticality is None:

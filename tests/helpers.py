@@ -45,7 +45,7 @@ def input_table(time, **signals):
     return np.array(list(zip(time, *signals.values())), dtype=[("time", float)] + [(n, float) for n in signals])
 
 
-# ---- the straight stop of SPEC §2 (Simple FMU) ---------------------------------------------------------------
+# ---- the straight stop of the closed-form braking distances (Simple FMU; docs/verification.md) ---------------
 
 MU = 0.6
 V0 = 30.0
@@ -79,7 +79,7 @@ def expected_distance(defaults, resistances, mu=MU, brake=1.0, v0=V0):
     return braking_distance(v0, deceleration, defaults["rolling_resistance"], drag_factor)
 
 
-# Tolerances. The issue asks for 1e-6 (no resistances) and 1e-4 (with them); the numerics give more:
+# Tolerances, far tighter than 1e-6 (no resistances) and 1e-4 (with them), because the numerics allow it:
 # with constant deceleration v(t) is linear and s(t) quadratic, which RODAS4 (order 4) integrates
 # exactly at any step, so only round-off remains (~1e4 steps x 1e-16 relative). With drag, v' = -w,
 # w = A + K v^2, and s^(5) = v'''' = 16 K^2 v w^2 + 8 K^3 v^3 w <= 2.1e-3 m/s^5 (K = 2.9e-4 1/m, v <= 30 m/s,
@@ -253,7 +253,8 @@ class Raw:
 
     def set_real(self, **values):
         vrs = [self.vr[n] for n in values]
-        return self("SetReal", (ctypes.c_uint * len(vrs))(*vrs), len(vrs), (ctypes.c_double * len(vrs))(*values.values()))
+        return self("SetReal", (ctypes.c_uint * len(vrs))(*vrs), len(vrs),
+                    (ctypes.c_double * len(vrs))(*values.values()))
 
     def get_real(self, *names):
         values = (ctypes.c_double * len(names))()

@@ -1,5 +1,5 @@
-"""The Python API (issue 7, item 5): the README's example runs as written; results as NumPy arrays and a
-pandas DataFrame; events, warnings; the progress bar; user mistakes as InputError / ScenarioError."""
+"""The Python API: the README's example runs as written; results as NumPy arrays and a pandas DataFrame; events,
+warnings; the progress bar; user mistakes as InputError / ScenarioError."""
 
 import csv
 import os

@@ -1,8 +1,7 @@
-"""BRK releases at a complete stop whatever its threshold type (issue 21, item 1): the seed says "in any
-braking case, if the brakes are applied long enough so that the vehicle comes to a complete stop, then the
-brakes will automatically be released". Each threshold type gets a threshold the car cannot reach before it
-stops; the release instant is compared with the stop instant of SPEC section 2's closed forms, and the events
-after it must still fire."""
+"""BRK releases at a complete stop whatever its threshold type: the STISIM text says "in any braking case, if the
+brakes are applied long enough so that the vehicle comes to a complete stop, then the brakes will automatically be
+released". Each threshold type gets a threshold the car cannot reach before it stops; the release instant is
+compared with the stop instant of the closed-form braking distances, and the events after it must still fire."""
 
 import math
 
@@ -37,7 +36,7 @@ def run(tmp_path, simple_fmu, threshold, magnitude, params):
 
 
 def frictionless_stop(v0: float) -> tuple[float, float]:
-    # Drag and rolling resistance 0: SPEC section 2's a = min(brake * brake_decel_max, mu * g) with full pedal,
+    # Drag and rolling resistance 0: the closed form a = min(brake * brake_decel_max, mu * g) with full pedal,
     # brake_decel_max 9.81 > mu g = 7.845 m/s2, so a = mu g, constant from the BRK's onset at t = 0 (distance 0
     # fires at the start). Then v(t) = v0 - a t: the stop is t = v0 / a, at s = v0^2 / (2 a).
     a = MU * STANDARD_GRAVITY
@@ -72,7 +71,7 @@ FRICTIONLESS = {"drag_area": 0.0, "rolling_resistance": 0.0}
 @pytest.mark.parametrize("threshold, magnitude", [
     (0, "100"),  # 100 s of braking: the car stops after 3.4 s
     (1, "10000"),  # 10000 ft of braking: it stops within 151 ft
-    (3, "200"),  # a drop of 200 ft/s from 88 ft/s: the speed would have to go below 0 (the issue's bug)
+    (3, "200"),  # a drop of 200 ft/s from 88 ft/s: the speed would have to go below 0 (it once held the run)
 ], ids=["time", "distance", "relative_velocity"])
 def test_brk_releases_at_the_stop_when_its_threshold_lies_beyond(tmp_path, simple_fmu, threshold, magnitude):
     t_stop, s_stop = frictionless_stop(SPEED_FT * FOOT)
@@ -90,7 +89,7 @@ def test_brk_velocity_threshold_is_reached_at_the_stop_at_the_latest(tmp_path, s
 
 def test_brk_relative_velocity_releases_at_the_stop_with_drag_and_rolling_resistance(tmp_path, simple_fmu,
                                                                                     defaults_simple):
-    # SPEC section 2 with drag and rolling resistance: dv/dt = -(A + K v^2), A = mu g + f_r g, K = rho CdA / (2 m).
+    # The closed form with drag and rolling resistance: dv/dt = -(A + K v^2), A = mu g + f_r g, K = rho CdA / (2 m).
     # Separating variables, t = integral_0^v0 dv / (A + K v^2) = arctan(v0 sqrt(K / A)) / sqrt(A K), and the
     # distance is ln(1 + K v0^2 / A) / (2 K). The drag changes with v, so v(t) is no longer linear: RODAS4's
     # error under the default solver tolerance is what remains, far below TIME_TOLERANCE (test_solver.py).
@@ -105,7 +104,7 @@ def test_brk_relative_velocity_releases_at_the_stop_with_drag_and_rolling_resist
 
 
 def test_brake_examples_at_25_ft_s_release_every_brk_and_end_by_runout(simple_fmu):
-    # The issue's reproducer: at 25 ft/s the fourth example (drop by 30 ft/s) cannot be met; the car stops and
+    # At 25 ft/s the fourth example (drop by 30 ft/s) cannot be met; the car stops and
     # must be released there, not held until the 3600 s limit.
     result = api.run("brake_examples", fmu=simple_fmu, speed=25.0, plot=False)
     offs = [e for e in result.events if e["code"] == "BRK" and e["action"] == "off"]

@@ -1,5 +1,5 @@
-"""No user mistake shows a traceback (issue 7, item 3): a generated set of bad invocations and inputs,
-driven through the real command line in-process (sdl_fmu.cli.main), plus Ctrl-C on a real subprocess.
+"""No user mistake shows a traceback: a generated set of bad invocations and inputs, driven through the real command
+line in-process (sdl_fmu.cli.main), plus Ctrl-C on a real subprocess.
 
 Every case must: raise nothing, exit 1 (the scenario file) or 2 (anything else), print one line per
 problem on stderr, each naming the file (and line) or the option, print nothing on stdout, and leave
@@ -96,7 +96,7 @@ BAD_LINES = [
     "0,A,20,100,-6,*1~99", "0,A,20,100,-6,1,0,-6,20,1", "0,A,20,100,-6,1,5,-6,20,-1", "0,A,20,100,*,1",
     "0,A,20,*100,-6,1", "10,ROAD,12,2,1", "0,ROAD,0,2,1", "0,ROAD,12,0,0", "0,ROAD,12,2,3", "0,ROAD,12,2",
     "10,ES,1", "Metric units", "just words", "10",
-    # issue 21: format limits, ASCII digits, and what real STISIM files hold (errors without --skip-unsupported)
+    # format limits, ASCII digits, and what real STISIM files hold (errors without --skip-unsupported)
     "10,BRK,\uff15\uff10,0,1", "3280840,ES", "10,RSA,1,1001", "0,ROAD,12,1001,1", "0,ROAD,329,2,1",
     "10,BRK,50,0," + "9" * 40, "0,A,20,100,-6,*1~" + "9" * 33, "10,Signal Light,2000,1", "10,Pedestrian#5,1",
     "@10,BRK,50,0,1", "Config_Start_Y = 0{0}", "0,A#3,20,100,-6,1", "10,BRK,100{1},0,3",
@@ -188,7 +188,8 @@ def workspace(tmp_path_factory, simple_fmu):
     dry = DRY_TIRE.read_text()
     tire_files = {
         "syntax.tir": dry.replace("PDX1", "PDX1 = = 1\nXX", 1),
-        "fnomin.tir": "\n".join("FNOMIN = 0" if line.strip().startswith("FNOMIN") else line for line in dry.splitlines()),
+        "fnomin.tir": "\n".join("FNOMIN = 0" if line.strip().startswith("FNOMIN") else line
+                                for line in dry.splitlines()),
         "no_pdx1.tir": "\n".join(line for line in dry.splitlines() if not line.strip().startswith("PDX1")),
         "inch.tir": dry.replace("[UNITS]", "[UNITS]\nLENGTH = 'inch'", 1),
     }

@@ -1,5 +1,5 @@
-"""Triggers are located at their true instants whatever the communication step: the same events at the
-same times and the same collisions at --step 0.001 ... 10 s (issue 11). Runs the real Simple FMU."""
+"""Triggers are located at their true instants whatever the communication step: the same events at the same times
+and the same collisions at --step 0.001 ... 10 s. Runs the real Simple FMU."""
 
 import pytest
 
@@ -17,7 +17,7 @@ STEPS = (0.001, 0.01, 0.1, 1.0, 10.0)
 # 27 m/s is 1e-6 s again), and the FMU's fixed-step RODAS4 solver, whose steps end at every communication
 # point, differs between the runs only by round-off. A few located instants in a chain: 1e-5 s.
 TIME_TOLERANCE = 1e-5  # s
-# the 2 ft ice patch of the issue: full brake from 88 ft/s at 100 ft, released below 10 ft/s; the wheels
+# a 2 ft ice patch: full brake from 88 ft/s at 100 ft, released below 10 ft/s; the wheels
 # cross the patch (200..202 ft) while braking, each crossing changes the deceleration
 SHORT_PATCH = "English\n100,BRK,100,2,10\n200,RSA,1,2\n202,RSA,1,8\n500,ES"
 

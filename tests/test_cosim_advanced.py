@@ -1,5 +1,5 @@
-"""The orchestrator with the Advanced FMU: RSA attribute numbers per wheel, BRK ignored, the seed
-examples run, tire attribute files."""
+"""The orchestrator with the Advanced FMU: RSA attribute numbers per wheel, BRK ignored, the STISIM
+text's examples run, tire attribute files."""
 
 import math
 
@@ -22,7 +22,7 @@ def options(**extra):
 
 
 def test_rsa_example_sets_attribute_numbers_under_each_wheel(advanced_fmu):
-    # The seed's advanced RSA example: lane 1 gets attribute 1 from 1000 ft to 1100 ft. The wheels of the
+    # The STISIM text's advanced RSA example: lane 1 gets attribute 1 from 1000 ft to 1100 ft. The wheels of the
     # Advanced FMU sit cg_to_front_axle ahead of and cg_to_rear_axle behind the CG, so the front-left
     # wheel reads attribute 1 while its station is in [1000, 1100) ft, i.e. while the CG station is in
     # [1000 ft - a, 1100 ft - a); the rear wheels while it is in [1000 ft + b, 1100 ft + b).
@@ -49,7 +49,7 @@ def test_brk_is_ignored_with_a_warning(advanced_fmu):
     result = run_scenario(parse_text("100,BRK,100,0,3", "brk.sdl"), advanced_fmu, options(until_distance=200 * FOOT),
                           TABLE)
     assert not [e for e in result.events if e["code"] == "BRK"]
-    assert result.warnings == ["line 1: BRK ignored: brake events act only with simple dynamics (seed text)"]
+    assert result.warnings == ["line 1: BRK ignored: brake events act only with simple dynamics"]
     assert (result.columns["brake"] == 0).all()
 
 
@@ -61,7 +61,7 @@ def test_unknown_attribute_falls_back_with_a_warning(advanced_fmu):
 
 
 def test_approaching_vehicle_example_runs_with_advanced_dynamics(advanced_fmu):
-    # The seed's A example at 60 ft/s with drag and rolling resistance off: the driver holds the speed, so
+    # The STISIM text's A example at 60 ft/s with drag and rolling resistance off: the driver holds the speed, so
     # the hand computation of the simple-dynamics test holds: closing at 80 ft/s, spawn at 100/60 s,
     # action 1 at gap 800 ft (2.5 s later), action 2 at gap 400 ft (7.5 s after the spawn).
     scenario = load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl")

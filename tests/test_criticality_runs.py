@@ -1,5 +1,5 @@
-"""Criticality measures located by the master on runs of the real Simple FMU (issue 18 item 4), against hand
-computations written here, and the same values whatever --step (0.001 ... 10 s)."""
+"""Criticality measures located by the master on runs of the real Simple FMU, against hand computations written
+here, and the same values whatever --step (0.001 ... 10 s)."""
 
 import math
 
@@ -223,7 +223,7 @@ def bisect_root(f, low: float, high: float) -> float:
 def test_braking_ego_and_an_oncoming_vehicle_minimum_distance_at_the_root_of_its_derivative(run, simple_fmu):
     # braking_oncoming: everything in metres and seconds. The ego drives lane 1's centre (lateral Y = 6 ft,
     # yaw 0) at v0 = 88 ft/s from x = 0. BRK (half pedal, from 300 ft) with drag and rolling resistance 0 and
-    # mu = 0.8: the demand 0.5 brake_decel_max < mu g, so (SPEC section 2) a constant deceleration
+    # mu = 0.8: the demand 0.5 brake_decel_max < mu g, so (straight-line braking's closed form) a constant deceleration
     # a = 0.5 brake_decel_max from the onset t_b (x_b, v_b the logged onset): x(t) = x_b + v_b tau - a tau^2 / 2,
     # v = v_b - a tau, tau = t - t_b. The car (model 1, l x w = 4.2 x 1.75 m) spawns at t_s, 500 ft ahead of
     # the ego's x_s, oncoming at u = 20 ft/s: c(t) = x_s + 500 ft - u (t - t_s). Its lateral position: -6 ft;
@@ -355,7 +355,7 @@ SPEC_KEYS = {"min_distance", "min_distance_time_s", "min_ttc_s", "min_ttc_time_s
 
 
 def test_summary_json_api_and_plot_carry_the_criticality(simple_fmu, tmp_path):
-    # summary.json's `criticality` holds SPEC §5's keys run-wide and per vehicle id (null where never applied,
+    # summary.json's `criticality` holds docs/results.md's keys run-wide and per vehicle id (null where never applied,
     # distances in the scenario's units), api.Result exposes the same, and the plot is drawn with them.
     import json
 

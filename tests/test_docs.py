@@ -1,8 +1,10 @@
-"""The documents: every relative link points to a file (and a heading) that exists, no text refers to documents
-outside the repository, and BENCHMARKS.md is what benchmarks/report.py makes of the committed results."""
+"""The documents: every relative link points to a file (and a heading) that exists, no text (the documents, and
+every tracked code, test, data, tool and benchmark file) refers to documents outside the repository, and
+BENCHMARKS.md is what benchmarks/report.py makes of the committed results."""
 
 import importlib.util
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -67,15 +69,53 @@ def test_the_link_checker_sees_a_broken_link(tmp_path):
 
 
 # Documents the repository does not hold: the project's contract and issue texts, the SDL seed texts.
-FOREIGN_REFERENCE = re.compile(r"\bSPEC\b|§|\b[Ii]ssues? ?#?\d+|\bthe issue\b|[Ss]eed texts?|the seed's|"
-                               r"seed (?:A|BRK|RSA) example|\bCEO\b")
+FOREIGN_REFERENCE = re.compile(r"\bSPEC\b|§|\b[Ii]ssues? ?#?\d+|\b[Tt]he issue\b|\b[Ii]ssue asks\b|[Ss]eed texts?|"
+                               r"\b[Tt]he seed(?:'s| examples?\b)|seed (?:A|BRK|RSA) example|\bCEO\b")
 
 
-@pytest.mark.parametrize("document", DOCUMENTS, ids=lambda p: str(p.relative_to(ROOT)))
-def test_no_text_refers_to_documents_outside_the_repository(document):
-    found = [f"{document.name}:{number}: {line.strip()}" for number, line in
-             enumerate(document.read_text().splitlines(), 1) if FOREIGN_REFERENCE.search(line)]
+def tracked_files() -> list[Path]:
+    """The files git tracks (a checkout without git: every file, caches left out)."""
+    try:
+        listing = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True, check=True).stdout
+        return [ROOT / name for name in listing.decode().split("\0") if name]
+    except (OSError, subprocess.CalledProcessError):
+        return [p for p in ROOT.rglob("*") if p.is_file() and not
+                {".git", ".venv", "__pycache__", ".pytest_cache", "dist", "runs"} & set(p.relative_to(ROOT).parts)]
+
+
+def is_text(path: Path) -> bool:
+    data = path.read_bytes()
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return False  # a PNG
+    return b"\0" not in data
+
+
+# Every other tracked text file: code, tests, shipped data (scenarios, tires, vehicle maps, interface JSON),
+# tools, benchmarks and their results, CI. This file is left out: it must spell the pattern.
+SOURCES = sorted(p for p in tracked_files()
+                 if p not in DOCUMENTS and p != Path(__file__).resolve() and p.is_file() and is_text(p))
+
+
+@pytest.mark.parametrize("text", DOCUMENTS + SOURCES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_text_refers_to_documents_outside_the_repository(text):
+    found = [f"{text.relative_to(ROOT)}:{number}: {line.strip()}" for number, line in
+             enumerate(text.read_text(encoding="utf-8").splitlines(), 1) if FOREIGN_REFERENCE.search(line)]
     assert not found, "\n".join(found)
+
+
+def test_the_foreign_reference_check_sees_references_and_spares_names():
+    assert SOURCES and {"sdl_fmu/api.py", "scenarios/demo.sdl", "scenarios/tires/ice.tir", "tests/conftest.py",
+                        "modelDescription/EgoVehicleSimple.json", ".ci/run"} <= {
+        str(p.relative_to(ROOT)) for p in SOURCES}
+    for foreign in ["(SPEC §2)", "SPEC section 4", "the SPEC's keys", "§5", "issue 7, item 2", "Issue #16",
+                    "the issue asks", "The issue's reproducer", "the\n    # issue asks", "(seed text)",
+                    "The seed's BRK use case", "the seed examples", "the four seed BRK examples", "the CEO"]:
+        assert any(FOREIGN_REFERENCE.search(line) for line in foreign.splitlines()), foreign
+    for own in ["ASPECT_RATIO = 0.60", "SPEC_METRICS = {", "spec_closed_forms = true", "--seed 7", "seed=3",
+                "reproducible from the seed: the same events", "issued handles", "inspect"]:
+        assert not FOREIGN_REFERENCE.search(own), own
 
 
 def test_benchmarks_md_is_generated_from_the_committed_results():

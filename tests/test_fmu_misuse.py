@@ -1,4 +1,4 @@
-"""The hardened runtime, called through ctypes: every misuse the issue measured returns fmi2Error with a log
+"""The hardened runtime, called through ctypes: every misuse docs/fmu-runtime.md lists returns fmi2Error with a log
 message, argument errors leave the instance usable, no call runs without bound, and serialized states are
 checked (GUID hash, checksum, then field by field) before they touch the instance."""
 

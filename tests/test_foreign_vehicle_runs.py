@@ -9,9 +9,9 @@ at most 1 ms, fires what has become true at the end of that step, and reports th
 r has passed its threshold by at most r u when it is reported (one-sided). The event acts from the reported instant
 on (the pedals change there), so a BRK hold's own dynamics start exactly at its reported onset state. What the
 car itself adds is Runge-Kutta 4 rounding (below 1e-9, test_foreign_vehicle.py). The distance sdl-fmu reports is
-not the car's (it has none): sdl-fmu integrates the car's speed between communication points by the trapezoid rule, whose error
-per step h is h^3 |v''| / 12, so over T seconds of braking at most T h_max^2 max|v''| / 12 with h_max the
-driver's sampling period (the longest step while the driver or a BRK holds the pedals).
+not the car's (it has none): sdl-fmu integrates the car's speed between communication points by the trapezoid
+rule, whose error per step h is h^3 |v''| / 12, so over T seconds of braking at most T h_max^2 max|v''| / 12 with
+h_max the driver's sampling period (the longest step while the driver or a BRK holds the pedals).
 """
 
 import math
@@ -159,14 +159,14 @@ def brk_lines(scenario: str) -> list[int]:
 
 @pytest.mark.parametrize("fmi_version", [3, 2])
 def test_foreign_car_brake_examples_match_its_closed_forms(runs, foreign_vehicle, fmi_version):
-    """The four seed BRK examples at 100 ft/s: full braking 3 s, 25 % for 200 ft, 50 % until below 30 ft/s, full
-    until 30 ft/s slower. Full braking asks 120 bar = 12 000 N, more than the grip 0.8 m G = 11 376 N: grip-limited;
-    25 % and 50 % are pressure-limited (3000 N, 6000 N)."""
+    """The four BRK examples of the STISIM text at 100 ft/s: full braking 3 s, 25 % for 200 ft, 50 % until below
+    30 ft/s, full until 30 ft/s slower. Full braking asks 120 bar = 12 000 N, more than the grip 0.8 m G = 11 376 N:
+    grip-limited; 25 % and 50 % are pressure-limited (3000 N, 6000 N)."""
     fmu, map_path = foreign_vehicle(fmi_version)
     result = runs("brake_examples", fmi_version, speed=100.0)
     parameters = foreign_parameters(fmu)
     holds = brake_holds(result.events)
-    assert [on["line"] for on, _ in holds] == brk_lines("brake_examples")  # the four seed BRK examples, in order
+    assert [on["line"] for on, _ in holds] == brk_lines("brake_examples")  # the four BRK examples, in order
     assert check_distance_triggers(result, "brake_examples") == 4
     for on, off in holds:
         check_brake_hold(on, off, parameters, brake_scale(map_path), 0.8)

@@ -1,5 +1,5 @@
-"""One friction scale (issue 10): the shipped tire surfaces against the road values they cite, and the same
-full-brake stop on each surface in both FMUs."""
+"""One friction scale (sdl_fmu/dynamics/advanced.md): the shipped tire surfaces against the road values they cite,
+and the same full-brake stop on each surface in both FMUs."""
 
 import math
 
@@ -57,7 +57,8 @@ def test_each_surface_has_the_friction_of_the_road_it_cites():
         assert DEFAULT_ATTRIBUTE_FILE.parent.joinpath(name).read_text().count(f"{peak:.2f}") >= 1
         t = tires[attribute]
         peak_x, peak_y, locked = friction(t, t["FNOMIN"])
-        print(f"{name}: peak mu_x {peak_x:.4f}, mu_y {peak_y:.4f} (cited {peak}); locked {locked:.4f} (cited {sliding})")
+        print(f"{name}: peak mu_x {peak_x:.4f}, mu_y {peak_y:.4f} (cited {peak}); "
+              f"locked {locked:.4f} (cited {sliding})")
         assert peak_x == pytest.approx(peak, rel=0.02) and peak_y == pytest.approx(peak, rel=0.02)
         assert locked == pytest.approx(sliding, rel=0.10)
 

@@ -1,7 +1,6 @@
-"""Imports flow one way (issue 19): the output stage (run_result, results, plots, results_folder) never imports
-the run stage (sdl_fmu/cosim/), the low modules (paths, storage, lazy_sequence) import nothing of the package but each other (storage's
-EventLog is a lazy_sequence.LazySequence), and
-no module of the package imports itself through a circle.
+"""Imports flow one way: the output stage (run_result, results, plots, results_folder) never imports the run stage
+(sdl_fmu/cosim/), the low modules (paths, storage, lazy_sequence) import nothing of the package but each other
+(storage's EventLog is a lazy_sequence.LazySequence), and no module of the package imports itself through a circle.
 
 Read from the source with `ast`, so every import counts: at the top, inside a function, under TYPE_CHECKING."""
 

@@ -1,8 +1,7 @@
-"""Memory in scenario length (issue 11: a 200 000-line scenario runs in bounded memory; the benchmark's
-numbers are in BENCHMARKS.md section 3). Each test measures two lengths of one generated scenario, so that
-what every run costs whatever its length (imports, the FMU, caches) cancels in the difference, and
-compares the cost per added line with limits set between what was measured before and after the change
-that bounded it (numbers in each test)."""
+"""Memory in scenario length (a 200 000-line scenario runs in bounded memory; the benchmark's numbers are in
+BENCHMARKS.md section 3). Each test measures two lengths of one generated scenario, so that what every run costs
+whatever its length (imports, the FMU, caches) cancels in the difference, and compares the cost per added line with
+limits set between what was measured before and after the change that bounded it (numbers in each test)."""
 
 import gc
 import json

@@ -1,7 +1,6 @@
-"""A real package (issue 7, item 2): a wheel built from the checkout runs the demo from any folder and
-leaves only its results there; FMUs come from a per-user cache keyed by everything that goes into them.
-The top-level scenarios/ and modelDescription/ ship as package data (issue 19): importlib.resources reads them
-from a wheel and from an editable install."""
+"""A real package: a wheel built from the checkout runs the demo from any folder and leaves only its results there;
+FMUs come from a per-user cache keyed by everything that goes into them. The top-level scenarios/ and
+modelDescription/ ship as package data: importlib.resources reads them from a wheel and from an editable install."""
 
 import os
 import shutil
@@ -94,7 +93,8 @@ def read_through_resources(python: Path, env: dict, cwd: Path) -> list[str]:
 def test_the_packages_in_pyproject_are_the_package_folders_and_the_shipped_data():
     # a mapped package cannot join a setuptools `find`, so pyproject.toml lists them: the list must follow the tree
     setuptools = tomllib.loads((CHECKOUT / "pyproject.toml").read_text())["tool"]["setuptools"]
-    folders = {".".join(init.parent.relative_to(CHECKOUT).parts) for init in (CHECKOUT / "sdl_fmu").rglob("__init__.py")}
+    folders = {".".join(init.parent.relative_to(CHECKOUT).parts)
+               for init in (CHECKOUT / "sdl_fmu").rglob("__init__.py")}
     assert set(setuptools["packages"]) == folders | {f"sdl_fmu.{name}" for name in SHIPPED_DATA}
     assert setuptools["package-dir"] == {f"sdl_fmu.{name}": name for name in SHIPPED_DATA}
     for name in SHIPPED_DATA:  # a regular package: an editable install maps it, importlib.resources gives real paths

@@ -1,5 +1,4 @@
-"""Results folders never destroy what sdl-fmu did not write (issue 7, item 1): real folders, real runs,
-a real killed process."""
+"""Results folders never destroy what sdl-fmu did not write: real folders, real runs, a real killed process."""
 
 import json
 import os
@@ -92,7 +91,8 @@ def test_users_files_in_an_earlier_results_folder_are_never_touched(tmp_path):
     stat = (out / "my_analysis.py").stat()
     write_results_folder(out, write_files("summary.json", "timeseries.csv"))
     assert (out / "my_analysis.py").read_text() == "print('mine')" and (out / "mine" / "data.csv").read_text() == "1,2"
-    assert (out / "my_analysis.py").stat().st_ino == stat.st_ino and (out / "my_analysis.py").stat().st_mtime_ns == stat.st_mtime_ns
+    assert (out / "my_analysis.py").stat().st_ino == stat.st_ino
+    assert (out / "my_analysis.py").stat().st_mtime_ns == stat.st_mtime_ns
     assert (out / "summary.json").read_text() == "new summary.json"
     assert not (out / "plot.png").exists()  # sdl-fmu's own old file, not written this time
     assert read_manifest(out) == ["summary.json", "timeseries.csv"]

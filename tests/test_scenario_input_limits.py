@@ -1,7 +1,6 @@
-"""Scenario inputs at and beyond the format's limits (issue 21, item 4): the inputs that once crashed or exhausted
-a run, and generated inputs of the same families (huge model ranges, long digit strings, extreme but legal
-magnitudes of every numeric field, many lanes, long lines, non-ASCII digits). The set is meant to grow: add a case
-to a list below.
+"""Scenario inputs at and beyond the format's limits: the inputs that once crashed or exhausted a run, and generated
+inputs of the same families (huge model ranges, long digit strings, extreme but legal magnitudes of every numeric
+field, many lanes, long lines, non-ASCII digits). The set is meant to grow: add a case to a list below.
 
 Each case runs the real command line in a subprocess under a memory cap (resource.setrlimit on the address space)
 and a wall-clock limit that only catches hangs (never a speed assertion), and has one of two outcomes, which
@@ -120,7 +119,7 @@ def assert_refused(result, path, out, line, field, code=1):
     return lines[0]
 
 
-# --- the issue's reproducers ------------------------------------------------------------------------------
+# --- inputs that once held a run --------------------------------------------------------------------------
 
 def test_brk_relative_velocity_beyond_the_stop_no_longer_holds_the_run(tmp_path, simple_fmu):
     result, _, out = run_case(tmp_path, simple_fmu, "English\n1000,BRK,100,3,200\n2000,A,20,500,-6,1\n3000,ES\n")
@@ -324,8 +323,9 @@ BAD += [("BRK parameter 3 (magnitude)", "1" + digits) for digits in NON_ASCII_DI
 
 
 def test_a_bad_numeric_field_is_refused_naming_it(tmp_path, simple_fmu):
-    cases = [(f"{field} = {value!r}", "English\n// generated\n" + _with(FIELDS[field][0], FIELDS[field][1], value) + "\n",
-              []) for field, value in BAD]
+    cases = [(f"{field} = {value!r}",
+              "English\n// generated\n" + _with(FIELDS[field][0], FIELDS[field][1], value) + "\n", [])
+             for field, value in BAD]
     assert len(cases) == 3 * len(FIELDS) + 2 * len(NON_ASCII_DIGITS)
 
     def check(name, result, path, out):

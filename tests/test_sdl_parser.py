@@ -1,4 +1,4 @@
-"""SDL parser: the seed examples parse to the right typed events in SI, and every bad input is reported."""
+"""SDL parser: the STISIM text's examples parse to the right typed events in SI, and every bad input is reported."""
 
 import pytest
 
@@ -25,7 +25,7 @@ from sdl_fmu.sdl import (
 )
 from sdl_fmu.units import ENGLISH, FOOT, METRIC
 
-WIDE_ROAD = "0,ROAD,12,10,5\n"  # 5 lanes each way, so the seed's lane -5 exists
+WIDE_ROAD = "0,ROAD,12,10,5\n"  # 5 lanes each way, so the RSA example's lane -5 exists
 
 
 def only_event(text):
@@ -39,7 +39,7 @@ def errors_of(text, path="s.sdl"):
     return caught.value.errors
 
 
-# --- the seed examples ---------------------------------------------------------------------------
+# --- the STISIM text's examples ------------------------------------------------------------------
 
 
 def test_seed_approaching_vehicle_example_in_si():
@@ -123,7 +123,8 @@ def test_units_header_is_case_insensitive(header):
 
 
 def test_comments_blank_lines_crlf_whitespace_and_bom():
-    text = "\ufeff// header comment\r\n\r\n  Metric // units\r\n\r\n 10 , brk , 50 , 0 , 2  // brake\r\n// end\r\n20,es\r\n"
+    text = ("\ufeff// header comment\r\n\r\n  Metric // units\r\n\r\n 10 , brk , 50 , 0 , 2  // brake\r\n"
+            "// end\r\n20,es\r\n")
     scenario = parse_text(text)
     assert scenario.units == METRIC
     assert scenario.events == (

@@ -1,5 +1,5 @@
-"""Real-world SDL text (issue 7, item 4): encodings, Ctrl-Z, line numbers, the seed examples verbatim,
-lanes the road lacks, fractional attributes with advanced dynamics, codes sdl-fmu does not simulate."""
+"""Real-world SDL text: encodings, Ctrl-Z, line numbers, the STISIM text's examples verbatim, lanes the road lacks,
+fractional attributes with advanced dynamics, codes sdl-fmu does not simulate."""
 
 import pytest
 
@@ -69,7 +69,7 @@ def test_every_error_position_is_a_line_number(tmp_path):
         assert [e.line for e in caught.value.errors] == [3, 5, 6, 7]
 
 
-# The seed texts' own examples, verbatim.
+# The STISIM text's own RSA and BRK examples, verbatim (scenarios/road_surface_simple.sdl, brake_examples.sdl).
 SEED_RSA_SIMPLE = "1000,RSA,1,10,-5,2\n1100,RSA,1,8,-5,8\n"
 SEED_RSA_ADVANCED = "1000,RSA,1,1,-5,2,101,3\n1100,RSA,1,0,-5,1\n"
 SEED_BRK = "1000,BRK,100,0,3\n2000,BRK,25,1,200\n3000,BRK,50,2,30\n4000,BRK,100,3,30\n"

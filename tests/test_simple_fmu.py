@@ -1,5 +1,5 @@
 """The Simple ego FMU, loaded for real through fmpy (and libcosimpy in a subprocess), against the
-closed forms of SPEC §2."""
+closed-form braking distances (docs/verification.md)."""
 
 import shutil
 import subprocess

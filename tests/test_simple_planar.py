@@ -1,7 +1,6 @@
-"""The Simple FMU as a planar vehicle with side slip and yaw (issue 10): split-mu braking, rear wheels that
-slide, steady cornering against the linear bicycle model of the model's own cornering stiffnesses, and
-the friction circle. Loaded for real through fmpy; every reference is computed here from the FMU's
-parameter defaults."""
+"""The Simple FMU as a planar vehicle with side slip and yaw: split-mu braking, rear wheels that slide, steady
+cornering against the linear bicycle model of the model's own cornering stiffnesses, and the friction circle. Loaded
+for real through fmpy; every reference is computed here from the FMU's parameter defaults."""
 
 import ctypes
 import math
@@ -123,7 +122,8 @@ def test_turn_past_the_limit_with_less_grip_at_the_rear_spins(simple_fmu):
     start = {"v0": 20.0, "steer": 0.15, **NO_RESISTANCES}
     understeer = simulate(simple_fmu, 5.0, start)
     oversteer = simulate(simple_fmu, 5.0, {**start, "mu_rl": 0.4, "mu_rr": 0.4})
-    print(f"max |beta|: mu_rear 0.8 {np.abs(sideslip(understeer)).max():.3f}, 0.4 {np.abs(sideslip(oversteer)).max():.3f}")
+    print(f"max |beta|: mu_rear 0.8 {np.abs(sideslip(understeer)).max():.3f}, "
+          f"0.4 {np.abs(sideslip(oversteer)).max():.3f}")
     assert np.abs(sideslip(understeer)).max() < 0.2
     assert np.abs(sideslip(oversteer)).max() > math.pi / 2
 

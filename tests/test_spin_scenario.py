@@ -1,4 +1,4 @@
-"""The seed's BRK use case as a scenario (scenarios/spin.sdl): BRK on split friction (RSA) makes the
+"""BRK's use case in the STISIM text as a scenario (scenarios/spin.sdl): BRK on split friction (RSA) makes the
 Simple-dynamics car begin to spin; the driver model counter-steers and brings it back to its lane."""
 
 import csv

@@ -1,7 +1,7 @@
-"""Real STISIM files load (issue 21, item 3): events in any order take effect in order of distance (file order
-breaking ties, reproducible from the seed), and with --skip-unsupported every line sdl-fmu does not simulate
-(long-form names, labels, '@' triggers, {n} values, Config_ settings) is skipped with one warning per code,
-while the supported events keep their strict checks and fire at their distances."""
+"""Real STISIM files load: events in any order take effect in order of distance (file order breaking ties,
+reproducible from the seed), and with --skip-unsupported every line sdl-fmu does not simulate (long-form names,
+labels, '@' triggers, {n} values, Config_ settings) is skipped with one warning per code, while the supported events
+keep their strict checks and fire at their distances."""
 
 import pytest
 

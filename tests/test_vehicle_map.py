@@ -1,6 +1,6 @@
-"""Vehicle maps (SPEC §6): any FMI 2.0/3.0 co-simulation FMU driven through a map. The FMUs here are the shipped
-builds seen through maps unlike their shipped ones (signs flipped, outputs left out, state get/set switched off in
-the model description), so every expectation is either a closed form or the shipped run itself."""
+"""Vehicle maps (docs/vehicle-maps.md): any FMI 2.0/3.0 co-simulation FMU driven through a map. The FMUs here are
+the shipped builds seen through maps unlike their shipped ones (signs flipped, outputs left out, state get/set
+switched off in the model description), so every expectation is either a closed form or the shipped run itself."""
 
 import json
 import math

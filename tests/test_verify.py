@@ -1,5 +1,5 @@
 """`sdl-fmu verify`: the vehicle test pack run on the shipped Simple and Advanced FMUs, on a foreign FMU built by the
-test suite, and on a vehicle that cannot reach the entry speed (issue 16, items 1, 3 and 5)."""
+test suite, and on a vehicle that cannot reach the entry speed."""
 
 import base64
 import csv
@@ -15,7 +15,7 @@ from sdl_fmu.verify import MANOEUVRES, braking
 
 import helpers
 
-SPEC_METRICS = {  # SPEC section 7 / issue 16's metric names per manoeuvre
+SPEC_METRICS = {  # verify.json's metric names per manoeuvre (docs/verification.md)
     "braking": {"stopping_distance_m", "mfdd_mps2"},
     "steady_state_circular": {"understeer_gradient_deg_per_g", "max_lateral_acceleration_mps2"},
     "step_steer": {"yaw_rate_response_time_s", "yaw_rate_peak_response_time_s", "yaw_rate_overshoot_pct",

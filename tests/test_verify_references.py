@@ -1,5 +1,5 @@
-"""The vehicle test pack against analytic references for the shipped models (issue 16, item 2). Each test derives
-its reference and its tolerance next to the assertion."""
+"""The vehicle test pack against analytic references for the shipped models. Each test derives its reference and its
+tolerance next to the assertion."""
 
 import math
 
@@ -22,7 +22,7 @@ def advanced(advanced_fmu):
     return shipped_model("advanced")
 
 
-# --- braking: SPEC section 2's closed forms -------------------------------------------------------------------
+# --- braking: the closed-form braking distances (docs/verification.md) ----------------------------------------
 
 
 def test_braking_closed_forms_hold_to_1e_9(simple_fmu):
@@ -243,4 +243,4 @@ def test_split_mu_initial_yaw_acceleration_simple(simple):
     r1, r2 = trace.at("yaw_rate_radps", h), trace.at("yaw_rate_radps", 2 * h)
     assert trace.at("yaw_rate_radps", 0.0) == 0.0
     assert (4 * r1 - r2) / (2 * h) == pytest.approx(expected, rel=1e-3)
-    assert expected > 0  # toward the high-friction (left) side, SPEC section 2
+    assert expected > 0  # toward the high-friction (left) side, as split-mu braking must

@@ -1,4 +1,4 @@
-"""The BRK controller: holds the pedals from the event until its threshold or a stop (seed text)."""
+"""The BRK controller: holds the pedals from the event until its threshold or a stop (docs/scenarios.md)."""
 
 from __future__ import annotations
 
@@ -35,7 +35,7 @@ class BrakeHold:
 
     def earliest_release(self, state: EgoState, acceleration: float) -> float:
         """A lower bound on the instant the brakes could come off, with |dv/dt| <= acceleration: the earlier of
-        the threshold's bound and the stop's (the seed: a car braked to a complete stop is released, whatever
+        the threshold's bound and the stop's (SDL's BRK: a car braked to a complete stop is released, whatever
         the threshold; a threshold beyond the stop, such as a drop larger than the onset speed, never binds).
         The time threshold is that instant exactly (the master steps to it)."""
         threshold, magnitude = self.event.threshold, self.event.magnitude

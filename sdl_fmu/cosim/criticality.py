@@ -731,8 +731,9 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 # m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
 # follows encounters within device.ssm.range (default 50 m); the distance everywhere
 RANGE = 50.0
-# course_horizon: s, the longest horizon tried; how many times it shortens its first guess (by a quarter) before giving up; m,
-# the least lateral margin it accepts (far above the rounding of ttc's and headway's few operations on metres)
+# course_horizon: s, the longest horizon tried; how many times it shortens its first guess (by a quarter) before
+# giving up; m, the least lateral margin it accepts (far above the rounding of ttc's and headway's few operations
+# on metres)
 COURSE_WINDOW = 1.0
 COURSE_TRIES = 8
 COURSE_MARGIN = 1e-6
@@ -1054,9 +1055,10 @@ class Extremes:
     # -- the results
 
     def summary(self, vehicle_ids, to_scenario_units) -> dict:
-        """SPEC §5's `criticality` object: run-wide extremes and one entry per vehicle, lengths (and DRAC, a
-        length per s^2) through `to_scenario_units` (units.from_si), null where a measure never applied.
-        Keys added to the SPEC's: max_drac_time_s, min_headway_s, min_headway_time_s."""
+        """summary.json's `criticality` object (docs/results.md): run-wide extremes and one entry per vehicle,
+        lengths (and DRAC, a length per s^2) through `to_scenario_units` (units.from_si), null where a measure
+        never applied.
+        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s."""
         def number(x):
             return None if x != x else float(x)
 

@@ -1,6 +1,6 @@
 """The ego FMU as the master steps it: the stepping with rollback (bisection of a trigger's instant), and EgoFMU,
-an instance of an FMU with the shipped models' interface (SPEC §2) addressed by variable name, for the FMU-level
-tests and tools. The instance itself is sdl_fmu.vehicle's EgoInstance."""
+an instance of an FMU with the shipped models' interface (docs/fmu-runtime.md, Variables) addressed by variable
+name, for the FMU-level tests and tools. The instance itself is sdl_fmu.vehicle's EgoInstance."""
 
 from __future__ import annotations
 
@@ -16,9 +16,9 @@ __all__ = ["EgoFMU", "EgoState", "FmuError", "parameter_defaults", "step_until",
 
 @cache
 def spec_interface() -> dict:
-    """SPEC §2's interface, common to the shipped FMUs, as a vehicle map: the shipped Simple map's inputs (but its
-    friction: the shipped FMUs' friction inputs differ, and EgoFMU sets them by name), outputs, start values and
-    footprint."""
+    """The interface common to the shipped FMUs (docs/fmu-runtime.md), as a vehicle map: the shipped Simple map's
+    inputs (but its friction: the shipped FMUs' friction inputs differ, and EgoFMU sets them by name), outputs, start
+    values and footprint."""
     data = tomllib.loads(shipped_map_path("simple").read_text(encoding="utf-8"))
     return {"inputs": {key: value for key, value in data["inputs"].items() if key != "friction"},
             "outputs": data["outputs"], "start": data["start"],
@@ -26,7 +26,8 @@ def spec_interface() -> dict:
 
 
 class EgoFMU(EgoInstance):
-    """An FMU with SPEC §2's interface, instantiated and initialized with start values by variable name."""
+    """An FMU with the shipped FMUs' common interface, instantiated and initialized with start values by variable
+    name."""
 
     def __init__(self, fmu_path: str | Path, start_values: dict[str, float] | None = None, instance_name: str = "ego"):
         try:

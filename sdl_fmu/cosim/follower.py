@@ -48,7 +48,7 @@ class CriticalityFollower:
         self.touched: set[int] = set()  # the vehicles something fired for at this instant (looked at after)
 
     def summary(self, vehicle_ids, scenario_units) -> dict:
-        """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
+        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
         back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
         summary = self.extremes.summary(vehicle_ids, scenario_units)
         if not self.exact:

@@ -301,8 +301,7 @@ class Cosimulation:
         elif isinstance(event, Brake):
             brake_hold = self.inputs.brake_hold
             if not self.model.brk_acts:
-                self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics "
-                                     "(seed text)")
+                self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics")
             elif brake_hold is not None:
                 self.warnings.append(f"line {event.line}: BRK ignored: the brake event of line "
                                      f"{brake_hold.event.line} is still on")
@@ -360,7 +359,8 @@ class Cosimulation:
         model, bounds = self.model, self.bounds
         vehicle = {**model.summary(), "bounds": {
             "acceleration_m/s2": bounds.acceleration, "yaw_rate_rad/s": bounds.yaw_rate,
-            "source": model.bounds["source"], "defaults": model.defaulted if model.bounds["acceleration"] is None else []}}
+            "source": model.bounds["source"],
+            "defaults": model.defaulted if model.bounds["acceleration"] is None else []}}
         return RunResult(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
             friction_meaning=model.surface_meaning,
@@ -373,7 +373,7 @@ class Cosimulation:
         )
 
     def criticality_summary(self) -> dict:
-        """summary.json's `criticality` (SPEC §5), lengths in the scenario's units; with an FMU that cannot roll
+        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
         back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
         return self.follower.summary(self.recorder.vehicle_ids, self._scenario_units)
 

@@ -106,7 +106,7 @@ class TrafficVehicle:
 
     def may_leave(self, t: float, ego_station: float, ego_station_rate: float, ego_length: float) -> bool:
         """Wholly behind the ego (its front behind the ego's rear), moving away, and no action left that
-        could still fire (SPEC §3)."""
+        could still fire (docs/decisions.md, A vehicles)."""
         station, _, speed = self.at(t)
         gap, gap_rate = station - ego_station, -speed - ego_station_rate
         if not (gap < -(ego_length + self.model.length) / 2 and gap_rate < 0):
@@ -178,7 +178,8 @@ class Traffic:
 
     def add(self, event: ApproachingVehicle, model: VehicleModel, t: float, ego_station: float, ego_lateral: float,
             ego_speed: float) -> int:
-        """Spawns a vehicle (SPEC §3: gap and lateral from the event, starred values from the ego); its index."""
+        """Spawns a vehicle (docs/scenarios.md: gap and lateral from the event, starred values from the ego); its
+        index."""
         if self.size == len(self.t0):
             self._grow()
         i = self.size

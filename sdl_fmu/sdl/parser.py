@@ -278,7 +278,7 @@ def _approaching_vehicle(line: int, distance: float, params: list[str], units: U
     for first in range(5, len(params) + 1, 4):
         trigger_text, lateral_text, speed_text, duration_text = params[first - 1:first + 3]
         trigger = _checked(report, _a_field(first), _closure_trigger, trigger_text)
-        # The seed calls this a move relative to the vehicle's own position, but its worked example
+        # The STISIM text calls this a move relative to the vehicle's own position, but its worked example
         # (*0 = into the driver's lane, -6 = back into its own lane) only works as a roadway position.
         action_lateral = _checked(report, _a_field(first + 1), _relative, lateral_text, units, "length")
         action_speed = _checked(report, _a_field(first + 2), _relative, speed_text, units, "speed")
@@ -411,7 +411,7 @@ def _lanes_text(road: Road) -> str:
 
 
 def _lane_warnings(event: SurfaceAttribute, road: Road) -> list[str]:
-    """RSA lanes that the road layout does not have: kept, but they never apply (SPEC section 3)."""
+    """RSA lanes that the road layout does not have: kept, but they never apply (docs/scenarios.md, Reading files)."""
     return [f"line {event.line}: RSA parameter {2 * index + 1} (lane): lane {lane} is not on the road (it has lanes "
             f"{_lanes_text(road)} and the shoulders {RIGHT_SHOULDER}, {LEFT_SHOULDER}): this setting never applies"
             for index, (lane, _value) in enumerate(event.settings) if not road.has_lane(lane)]

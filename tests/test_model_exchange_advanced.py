@@ -185,3 +185,27 @@ def test_rolling_resistance_beyond_the_peak_locks_the_wheels_for_good(advanced_f
     assert np.all(np.diff(result["x"]) >= 0.0)
     if locked:  # sliding at mu ~ 0.75 from 0.2 m/s stops within a few hundredths of a second
         assert result["stopped"][-1]
+
+
+
+@VERSIONS
+@pytest.mark.parametrize("case", ["light_car_full_throttle", "heavy_wheels_brake_and_throttle"])
+def test_the_event_iteration_settles_when_the_wheels_outweigh_the_car(advanced_fmus, version, case):
+    """Quasi-static wheels where a wheel's rotational inertia, I / R^2 = 11.1 kg and more, is comparable to the car's
+    mass (cases found by the fuzzer and by a random search over the declared ranges): a rolling wheel needs
+    I a_x / R^2 of its tire's force to follow the body, and before the fix that demand locked a wheel that the hold
+    test, blind to it, released again, until the event iteration gave up (the runtime then returns Error, which
+    fmpy raises). Now each rolling wheel's share of a_x is clipped to its tire's capacity and a locked wheel is
+    released only if it would pass the lock test at the acceleration it would then see, with the margin
+    1 - RELEASE_SHARE: every event iteration settles, each wheel mode stays one of -1, 0, 1, and on the straight
+    the car never moves backwards."""
+    start = {"light_car_full_throttle": {**STRAIGHT, "mass": 1.1, "throttle": 1.0, "v0": 0.0},
+             "heavy_wheels_brake_and_throttle": {**STRAIGHT, "mass": 6.6186, "wheel_inertia": 1.0568,
+                                                 "rolling_resistance": 0.012, "v0": 0.0, "throttle": 0.2335,
+                                                 "brake": 1.0, "steer": -0.4473}}[case]
+    result = euler(advanced_fmus[version], 0.001, 0.3, start)
+    for w in WHEELS:
+        assert set(np.unique(result[f"wheel_mode_{w}"])) <= {-1, 0, 1}
+    assert result["vx"][-1] > 0.0  # the drive beats the brake on both cars: they move off
+    if "steer" not in start:
+        assert np.all(np.diff(result["x"]) >= 0.0)

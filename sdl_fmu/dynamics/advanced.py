@@ -337,9 +337,13 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
         c["capacity"] = curve(c["peak"], *c["arguments"])[0]
     rolling_mass = sum(wheel[w]["mode"] ** 2 for w in WHEELS) * inertia / radius**2
     drag = -0.5 * s["air_density"] * s["drag_area"] * vx * ca.fabs(vx)
-    ax_estimate = (sum(wheel[w]["mode"] ** 2 * ca.fmin(ca.fmax(wheel[w]["applied"] / radius, -wheel[w]["capacity"]),
-                                                        wheel[w]["capacity"])
-                       + (1 - wheel[w]["mode"] ** 2) * wheel[w]["fx"] for w in WHEELS) + drag) / (m + rolling_mass)
+
+    def clipped(force, capacity):
+        return ca.fmin(ca.fmax(force, -capacity), capacity)
+
+    ax_sum = sum(wheel[w]["mode"] ** 2 * clipped(wheel[w]["applied"] / radius, wheel[w]["capacity"])
+                 + (1 - wheel[w]["mode"] ** 2) * wheel[w]["fx"] for w in WHEELS) + drag
+    ax_estimate = ax_sum / (m + rolling_mass)
 
     force_x = force_y = yaw_moment = 0
     friction_used = 0
@@ -388,9 +392,15 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
         # without this a wheel released below that force would lock again at once). Its rolling resistance counts
         # with the brake, as in the lock test: a rolling resistance above the peak force locks the wheel for good
         # instead of locking and releasing it in one event iteration.
+        # the body's acceleration were this (locked) wheel released forward: its sliding force replaced by its rolling
+        # demand, its inertia added; released, it must pass the lock test with the margin 1 - RELEASE_SHARE
+        locked = 1 - mode**2
+        rolling_demand = clipped((wheel_drive - wheel_brake - rolling_torque) / radius, capacity)
+        ax_released = (ax_sum + locked * (rolling_demand - fx)) / (m + rolling_mass + locked * inertia / radius**2)
         hold_margin = ca.if_else(quasi_static,
                                  wheel_brake + rolling_torque
-                                 - ca.fmin(ca.fabs(net_torque), wheel_drive + RELEASE_SHARE * radius * capacity),
+                                 - ca.fmin(ca.fabs(net_torque), wheel_drive + RELEASE_SHARE * radius * capacity
+                                           - inertia * ax_released / radius),
                                  wheel_brake - ca.fabs(net_torque))
         holds = hold_margin > 0
         spin_indicator = omega + mode * SPIN_HYSTERESIS

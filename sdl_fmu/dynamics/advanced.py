@@ -52,15 +52,17 @@ spin rates, and two lagged accelerations for the load transfer. Equations (ISO 8
              transient is dropped (singular perturbation). A rolling wheel (mode +-1) gives the force its torque
              balance asks for, with its spin's inertia riding on the body's longitudinal acceleration:
                R Fx_i(kappa_i) = T_drive_i - mode (T_brake_i + f_r Fz_i R) - (I_w / R) a_x,
-               a_x = (sum_rolling (T_drive_i - mode (T_brake_i + f_r Fz_i R)) / R + sum_locked Fx_i + drag)
-                     / (m + n_rolling I_w / R^2)     (straight ahead; the steer angle is ignored in a_x),
+               a_x = (sum_rolling clip((T_drive_i - mode (T_brake_i + f_r Fz_i R)) / R, +-peak force_i)
+                      + sum_locked Fx_i + drag) / (m + n_rolling I_w / R^2)
+                     (straight ahead; the steer angle is ignored in a_x),
              solved for 0 <= |kappa_i| <= the peak of the pure-slip curve (Newton, from the closed-form peak
              equation) by bisection and Newton steps (exact derivatives through the last Newton steps); Fy_i
              follows from the same slip. A demand beyond the peak gives the peak force; if it is a braking
              demand, the wheel locks (event: mode 0, the locked wheel of the dynamic model, released when
-             T_brake + f_r Fz R falls below both |T_net| and T_drive + 0.95 R (peak force): a locked, steered
-             tire can push harder along its axis than the rolling tire's peak, and a wheel released there would
-             lock again). Indicator while rolling: min(R (capacity - braking demand),
+             T_brake + f_r Fz R falls below both |T_net| and T_drive + 0.95 R (peak force) - I_w a_x' / R, a_x'
+             the body's acceleration were the wheel rolling forward: released, it passes the lock test with a
+             5 % margin; a locked, steered tire can push harder along its axis than the rolling tire's peak).
+             Indicator while rolling: min(R (capacity - braking demand),
              mode v_cx + 1e-6 m/s), positive; it turns back (lock or reverse) when its contact point does.
              The spin state follows without stiffness, d(omega)/dt = a_x / R + (omega_qs - omega) / 0.1 s,
              omega_qs = (v_cx + kappa sqrt(v_cx^2 + v_low^2)) / R; no force reads it. The power limit uses
@@ -317,10 +319,12 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
         wheel_drive = drive_share[is_front] * drive_torque / 2
         # quasi-static: the torque on a rolling wheel besides the tire's, its brake and rolling resistance
         # against its direction of rolling (the mode)
-        applied = wheel_drive - mode * (wheel_brake + s["rolling_resistance"] * fz * radius)
+        rolling_torque = s["rolling_resistance"] * fz * radius
+        applied = wheel_drive - mode * (wheel_brake + rolling_torque)
         wheel[w] = dict(x_i=x_i, y_i=y_i, is_front=is_front, fz=fz, delta=delta, wheel_x=wheel_x, wheel_y=wheel_y,
                         omega=omega, mode=mode, coefficients=coefficients, fx=fx, fy=fy, mux=mux, muy=muy,
-                        wheel_brake=wheel_brake, wheel_drive=wheel_drive, applied=applied)
+                        wheel_brake=wheel_brake, wheel_drive=wheel_drive, rolling_torque=rolling_torque,
+                        applied=applied)
 
     # quasi-static: every rolling wheel's spin accelerates with the body, I_w a_x / R^2 of force per wheel:
     # m a_x = sum over rolling wheels (applied / R - I_w a_x / R^2) + sum over locked wheels Fx + drag, so
@@ -375,7 +379,7 @@ def wheel_equations(interface: Interface, s, quasi_static) -> Equations:
         yaw_moment += x_i * body_y - y_i * body_x
 
         net_torque = wheel_drive - fx * radius
-        rolling_torque = s["rolling_resistance"] * fz * radius
+        rolling_torque = c["rolling_torque"]
         spin_torque = net_torque - mode * wheel_brake - rolling_torque * smooth_sign(omega, SPIN_SMOOTHING)
         # quasi-static: the spin follows the slip's spin (wheel_x + kappa slip_speed) / R without stiffness
         spin_quasi = ax_estimate / radius + ((wheel_x + kappa * slip_speed) / radius - omega) / SPIN_RELAXATION_TIME

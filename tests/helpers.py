@@ -219,16 +219,23 @@ def rewritten_fmu(source: Path, target: Path, edit_description=None, drop=lambda
 OK, ERROR = fuzz.OK, fuzz.ERROR
 
 
+def unpacked_binary(fmu, directory, fmi_version: int):
+    """The FMU unzipped into directory: its model description, its Linux binary loaded with the fuzzer's ctypes
+    signatures, and the value reference of each variable by name."""
+    with zipfile.ZipFile(fmu) as archive:
+        archive.extractall(directory)
+    description = read_model_description(str(directory))
+    platform = "linux64" if fmi_version == 2 else "x86_64-linux"
+    library = fuzz.load_library(
+        directory / "binaries" / platform / f"{description.coSimulation.modelIdentifier}.so", fmi_version)
+    return description, library, {v.name: v.valueReference for v in description.modelVariables}
+
+
 class Raw:
     """One FMI 2.0 FMU binary loaded with ctypes; every call returns its status and records the log messages."""
 
     def __init__(self, fmu, directory):
-        with zipfile.ZipFile(fmu) as archive:
-            archive.extractall(directory)
-        self.description = read_model_description(str(directory))
-        identifier = self.description.coSimulation.modelIdentifier
-        self.library = fuzz.load_library(directory / "binaries" / "linux64" / f"{identifier}.so", 2)
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
+        self.description, self.library, self.vr = unpacked_binary(fmu, directory, 2)
         self.messages = []
         self.callbacks = fuzz.fmi2_callbacks(fuzz.Logger(self._log))
         self.component = None
@@ -294,12 +301,7 @@ class Raw3:
     """An FMI 3.0 binary loaded with ctypes (the fuzzer's signatures); calls return their status."""
 
     def __init__(self, fmu, directory, cosimulation=True):
-        with zipfile.ZipFile(fmu) as archive:
-            archive.extractall(directory)
-        self.description = read_model_description(str(directory))
-        identifier = self.description.coSimulation.modelIdentifier
-        self.library = fuzz.load_library(directory / "binaries" / "x86_64-linux" / f"{identifier}.so", 3)
-        self.vr = {v.name: v.valueReference for v in self.description.modelVariables}
+        self.description, self.library, self.vr = unpacked_binary(fmu, directory, 3)
         self.messages = []
         self.logger = fuzz.LogMessage3(lambda environment, status, category, message: self.messages.append(status))
         token = self.description.guid.encode()

@@ -1,4 +1,4 @@
-"""The criticality record kept during a run (criticality.py's Extremes): which traffic vehicles need a look at
+"""The criticality record kept during a run (extremes.py's Extremes): which traffic vehicles need a look at
 a communication point, when a step needs an FMU snapshot to locate an extreme inside it, locating those
 extremes (locate.py), and the PET's conflict areas. The master calls it through its hooks `look`,
 `look_before_change`, `criticality_due` and `follow_criticality`."""
@@ -11,10 +11,12 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoInstance, EgoState
-from .criticality import Extremes, band_times, conflict_far_end, passage_known
+from .extremes import Extremes
+from .geometry import reach_time_scalar
+from .measures import band_times, conflict_far_end, passage_known
 from .locate import CRITICALITY_TOLERANCE, first_instant, root_instant
 from .traffic import Traffic
-from .triggers import EgoBounds, reach_time_scalar
+from .triggers import EgoBounds
 
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
 
@@ -243,7 +245,7 @@ class CriticalityFollower:
 
     def _transitions_ending(self, t0: float, t1: float) -> list[tuple[int, float]]:
         """(vehicle, instant) of the lateral or speed transitions ending inside (t0, t1], for the vehicles
-        followed at every communication point (within criticality.RANGE)."""
+        followed at every communication point (within extremes.RANGE)."""
         traffic = self.traffic
         ending = []
         for i in self.traffic.active.tolist():
@@ -254,7 +256,7 @@ class CriticalityFollower:
         return ending
 
     def _front(self, state: EgoState) -> float:
-        """Station of the front of the ego's footprint (criticality.Extremes.reach's)."""
+        """Station of the front of the ego's footprint (extremes.Extremes.reach's)."""
         return state.x + self.bounds.length / 2 * abs(math.cos(state.psi)) \
             + self.bounds.width / 2 * abs(math.sin(state.psi))
 
@@ -265,7 +267,7 @@ class CriticalityFollower:
 
     def lane_leave_instant(self, i: int, state: EgoState) -> None:
         """When an action starts vehicle i's lateral move: the instants its footprint leaves and enters the ego's
-        lane (criticality.band_times, closed form), where the PET's conflict areas are set (the vehicle
+        lane (measures.band_times, closed form), where the PET's conflict areas are set (the vehicle
         leaving first; the ego leaving first: the far end of the area the vehicle will enter)."""
         traffic, road = self.traffic, self.road
         self.leaves_lane.pop(i, None)
@@ -287,7 +289,7 @@ class CriticalityFollower:
 
     def _entries(self, t1: float) -> None:
         """The vehicles whose footprint entered the ego's lane by t1 (closed-form instants): the PET where the
-        ego's rear had left the area first (criticality.Extremes.path_entered); none for a vehicle that left the
+        ego's rear had left the area first (extremes.Extremes.path_entered); none for a vehicle that left the
         road before entering."""
         for i, enter in list(self.enters_lane.items()):
             if enter <= t1:

@@ -423,7 +423,7 @@ def counted_run(scenario, fmu) -> tuple[dict, object]:
                 source[0] = previous
         return wrapped
 
-    follower = cosim.follower  # the looks happen there (the master's hooks hand them on)
+    follower = cosim.follower  # the looks happen there (the master's loop asks and notifies it)
     look = follower.extremes.look
 
     def count(*args, **kwargs):

@@ -1,7 +1,8 @@
 """The criticality record kept during a run (extremes.py's Extremes): which traffic vehicles need a look at
 a communication point, when a step needs an FMU snapshot to locate an extreme inside it, locating those
-extremes (locate.py), and the PET's conflict areas. The master calls it through its hooks `look`,
-`look_before_change`, `criticality_due` and `follow_criticality`."""
+extremes (locate.py), and the PET's conflict areas. The master's loop asks it one question before a step
+(`wants_snapshot`) and gives it one notice after it (`stepped`); the firing handlers beside the loop tell it what
+fires (`touch`, `changing`, `lane_leave_instant`, then `fired`)."""
 
 from __future__ import annotations
 
@@ -56,6 +57,54 @@ class CriticalityFollower:
         if not self.exact:
             summary["time_uncertainty_s"] = self.criticality_uncertainty
         return summary
+
+    # ---- what the master's loop and its firing handlers tell and ask ---------------------------------------
+
+    def start(self, state: EgoState) -> None:
+        """The run's first instant (after what fires there): every vehicle looked at."""
+        self.look(state, everyone=True)
+        self.touched.clear()
+
+    def wants_snapshot(self, state: EgoState, limit: float) -> bool:
+        """The loop's question before a step from state.time to at most `limit`: whether to save the FMU's state
+        at the step's start, from which an extreme inside the step is located (only for an FMU that can roll
+        back). The vehicles whose bound on their next located instant ends inside the step are looked at now
+        first (a look moves that bound on: the step may then need no snapshot)."""
+        if self.pet_pending and self.pet_due <= limit:
+            self.pet_due = self.pet_horizon(state)
+        if not self.exact:
+            return False
+        if self.earliest_quiet <= limit:
+            self.look(state, ahead=limit)
+        return bool(self.earliest_quiet <= limit or self.pet_pending or self.leaves_lane) \
+            and self.criticality_due(state.time, limit)
+
+    def stepped(self, base, t0: float, state: EgoState, fired: bool) -> None:
+        """The loop's notice after a step from t0 to state.time (`base`: the snapshot at t0, or None; `fired`:
+        something fires at its end): the extremes inside the step located, the vehicles due looked at."""
+        if base is not None or fired or state.time >= self.earliest_look or not self.exact:
+            self.follow_criticality(base, t0, state, everyone=False)
+
+    def touch(self, vehicles) -> None:
+        """Something fires for these vehicles at this instant (a spawn, a contact beginning or ending): they are
+        looked at after the fire (`fired`)."""
+        self.touched.update(vehicles)
+
+    def changing(self, i: int, state: EgoState) -> None:
+        """Vehicle i's motion changes at this instant (an action starts) or it leaves the road: looked at with the
+        motion it had until now, and again after the fire."""
+        self.look_before_change(i, state)
+
+    def fired(self, state: EgoState) -> None:
+        """After a fire: the vehicles it touched looked at with their motions from this instant on."""
+        self.look(state, only=self.touched)
+        self.touched.clear()
+
+    def finish(self, state: EgoState) -> None:
+        """The run's end: every vehicle looked at (an extreme at the end of its interval)."""
+        self.look(state, everyone=True)
+
+    # ---- inside
 
     def criticality_due(self, t: float, limit: float) -> bool:
         """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU

@@ -239,6 +239,61 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
     assert checked > 50
 
 
+def test_heading_horizon_holds_against_the_fastest_turn_of_the_relative_velocity():
+    # heading_horizon's bound is stretched (by 1.5, up to three times) while the angles themselves prove it: the
+    # relative velocity's direction turns by at most asin(A tau / |v0|), the centre offset's by at most
+    # asin(P / rho0) with P = |v0| tau + A tau^2 / 2. Checked against the motions that turn the relative velocity
+    # fastest: an acceleration of size A at a fixed angle phi to the velocity (phi = +-90 deg turns it at A / |v|,
+    # others also shrink it, which turns it faster still), integrated by the midpoint rule in 2 ms steps (its error
+    # in position, ~ A^2 h^2 / |v| per step, is far below the margins of a few cm checked), with the ego turning at
+    # +-r_max. Before the bound the distance's rate stays < 0 (the approach goes on).
+    rng = np.random.default_rng(21)
+    acceleration, yaw_rate_bound = 12.0, 0.8
+    radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
+    radius_sum = radius + math.hypot(CAR_LENGTH, CAR_WIDTH) / 2
+    turn = radius * yaw_rate_bound
+    stretched = checked = 0
+    for _ in range(150):
+        rho, bearing = rng.uniform(60, 400), rng.uniform(0, 2 * math.pi)
+        dx, dy = rho * math.cos(bearing), rho * math.sin(bearing)
+        speed = rng.uniform(15, 60)
+        heading = bearing + math.pi + rng.uniform(-0.6, 0.6)  # roughly toward the ego: approaching
+        vx, vy = speed * math.cos(heading), speed * math.sin(heading)
+        bound = heading_horizon(dx, dy, vx, vy, radius_sum, turn, acceleration)
+        if bound <= 0:
+            continue
+        # the bound before stretching (heading_horizon's first formula), to show the stretch is exercised
+        alpha = math.acos(max(-1.0, min(1.0, -(dx * vx + dy * vy) / (rho * speed))))
+        margin = math.acos(2 * turn / speed) - math.asin(2 * radius_sum / rho) - alpha
+        within = min(reach_time_for_test(rho / 2, speed, acceleration), speed / (2 * acceleration))
+        first = min(within, margin / (2 * (speed + acceleration * within) / rho + 2 * acceleration / speed))
+        stretched += bound > first * 1.4
+        psi0, yaw_rate = rng.uniform(-0.3, 0.3), rng.choice([-1, 1]) * yaw_rate_bound
+        for phi in (math.pi / 2, -math.pi / 2, rng.uniform(math.pi / 2, math.pi), -rng.uniform(math.pi / 2, math.pi)):
+            cos_phi, sin_phi = math.cos(phi), math.sin(phi)
+            x, y, u, w, t, h = dx, dy, vx, vy, 0.0, 2e-3
+            while t < bound:
+                ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, psi0 + yaw_rate * t)
+                assert distance_rate(ego, x, y, u, w, yaw_rate, CAR_LENGTH, CAR_WIDTH) < 0, (t, bound)
+                ax, ay = turned_acceleration(u, w, acceleration, cos_phi, sin_phi)
+                um, wm = u + ax * h / 2, w + ay * h / 2  # midpoint
+                ax, ay = turned_acceleration(um, wm, acceleration, cos_phi, sin_phi)
+                x, y, u, w, t = x + um * h, y + wm * h, u + ax * h, w + ay * h, t + h
+            checked += 1
+    assert checked > 400 and stretched > 50, (checked, stretched)
+
+
+def turned_acceleration(u, w, size, cos_phi, sin_phi):
+    """An acceleration of the given size at the angle phi to the velocity (u, w)."""
+    speed = math.hypot(u, w)
+    return size * (cos_phi * u - sin_phi * w) / speed, size * (sin_phi * u + cos_phi * w) / speed
+
+
+def reach_time_for_test(distance_, rate, acceleration):
+    """The smallest tau >= 0 with rate tau + acceleration tau^2 / 2 >= distance_ (rate >= 0 here)."""
+    return (math.sqrt(rate * rate + 2 * acceleration * distance_) - rate) / acceleration
+
+
 def test_passage_known_never_contradicts_a_motion_within_the_bounds():
     # The front of the ego's footprint, x(t) + (L/2) |cos psi| + (W/2) |sin psi|, for motions whose station
     # acceleration stays within A (here a(t) = A sin(w t + phase) scaled by k <= 1) and whose yaw rate stays
@@ -672,6 +727,29 @@ def test_a_look_offers_what_observe_offers_and_returns_the_rates():
         assert np.array_equal(looked.value[name], observed.value[name], equal_nan=True), name
         assert np.array_equal(looked.time[name], observed.time[name], equal_nan=True), name
     assert courses > 20
+
+
+def test_a_course_check_sees_a_course_or_a_headway_exactly_where_a_look_does():
+    # Between looks the follower only checks (Extremes.course_check) whether a collision course or a headway has
+    # begun within RANGE: it must say so exactly where a look's rates do (TTC's or the headway's rate defined), and
+    # elsewhere give a bound >= 0 (course_horizon's, tested above, or the time to come within RANGE).
+    rng = np.random.default_rng(37)
+    rows = [(rng.uniform(0, 2), rng.uniform(-40, 150), rng.choice([rng.uniform(-5, 5), 0.0]), rng.uniform(-30, 30),
+             rng.uniform(-5, 5), rng.uniform(-30, 30), rng.choice([0.0, 1.5, 4.0])) for _ in range(40)]
+    traffic = traffic_of(*rows)
+    extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
+    seen = {True: 0, False: 0}
+    for t in np.linspace(2, 8, 31):
+        state = State(float(t), 20 * t, rng.uniform(-1, 1), rng.uniform(-0.2, 0.2), rng.uniform(5, 30),
+                      rng.uniform(-1, 1), rng.uniform(-5, 5), rng.uniform(-3, 3), rng.uniform(-0.3, 0.3))
+        for i in range(traffic.size):
+            rates, _ = extremes.look(traffic, i, state, 15.0, 1.0, 2.5)
+            followed = rates[1] == rates[1] or rates[3] == rates[3]
+            bound = extremes.course_check(traffic, i, state, 15.0, 1.0, 2.5)
+            assert math.isnan(bound) == followed, (t, i, rates, bound)
+            assert followed or bound >= 0.0
+            seen[followed] += 1
+    assert seen[True] > 50 and seen[False] > 500
 
 
 @pytest.mark.parametrize("step", STEPS)

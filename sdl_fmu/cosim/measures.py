@@ -59,6 +59,9 @@ INF = math.inf
 COURSE_WINDOW = 1.0
 COURSE_TRIES = 8
 COURSE_MARGIN = 1e-6
+# heading_horizon: how many times it tries to stretch its first bound, and by what factor
+HEADING_STRETCHES = 3
+HEADING_STRETCH = 1.5
 
 
 # ---- footprint distance ---------------------------------------------------------------------------------
@@ -559,7 +562,25 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
         within = slowing
     fastest = speed + acceleration * within
     bound = margin / (2 * fastest / rho + 2 * acceleration / speed)
-    return bound if bound < within else within
+    bound = bound if bound < within else within
+    # longer, where the angles themselves (not their rates) prove it: over tau the relative velocity moves by at
+    # most A tau (its direction by at most asin(A tau / |v0|), its size to at least |v0| - A tau), the centre
+    # offset by at most P = |v0| tau + A tau^2 / 2 (its direction by at most asin(P / rho0), its length to at least
+    # rho0 - P); the approach goes on while alpha0 + those turns + asin(radius_sum / (rho0 - P)) stays below
+    # acos(turn / (|v0| - A tau)). Each stretch of the bound is kept only if that holds at its end (every term
+    # worsens as tau grows, so it holds before it).
+    for _ in range(HEADING_STRETCHES):
+        longer = HEADING_STRETCH * bound
+        turned = acceleration * longer
+        moved = speed * longer + 0.5 * turned * longer
+        slowest, nearest = speed - turned, rho - moved
+        if not (turn < slowest and radius_sum < nearest and turned < speed and moved < rho):
+            break
+        if math.acos(turn / slowest) - math.asin(radius_sum / nearest) - math.asin(moved / rho) \
+                - math.asin(turned / speed) - alpha <= 0.0:
+            break
+        bound = longer
+    return bound
 
 
 def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
@@ -590,16 +611,6 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
     side = 1.0 if dy > 0.0 else -1.0
     lateral, ahead, speed, gap = side * vy, abs(dx) + half_x, abs(vx), side * dy - half_y
 
-    def proven(horizon: float) -> bool:
-        drift = acceleration * horizon  # F
-        if speed <= drift:
-            return False
-        slip = 0.5 * drift * horizon  # E
-        grow = turn * horizon
-        reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
-        return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
-                > COURSE_MARGIN)
-
     # the test only gets harder as T grows (every term worsens). A first T from its leading terms (S ~ S0 =
     # (|dx| + half_x) / |vx|: gap + min(0, sigma vy) S0 - (A S0 + turn + max(0, -sigma vy)) T > 0), shortened
     # until the test passes
@@ -611,10 +622,23 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
         return 0.0
     horizon = min(min(until, COURSE_WINDOW), 0.9 * room / (acceleration * reach0 + turn + max(0.0, -lateral)))
     for _ in range(COURSE_TRIES):
-        if proven(horizon):
+        if _course_proven(horizon, lateral, ahead, speed, gap, turn, acceleration):
             return horizon
         horizon *= 0.75
     return 0.0
+
+
+def _course_proven(horizon: float, lateral: float, ahead: float, speed: float, gap: float, turn: float,
+                   acceleration: float) -> bool:
+    """`course_horizon`'s test for one T (`horizon`)."""
+    drift = acceleration * horizon  # F
+    if speed <= drift:
+        return False
+    slip = 0.5 * drift * horizon  # E
+    grow = turn * horizon
+    reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
+    return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
+            > COURSE_MARGIN)
 
 
 def distance_horizons(distance, frozen_rate, floor, turn: float, acceleration):

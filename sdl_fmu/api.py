@@ -27,8 +27,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .paths import SCENARIO_DIRECTORY
-from .results import summary, timeseries_table, write_results
-from .run_result import RunResult
+from .results import RunResult, summary, timeseries_table, write_results
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 from .units import Units
 from .vehicle.vehicle_map import Dynamics
@@ -393,7 +392,7 @@ class Result:
 
     def write(self, out: str | os.PathLike, plot: bool = True) -> Path:
         """Writes a results folder (timeseries.csv, summary.json, plot.png); see results_folder for the rules."""
-        from .results_folder import ResultsFolderError
+        from .results.folder import ResultsFolderError
 
         try:
             return write_results(self.raw, Path(out), plot=plot)
@@ -402,7 +401,7 @@ class Result:
 
     def plot(self, path: str | os.PathLike) -> Path:
         """Only the plot, as a PNG at `path`."""
-        from . import plots
+        from .results import plots
 
         plots.plot_run(self.raw, Path(path))
         return Path(path)
@@ -508,7 +507,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     Raises InputError or ScenarioError for user mistakes."""
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
-    from .results_folder import ResultsFolderError, check_results_folder
+    from .results.folder import ResultsFolderError, check_results_folder
 
     seed = _seed(seed)
     from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
@@ -573,7 +572,7 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
     driven through the vehicle map `vehicle`. A manoeuvre the vehicle cannot be driven through fails with its
     reason; only user mistakes (options, FMU, map, results folder) raise InputError."""
     from . import verify as pack
-    from .results_folder import ResultsFolderError, check_results_folder
+    from .results.folder import ResultsFolderError, check_results_folder
 
     names = list(pack.MANOEUVRES) if only is None else list(only)
     unknown = [name for name in names if name not in pack.MANOEUVRES]

@@ -16,7 +16,7 @@ import pytest
 from sdl_fmu import api, paths
 from sdl_fmu.cli import main
 from sdl_fmu.fmu import cache
-from sdl_fmu.results_folder import MANIFEST_NAME
+from sdl_fmu.results.folder import MANIFEST_NAME
 
 CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = sorted([MANIFEST_NAME, "plot.png", "summary.json", "timeseries.csv"])

@@ -6,10 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from sdl_fmu import plots
-from sdl_fmu.results import summary, write_results
-from sdl_fmu.run_result import RunResult, SurfaceSection, VehicleTrack
-from sdl_fmu.results_folder import ResultsFolderError
+from sdl_fmu.results import RunResult, SurfaceSection, VehicleTrack, plots, summary, write_results
+from sdl_fmu.results.folder import ResultsFolderError
 from sdl_fmu.sdl.events import Road
 from sdl_fmu.units import from_si
 

@@ -31,10 +31,10 @@ from functools import partial
 from pathlib import Path
 from typing import Callable, Literal
 
-from ..run_result import RunResult
+from ..results import RunResult
+from ..results.storage import EventLog
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
-from ..storage import EventLog
 from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from .brake import BrakeHold

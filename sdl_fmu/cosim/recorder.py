@@ -8,8 +8,8 @@ from array import array
 
 import numpy as np
 
-from ..run_result import VehicleTracks
-from ..storage import ChunkedTable, release_pages
+from ..results import VehicleTracks
+from ..results.storage import ChunkedTable, release_pages
 from ..vehicle import EgoState
 from .extremes import RANGE
 from .geometry import Footprint

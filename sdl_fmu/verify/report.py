@@ -15,7 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from ..results_folder import write_results_folder
+from ..results.folder import write_results_folder
 from .drive import COLUMNS
 from .outcome import Outcome
 

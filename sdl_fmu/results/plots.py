@@ -21,11 +21,11 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
-from .units import from_si, length_label, speed_label
-from .vehicle.model import WHEELS
+from ..units import from_si, length_label, speed_label
+from ..vehicle.model import WHEELS
 
 if TYPE_CHECKING:
-    from .run_result import RunResult
+    from .record import RunResult
 
 LABEL_CHAR_PX = 6.5  # rough width of one 7.5 pt label character at 110 dpi
 LABEL_TOP = 0.97  # axis fraction of the first row of event labels

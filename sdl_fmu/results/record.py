@@ -1,5 +1,5 @@
 """What a run produced, in SI: the ego's time series, the traffic's tracks, events, surfaces. Made by the run
-stage (cosim/), written by results.py and drawn by plots.py; it imports neither stage."""
+stage (cosim/), written by files.py and drawn by plots.py; it imports neither stage."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lazy_sequence import LazySequence
-from .sdl.events import Road
-from .units import Units
+from ..lazy_sequence import LazySequence
+from ..sdl.events import Road
+from ..units import Units
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Writing what a run produced (run_result.RunResult): timeseries.csv, summary.json, plot.png (atomically)."""
+"""Writing what a run produced (record.RunResult): timeseries.csv, summary.json, plot.png (atomically)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..units import Units, from_si, length_label, speed_label
+from ..vehicle.model import WHEELS
+from .folder import write_results_folder
+from .record import RunResult, VehicleTrack
 from .storage import release_pages
-from .results_folder import write_results_folder
-from .run_result import RunResult, VehicleTrack
-from .units import Units, from_si, length_label, speed_label
-from .vehicle.model import WHEELS
 
 
 TIME_FORMAT = "%.6f"
@@ -253,7 +253,7 @@ def write_summary_json(result: RunResult, path: Path) -> None:
 
 def write_results(result: RunResult, out_dir: Path, plot: bool = True) -> Path:
     """Write timeseries.csv, summary.json and plot.png into out_dir atomically: all of them or nothing, and
-    nothing sdl-fmu did not write is touched (results_folder)."""
+    nothing sdl-fmu did not write is touched (folder.py)."""
     def write(folder: Path) -> None:
         write_timeseries_csv(result, folder / "timeseries.csv")
         write_summary_json(result, folder / "summary.json")

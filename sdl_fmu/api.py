@@ -27,7 +27,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .paths import SCENARIO_DIRECTORY
-from .results import RunResult, summary, timeseries_table, write_results
+from .results import RunRecord, scenario_units, summary, timeseries_table, write_results
 from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
 from .units import Units
 from .vehicle.vehicle_map import Dynamics
@@ -330,10 +330,10 @@ def _whole_attributes(scenario: Scenario) -> None:
 
 @dataclass
 class Result:
-    """What a run produced. `raw` is the orchestrator's RunResult (SI); everything else is in the
+    """What a run produced. `raw` is the orchestrator's RunRecord (SI); everything else is in the
     scenario's units, as in the results files."""
 
-    raw: RunResult
+    raw: RunRecord
     scenario: Scenario
 
     def __repr__(self) -> str:
@@ -363,9 +363,9 @@ class Result:
 
     @property
     def events(self) -> Sequence[dict]:
-        """summary.json's events in order: a sequence of dicts read back from the run's event log on disk
-        (each read afresh; list(result.events) for a list)."""
-        return self.raw.events
+        """summary.json's events in order, in the scenario's units: a sequence of dicts read back from the run's
+        event log on disk (each read afresh; list(result.events) for a list)."""
+        return scenario_units.Events(self.raw.events, self.raw.units)
 
     @property
     def warnings(self) -> list[str]:
@@ -375,15 +375,16 @@ class Result:
     def collisions(self) -> int:
         return self.raw.collisions
 
-    @property
+    @functools.cached_property
     def final(self) -> dict:
-        return self.raw.final
+        """summary.json's `final`, in the scenario's units."""
+        return scenario_units.final(self.raw.final, self.raw.units)
 
-    @property
+    @functools.cached_property
     def criticality(self) -> dict | None:
         """summary.json's `criticality` (docs/results.md): min_distance (scenario units) and its instant, min_ttc_s,
         max_drac (scenario units/s2), min_pet_s, min_headway_s, ..., run-wide and per vehicle (`vehicles`)."""
-        return self.raw.criticality
+        return scenario_units.criticality(self.raw.criticality, self.raw.units)
 
     @property
     def summary(self) -> dict:

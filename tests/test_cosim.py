@@ -11,7 +11,7 @@ from sdl_fmu.cosim.traffic import choose_model
 from sdl_fmu.sdl import parse_text
 from sdl_fmu.units import FOOT
 
-from helpers import NO_RESISTANCES, TABLE, G
+from helpers import NO_RESISTANCES, TABLE, G, as_written
 
 # Triggers are located to 1e-6 s; at 100 ft/s that is 1e-4 ft, and the FMU's own stop is exact to
 # round-off. So 1e-3 ft and 1e-5 s bound the numerics.
@@ -22,8 +22,9 @@ TIME_TOLERANCE = 1e-5  # s
 def run(text, speed_ft=100.0, parameters=NO_RESISTANCES, seed=1, **options):
     scenario = parse_text(text, "test.sdl")
     speed = speed_ft * (FOOT if scenario.units == "English" else 1.0)
-    return run_scenario(scenario, options.pop("fmu"), RunOptions(speed=speed, seed=seed, parameters=dict(parameters),
-                                                                 **options), TABLE)
+    return as_written(run_scenario(scenario, options.pop("fmu"), RunOptions(speed=speed, seed=seed,
+                                                                            parameters=dict(parameters), **options),
+                                   TABLE))
 
 
 def events(result, code, action=None):

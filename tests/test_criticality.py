@@ -456,7 +456,8 @@ from typing import NamedTuple  # noqa: E402
 from sdl_fmu.cosim.extremes import RANGE, Extremes  # noqa: E402
 from sdl_fmu.cosim.measures import relative_motion  # noqa: E402
 from sdl_fmu.cosim.traffic import Traffic  # noqa: E402
-from sdl_fmu.units import FOOT, from_si  # noqa: E402
+from sdl_fmu.results import scenario_units  # noqa: E402
+from sdl_fmu.units import FOOT  # noqa: E402
 
 
 class State(NamedTuple):
@@ -546,7 +547,7 @@ def test_oncoming_vehicle_in_the_adjacent_lane_minimum_distance_and_its_instant_
     # course: TTC and DRAC never apply; no headway (oncoming). In feet: 1.8 / 0.3048 = 5.9055 ft.
     traffic = traffic_of((0.0, 120.0, -LANE, 20.0, -LANE, 20.0, 0.0))
     extremes = master_like_run(traffic, cruising(25.0), step, end=4.0)
-    summary = extremes.summary([1], lambda value: from_si(value, "English"))
+    summary = scenario_units.criticality(extremes.summary([1]), "English")
     vehicle = summary["vehicles"][0]
     assert vehicle["vehicle"] == 1
     assert vehicle["min_distance"] == pytest.approx(1.8 / FOOT, abs=1e-6)
@@ -571,7 +572,7 @@ def test_braking_ego_and_a_stopped_car_ahead_minimum_distance_ttc_and_drac_whate
     g0 = 10 + 400 / 12
     traffic = traffic_of((0.0, g0 + 4.55, 0.0, 0.0, 0.0, 0.0, 0.0))
     extremes = master_like_run(traffic, braking(20.0, 6.0), step, end=6.0)
-    summary = extremes.summary([7], lambda value: from_si(value, "Metric"))
+    summary = scenario_units.criticality(extremes.summary([7]), "Metric")
     assert summary["min_distance"] == pytest.approx(10.0, abs=1e-6)
     assert summary["min_distance_time_s"] == pytest.approx(10 / 3, abs=1e-6)
     assert summary["min_ttc_s"] == pytest.approx(math.sqrt(20 / 6), abs=1e-6)
@@ -589,7 +590,7 @@ def test_time_headway_minimum_to_a_slower_car_ahead_whatever_the_step(step):
     # t = 15 - sqrt(115) = 4.27620 s, v = sqrt(115), h = g / v = v - 10 = 0.72381 s.
     traffic = traffic_of((0.0, 20.0 + 4.55, 0.0, -10.0, 0.0, -10.0, 0.0))
     extremes = master_like_run(traffic, braking(15.0, 1.0), step, end=8.0)
-    summary = extremes.summary([1], lambda value: value)
+    summary = extremes.summary([1])
     assert summary["min_headway_s"] == pytest.approx(math.sqrt(115) - 10, abs=1e-6)
     assert summary["min_headway_time_s"] == pytest.approx(15 - math.sqrt(115), abs=1e-6)
 
@@ -621,7 +622,7 @@ def test_post_encroachment_time_recorded_when_the_ego_reaches_the_conflict_stati
     assert extremes.pending_stations().tolist() == [132.75]
     extremes.reach(ego(reaches))
     assert len(extremes.pending_stations()) == 0
-    summary = extremes.summary([3], lambda value: value)
+    summary = extremes.summary([3])
     assert summary["min_pet_s"] == pytest.approx(reaches - 6.5, abs=1e-12)
     # the ego already past the area's near end when the car left: they were there together, no PET
     extremes.path_left(1, 6.5, 100.0, CAR_LENGTH, ego(6.5).x + EGO_LENGTH / 2)
@@ -763,7 +764,7 @@ def test_smallest_ttc_at_the_end_of_a_collision_course_whatever_the_step(step):
     # DRAC = |v_rel| / (2 TTC) with v_rel = (-20, -1) is largest there: sqrt(401) / 1.34.
     traffic = traffic_of((0.0, 26.0 + 4.55, 2.5, 0.0, 1.87, 0.0, 0.63))
     extremes = master_like_run(traffic, cruising(20.0), step, end=2.0)
-    summary = extremes.summary([1], lambda value: value)
+    summary = extremes.summary([1])
     assert summary["min_ttc_s"] == pytest.approx(0.67, abs=1e-6)
     assert summary["min_ttc_time_s"] == pytest.approx(0.63, abs=1e-6)
     assert summary["max_drac"] == pytest.approx(math.sqrt(401) / 1.34, rel=1e-6)

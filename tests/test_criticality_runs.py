@@ -14,6 +14,8 @@ from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT
 
+from helpers import as_written
+
 TABLE = load_vehicle_table(default_vehicle_table_path())
 STEPS = (0.001, 0.01, 1.0, 10.0)
 V0 = 88 * FOOT  # m/s, the driver's default speed, which it holds on a straight road
@@ -51,7 +53,7 @@ def run(simple_fmu):
         if (name, step) not in _runs:
             cosim = Cosimulation(SCENARIOS[name](), simple_fmu, RunOptions(step=step, until_distance=UNTIL.get(name),
                                                                  parameters=PARAMETERS.get(name, {})), TABLE)
-            _runs[(name, step)] = cosim.run(), cosim
+            _runs[(name, step)] = as_written(cosim.run()), cosim
         return _runs[(name, step)]
     return at
 
@@ -387,7 +389,7 @@ def test_an_fmu_that_cannot_roll_back_gives_the_extremes_within_a_step(simple_fm
     no_state = rewritten_fmu(simple_fmu, tmp_path / "NoState.fmu", lambda text: re.sub(
         r'canGetAndSetFMUstate="true"', 'canGetAndSetFMUstate="false"', text, flags=re.I))
     cosim = Cosimulation(SCENARIOS["adjacent"](), no_state, RunOptions(), TABLE)
-    result = cosim.run()
+    result = as_written(cosim.run())
     assert not cosim.exact
     summary = result.criticality
     uncertainty = summary["time_uncertainty_s"]

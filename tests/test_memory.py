@@ -81,16 +81,16 @@ def test_a_run_keeps_no_object_per_line_or_event(tmp_path, simple_fmu, monkeypat
 def test_summary_json_streams_the_events(tmp_path):
     """Writing summary.json holds one event at a time, not the list and the whole text."""
     from sdl_fmu.results.files import summary, write_summary_json
-    from sdl_fmu.results.record import RunResult
+    from sdl_fmu.results.record import RunRecord
     from sdl_fmu.results.storage import EventLog
     from sdl_fmu.sdl.events import DEFAULT_ROAD
 
-    def result(events: int) -> RunResult:
+    def result(events: int) -> RunRecord:
         log = EventLog()
         for k in range(events):
             log.append({"code": "A", "action": "spawn", "time_s": 0.1 * k, "distance": 8.8 * k, "speed": 88.0,
                         "lateral": -6.0, "vehicle": k + 1, "model": 1 + k % 8, "name": "car", "line": k + 2})
-        return RunResult("x.sdl", "English", "simple", 1, DEFAULT_ROAD, {}, [], log, 0, [], [],
+        return RunRecord("x.sdl", "English", "simple", 1, DEFAULT_ROAD, {}, [], log, 0, [], [],
                          final={"time_s": 1.0}, timing={"wall_s": 0.1})
 
     peaks = {}

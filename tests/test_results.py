@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from sdl_fmu.results import RunResult, SurfaceSection, VehicleTrack, plots, summary, write_results
+from sdl_fmu.results import RunRecord, SurfaceSection, VehicleTrack, plots, summary, write_results
 from sdl_fmu.results.folder import ResultsFolderError
 from sdl_fmu.sdl.events import Road
 from sdl_fmu.units import from_si
@@ -19,7 +19,7 @@ EGO_HEADER = ["time_s", "distance_{L}", "station_{L}", "lateral_{L}", "speed_{V}
               "ay_{L}/s2", "yaw_rate_rad/s", "psi_rad", "throttle_1", "brake_1", "steer_rad", "brk_active", "stopped"]
 
 
-def make_result(units="English", dynamics="simple", collision=False) -> RunResult:
+def make_result(units="English", dynamics="simple", collision=False) -> RunRecord:
     """Five samples 0.1 s apart at 15.24 m/s (50 ft/s); A1 appears at the third sample."""
     time = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
     s = 15.24 * time  # 0, 1.524 m (5 ft), 3.048 m (10 ft), ...
@@ -41,20 +41,22 @@ def make_result(units="English", dynamics="simple", collision=False) -> RunResul
         lateral=np.array([NAN, NAN, -1.8288, -1.8288, -1.8288]),
         speed=np.array([NAN, NAN, 6.096, 6.096, 6.096]),
     )
+    # the record is SI: 3.048 m (10 ft) at 15.24 m/s (50 ft/s), 1.8288 m (6 ft) right of the dividing line
     events = [
-        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 10.0, "speed": 50.0,
-         "lateral": 6.0},
-        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 10.0, "speed": 50.0, "lateral": 6.0},
+        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 3.048, "speed": 15.24,
+         "lateral": 1.8288},
+        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 3.048, "speed": 15.24, "lateral": 1.8288,
+         "threshold": "distance", "magnitude": 30.48},
     ]
     if collision:
-        events.append({"code": "A", "action": "collision", "vehicle": 1, "time_s": 0.3, "distance": 15.0,
-                       "speed": 50.0, "lateral": 6.0})
-    return RunResult(
+        events.append({"code": "A", "action": "collision", "vehicle": 1, "time_s": 0.3, "distance": 4.572,
+                       "speed": 15.24, "lateral": 1.8288})
+    return RunRecord(
         scenario_path="scenarios/example.sdl", units=units, dynamics=dynamics, seed=42, road=ROAD, columns=columns,
         vehicles=[vehicle], events=events, collisions=int(collision),
         collision_points=[(4.6, 0.0)] if collision else [],
         surfaces=[SurfaceSection(lane=1, start=1.0, end=None, value=3 if dynamics == "simple" else 2)],
-        warnings=["a warning"], final={"time_s": 0.4, "distance": 20.0, "speed": 50.0, "lateral": 6.000000000001},
+        warnings=["a warning"], final={"time_s": 0.4, "distance": 6.096, "speed": 15.24, "lateral": 1.8288000000003},
     )
 
 
@@ -130,8 +132,13 @@ def test_summary_json_keys_per_spec(tmp_path):
     assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
     assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
     assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}
-    assert data["final"]["lateral"] == 6.0  # rounded to 6 decimals
-    assert data["events"] == result.events
+    # the record's SI values in feet (by hand: m / 0.3048), rounded to 6 decimals
+    assert data["final"] == {"time_s": 0.4, "distance": 20.0, "speed": 50.0, "lateral": 6.0}
+    assert data["events"] == [
+        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 10.0, "speed": 50.0,
+         "lateral": 6.0},
+        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 10.0, "speed": 50.0, "lateral": 6.0,
+         "threshold": "distance", "magnitude": 100.0}]
     assert data["warnings"] == ["a warning"]
     assert (out / "summary.json").read_text().startswith('{\n  "')  # indent 2
 

@@ -64,7 +64,7 @@ class Extremes:
     A later value replaces the recorded one only when better by more than FLAT, so that a flat extreme (the
     distance to a car passing in the next lane, constant over the whole overlap) keeps the first instant it
     was reached, whatever the samples after it: with the start located, the instant does not depend on the
-    step. Values are SI (m, s, m/s2); `summary` converts lengths at the results boundary."""
+    step. Values are SI (m, s, m/s2), in `summary` too (the results convert them)."""
 
     def __init__(self, ego_length: float, ego_width: float, capacity: int = 16):
         self.ego_length, self.ego_width = ego_length, ego_width
@@ -415,24 +415,22 @@ class Extremes:
 
     # -- the results
 
-    def summary(self, vehicle_ids, to_scenario_units) -> dict:
-        """summary.json's `criticality` object (docs/results.md): run-wide extremes and one entry per vehicle,
-        lengths (and DRAC, a length per s^2) through `to_scenario_units` (units.from_si), null where a measure
-        never applied.
+    def summary(self, vehicle_ids) -> dict:
+        """summary.json's `criticality` object (docs/results.md) in SI (the results give the lengths, and DRAC, a
+        length per s^2, in the scenario's units: results/scenario_units.py): run-wide extremes and one entry per
+        vehicle, None (null) where a measure never applied.
         Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s."""
         def number(x):
             return None if x != x else float(x)
 
         def entry(values: dict, times: dict) -> dict:
-            length = {"min_distance", "max_drac"}
             out = {}
             for name, key, time_key in (("min_distance", "min_distance", "min_distance_time_s"),
                                         ("min_ttc", "min_ttc_s", "min_ttc_time_s"),
                                         ("max_drac", "max_drac", "max_drac_time_s"),
                                         ("min_pet", "min_pet_s", None),
                                         ("min_headway", "min_headway_s", "min_headway_time_s")):
-                value = number(values[name])
-                out[key] = None if value is None else (to_scenario_units(value) if name in length else value)
+                out[key] = number(values[name])
                 if time_key:
                     out[time_key] = number(times[name])
             return out

@@ -57,10 +57,10 @@ class CriticalityFollower:
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
         self.touched: set[int] = set()  # the vehicles something fired for at this instant (looked at after)
 
-    def summary(self, vehicle_ids, scenario_units) -> dict:
-        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
-        back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
-        summary = self.extremes.summary(vehicle_ids, scenario_units)
+    def summary(self, vehicle_ids) -> dict:
+        """summary.json's `criticality` (docs/results.md) in SI; with an FMU that cannot roll back, how exactly its
+        instants are known (`time_uncertainty_s`, as on the events)."""
+        summary = self.extremes.summary(vehicle_ids)
         if not self.exact:
             summary["time_uncertainty_s"] = self.criticality_uncertainty
         return summary

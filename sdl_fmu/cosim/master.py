@@ -31,11 +31,11 @@ from functools import partial
 from pathlib import Path
 from typing import Callable, Literal
 
-from ..results import RunResult
+from ..results import RunRecord
 from ..results.storage import EventLog
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
-from ..units import FOOT, from_si
+from ..units import FOOT
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from .brake import BrakeHold
 from .driver import MAX_STEER, make_driver
@@ -125,9 +125,6 @@ class Cosimulation:
         self.finished = False
         self.follower = CriticalityFollower(self.ego, self.traffic, self.bounds, self.road, self.exact)
 
-    def _scenario_units(self, value: float) -> float:
-        return from_si(value, self.scenario.units)
-
     def _end_distance(self) -> tuple[float, EndReason]:
         """Where the run ends by distance, and why: ES, --until-distance, or a runout past the last event."""
         candidates = [(d, reason) for d, reason in ((self.scenario.end_distance, "scenario"),
@@ -142,7 +139,7 @@ class Cosimulation:
 
     # ---- the loop -------------------------------------------------------------------------------
 
-    def run(self) -> RunResult:
+    def run(self) -> RunRecord:
         """The loop (FMPy's simulateCS over its helpers): each pass steps the FMU to the next communication point
         (a driver sample, the `step` limit or the earliest trigger bound), fires what became true there, and
         records a sample with the inputs from that instant on."""
@@ -234,8 +231,8 @@ class Cosimulation:
     # ---- what happens at an instant -------------------------------------------------------------
 
     def log(self, code: str, action: str, state: EgoState, **extra) -> None:
-        entry = {"code": code, "action": action, "time_s": state.time, "distance": self._scenario_units(state.s),
-                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y), **extra}
+        entry = {"code": code, "action": action, "time_s": state.time, "distance": state.s, "speed": state.v,
+                 "lateral": -state.y, **extra}  # SI: the results give them in the scenario's units
         if not self.exact:
             entry["time_uncertainty_s"] = self.time_uncertainty
         self.events.append(entry)
@@ -310,9 +307,8 @@ class Cosimulation:
                                      f"{brake_hold.event.line} is still on")
             else:
                 self.inputs.brake_hold = BrakeHold(event, state.time, state.s, state.v)
-                magnitude = event.magnitude if event.threshold == "time" else self._scenario_units(event.magnitude)
                 self.log("BRK", "on", state, pedal=event.pedal * 100, threshold=event.threshold,
-                         magnitude=magnitude, line=event.line)
+                         magnitude=event.magnitude, line=event.line)
         elif isinstance(event, SurfaceAttribute):
             for lane, value in event.settings:
                 self.log("RSA", "set", state, lane=lane, value=value, line=event.line)
@@ -338,11 +334,10 @@ class Cosimulation:
 
     # ---- the result -----------------------------------------------------------------------------
 
-    def result(self, state: EgoState, wall: float) -> RunResult:
+    def result(self, state: EgoState, wall: float) -> RunRecord:
         recorder = self.recorder
         columns = recorder.columns()
-        final = {"time_s": state.time, "distance": self._scenario_units(state.s),
-                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
+        final = {"time_s": state.time, "distance": state.s, "speed": state.v, "lateral": -state.y}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
                   "steps": self.steps, "samples": recorder.sample_count}
         model, bounds = self.model, self.bounds
@@ -350,24 +345,18 @@ class Cosimulation:
             "acceleration_m/s2": bounds.acceleration, "yaw_rate_rad/s": bounds.yaw_rate,
             "source": model.bounds["source"],
             "defaults": model.defaulted if model.bounds["acceleration"] is None else []}}
-        return RunResult(
+        return RunRecord(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
             friction_meaning=model.surface_meaning,
             seed=self.options.seed, road=self.road, columns=columns,
             vehicles=recorder.vehicle_tracks(self.traffic, columns["time"]),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
-            criticality=self.criticality_summary(),
+            criticality=self.follower.summary(self.recorder.vehicle_ids),
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
 
-    def criticality_summary(self) -> dict:
-        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
-        back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
-        return self.follower.summary(self.recorder.vehicle_ids, self._scenario_units)
-
-
 def run_scenario(scenario: Scenario, model: EgoModel | Path, options: RunOptions,
-                 vehicle_table: dict[int, VehicleModel]) -> RunResult:
-    """Co-simulates a parsed scenario against an ego vehicle and returns what happened (SI inside)."""
+                 vehicle_table: dict[int, VehicleModel]) -> RunRecord:
+    """Co-simulates a parsed scenario against an ego vehicle and returns what happened (RunRecord: SI)."""
     return Cosimulation(scenario, model, options, vehicle_table).run()

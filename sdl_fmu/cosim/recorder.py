@@ -87,7 +87,7 @@ def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: Eg
     """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle is on
     a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions (each
     vehicle from its first sample to the one it left at, -1: still on the road), computed when asked for
-    (RunResult.ttc_series), not during the run; not part of timeseries.csv."""
+    (RunRecord.ttc_series), not during the run; not part of timeseries.csv."""
     times = np.asarray(columns["time"])
     series = np.full(len(times), np.inf)
     last = np.where(last < 0, len(times), last)

@@ -1,4 +1,6 @@
-"""Writing what a run produced (record.RunResult): timeseries.csv, summary.json, plot.png (atomically)."""
+"""Writing what a run produced (record.RunRecord, SI): timeseries.csv and summary.json in the scenario's units
+(summary.json's final state, events and criticality through scenario_units.py, the CSV's columns here), and
+plot.png, atomically."""
 
 from __future__ import annotations
 
@@ -10,8 +12,9 @@ import numpy as np
 
 from ..units import Units, from_si, length_label, speed_label
 from ..vehicle.model import WHEELS
+from . import scenario_units
 from .folder import write_results_folder
-from .record import RunResult, VehicleTrack
+from .record import RunRecord, VehicleTrack
 from .storage import release_pages
 
 
@@ -20,12 +23,12 @@ LENGTH_FORMAT = "%.4f"  # distances, positions and speeds in ft, ft/s or m, m/s
 GENERAL_FORMAT = "%.6g"  # accelerations, angles, rates, pedals, mu
 
 
-def _ego_column(result: RunResult, name: str) -> np.ndarray:
-    """One ego time series as a float array; a missing column is a bug in whoever built the RunResult."""
+def _ego_column(result: RunRecord, name: str) -> np.ndarray:
+    """One ego time series as a float array; a missing column is a bug in whoever built the RunRecord."""
     try:
         return np.asarray(result.columns[name], dtype=float)
     except KeyError:
-        raise KeyError(f"RunResult.columns has no {name!r} (has {sorted(result.columns)})") from None
+        raise KeyError(f"RunRecord.columns has no {name!r} (has {sorted(result.columns)})") from None
 
 
 WIDE_VEHICLE_LIMIT = 100  # more traffic vehicles than this: their columns go to traffic.csv, one row per sample
@@ -42,7 +45,7 @@ def _vehicle_slice(track: VehicleTrack, name: str, first: int, stop: int) -> np.
     return out
 
 
-def _timeseries_columns(result: RunResult) -> list[tuple[str, object, str]]:
+def _timeseries_columns(result: RunRecord) -> list[tuple[str, object, str]]:
     """The timeseries.csv columns as (header with unit, values of samples [first, stop) in scenario units,
     printf format)."""
     units = result.units
@@ -104,7 +107,7 @@ def _timeseries_columns(result: RunResult) -> list[tuple[str, object, str]]:
     return table
 
 
-def timeseries_table(result: RunResult) -> list[tuple[str, np.ndarray, str]]:
+def timeseries_table(result: RunRecord) -> list[tuple[str, np.ndarray, str]]:
     """The timeseries.csv columns as (header with unit, values in scenario units, printf format)."""
     samples = len(_ego_column(result, "time"))
     table = [(header, values(0, samples), fmt) for header, values, fmt in _timeseries_columns(result)]
@@ -119,7 +122,7 @@ def _format_column(values: np.ndarray, fmt: str) -> list[str]:
     return [fmt % value if math.isfinite(value) else "" for value in values.tolist()]
 
 
-def write_timeseries_csv(result: RunResult, path: Path) -> None:
+def write_timeseries_csv(result: RunRecord, path: Path) -> None:
     """timeseries.csv: one row per sample, units in the headers, scenario units for lengths and speeds;
     written CSV_CHUNK_ROWS rows at a time. With more than WIDE_VEHICLE_LIMIT traffic vehicles their
     columns would make the table unusably wide: they go to traffic.csv instead (`write_traffic_csv`)."""
@@ -141,7 +144,7 @@ def write_timeseries_csv(result: RunResult, path: Path) -> None:
         write_traffic_csv(result, Path(path).with_name("traffic.csv"))
 
 
-def write_traffic_csv(result: RunResult, path: Path) -> None:
+def write_traffic_csv(result: RunRecord, path: Path) -> None:
     """traffic.csv (runs with many vehicles): one row per vehicle per sample while it is on the road."""
     units = result.units
     length, speed = length_label(units), speed_label(units)
@@ -169,7 +172,7 @@ def write_traffic_csv(result: RunResult, path: Path) -> None:
     _release_samples(result)
 
 
-def _release_samples(result: RunResult) -> None:
+def _release_samples(result: RunRecord) -> None:
     """Drops the disk-backed sample pages read so far from resident memory (`storage.release_pages`), so
     that writing a long run's files does not hold them all."""
     release_pages(_ego_column(result, "time"))
@@ -210,7 +213,7 @@ def key_units(units: Units) -> dict[str, str]:
             "timing.wall_s": "s", "timing.real_time_factor": "simulated s per wall-clock s"}
 
 
-def _summary_fields(result: RunResult, events) -> dict:
+def _summary_fields(result: RunRecord, events) -> dict:
     return {
         "scenario": str(result.scenario_path),
         "units": result.units,
@@ -218,24 +221,25 @@ def _summary_fields(result: RunResult, events) -> dict:
         "dynamics": result.dynamics,
         "seed": result.seed,
         "collisions": int(result.collisions),
-        "final": result.final,
+        "final": scenario_units.final(result.final, result.units),
         "events": events,
         "warnings": list(result.warnings),
         "timing": result.timing,
         **({"vehicle": result.vehicle} if result.vehicle else {}),
-        **({"criticality": result.criticality} if result.criticality is not None else {}),
+        **({"criticality": scenario_units.criticality(result.criticality, result.units)}
+           if result.criticality is not None else {}),
     }
 
 
-def summary(result: RunResult) -> dict:
+def summary(result: RunRecord) -> dict:
     """summary.json content (docs/results.md, The files): final state, events and warnings in scenario units."""
-    return _json_ready(_summary_fields(result, list(result.events)))
+    return _json_ready(_summary_fields(result, list(scenario_units.Events(result.events, result.units))))
 
 
 _EVENTS_KEY = '\n  "events": []'  # where the events go in summary.json (no JSON string holds a raw newline)
 
 
-def write_summary_json(result: RunResult, path: Path) -> None:
+def write_summary_json(result: RunRecord, path: Path) -> None:
     """summary.json, indented 2, strict JSON (no NaN): the same text as json.dumps(summary(result), indent=2),
     with the events streamed from the run's log one at a time instead of built as one list in memory."""
     text = json.dumps(_json_ready(_summary_fields(result, [])), indent=2, allow_nan=False)
@@ -243,7 +247,7 @@ def write_summary_json(result: RunResult, path: Path) -> None:
     with open(path, "w", encoding="utf-8") as file:
         file.write(head + _EVENTS_KEY[:-1])
         written = 0
-        for event in result.events:
+        for event in scenario_units.Events(result.events, result.units):
             # an element of the events list sits two levels deep: every line of its own dump 4 spaces in
             item = json.dumps(_json_ready(event), indent=2, allow_nan=False).replace("\n", "\n    ")
             file.write(("," if written else "") + "\n    " + item)
@@ -251,7 +255,7 @@ def write_summary_json(result: RunResult, path: Path) -> None:
         file.write(("\n  ]" if written else "]") + tail + "\n")
 
 
-def write_results(result: RunResult, out_dir: Path, plot: bool = True) -> Path:
+def write_results(result: RunRecord, out_dir: Path, plot: bool = True) -> Path:
     """Write timeseries.csv, summary.json and plot.png into out_dir atomically: all of them or nothing, and
     nothing sdl-fmu did not write is touched (folder.py)."""
     def write(folder: Path) -> None:

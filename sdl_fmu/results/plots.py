@@ -23,9 +23,10 @@ from matplotlib.patches import Patch, Rectangle
 
 from ..units import from_si, length_label, speed_label
 from ..vehicle.model import WHEELS
+from . import scenario_units
 
 if TYPE_CHECKING:
-    from .record import RunResult
+    from .record import RunRecord
 
 LABEL_CHAR_PX = 6.5  # rough width of one 7.5 pt label character at 110 dpi
 LABEL_TOP = 0.97  # axis fraction of the first row of event labels
@@ -82,9 +83,10 @@ def _event_color(event: dict) -> str:
     return EVENT_COLORS.get(event.get("code"), "tab:gray")
 
 
-def _timed_events(result: RunResult) -> list[dict]:
-    """Events that carry a finite time, in time order."""
-    timed = [e for e in result.events if isinstance(e.get("time_s"), (int, float)) and math.isfinite(e["time_s"])]
+def _timed_events(result: RunRecord) -> list[dict]:
+    """Events that carry a finite time, in time order, in the scenario's units."""
+    timed = [e for e in scenario_units.Events(result.events, result.units)
+             if isinstance(e.get("time_s"), (int, float)) and math.isfinite(e["time_s"])]
     return sorted(timed, key=lambda e: e["time_s"])
 
 
@@ -152,9 +154,9 @@ def _shade_brk(ax, time: np.ndarray, brk_runs: list[tuple[int, int]], label: boo
                                      lw=0, label="BRK active" if label else None), autolim=False)
 
 
-def _final_text(result: RunResult, time: np.ndarray, distance: np.ndarray) -> str:
+def _final_text(result: RunRecord, time: np.ndarray, distance: np.ndarray) -> str:
     """'final: 1234.5 ft at t = 20.00 s' from the summary's final entry, else the last sample."""
-    final = result.final or {}
+    final = scenario_units.final(result.final or {}, result.units)
 
     def number(key: str, fallback: np.ndarray) -> float:
         value = final.get(key)
@@ -170,7 +172,7 @@ def _final_text(result: RunResult, time: np.ndarray, distance: np.ndarray) -> st
     return text
 
 
-def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs) -> None:
+def _plot_time_panels(result: RunRecord, axes: dict, time: np.ndarray, brk_runs) -> None:
     """Speed, distance, pedals + steer and friction over time."""
     units = result.units
     cols = result.columns
@@ -248,7 +250,7 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
     ax.set_xlabel("time [s]")
 
 
-def _plot_yaw_panel(result: RunResult, ax, time: np.ndarray, brk_runs) -> None:
+def _plot_yaw_panel(result: RunRecord, ax, time: np.ndarray, brk_runs) -> None:
     """Heading, side slip and road-wheel steer (deg, left axis) and yaw rate (deg/s, right axis): a skid or
     spin and the driver's counter-steer at a glance. ISO 8855 signs: + left (counter-clockwise)."""
     cols = result.columns
@@ -280,7 +282,7 @@ def _plot_yaw_panel(result: RunResult, ax, time: np.ndarray, brk_runs) -> None:
     ax.set_xlabel("time [s]")
 
 
-def _surface_style(result: RunResult):
+def _surface_style(result: RunRecord):
     """(colour of a section value, colorbar mappable or None, legend handles) for the RSA patches."""
     values = [section.value for section in result.surfaces]
     if result.friction_meaning != "attribute":
@@ -302,7 +304,7 @@ MAX_LANE_LINES = 200  # lane lines drawn at most; more within the view would be 
 NEAR_LANES = 4  # lanes shown beyond the outermost path on either side (the rest of a wide road is not drawn)
 
 
-def _draw_road(ax, result: RunResult, x_min: float, x_max: float,
+def _draw_road(ax, result: RunRecord, x_min: float, x_max: float,
                shown: tuple[float, float]) -> tuple[float, float]:
     """Lanes, shoulders, lane lines and RSA patches between stations x_min..x_max and lateral positions
     shown[0]..shown[1] (scenario units): what lies beyond is not drawn, so the cost does not grow with lanes
@@ -353,7 +355,7 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float,
     return left - width, right + width
 
 
-def _lateral_limits(result: RunResult) -> tuple[float, float]:
+def _lateral_limits(result: RunRecord) -> tuple[float, float]:
     """Lateral range shown: the road with shoulders as far as it lies within NEAR_LANES lanes of the ego's and
     the vehicles' paths, widened for any path that leaves it."""
     road, units = result.road, result.units
@@ -374,7 +376,7 @@ def _lateral_limits(result: RunResult) -> tuple[float, float]:
     return low - pad, high + pad
 
 
-def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, annotate: bool) -> list:
+def _draw_paths(ax, result: RunRecord, brk_runs, x_min: float, x_max: float, annotate: bool) -> list:
     """Ego path (red where BRK holds the pedals), traffic paths and collision points; legend handles."""
     units = result.units
     station = from_si(np.asarray(result.columns["station"], dtype=float), units)
@@ -435,7 +437,7 @@ def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, ann
     return handles
 
 
-def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
+def _focus(result: RunRecord, time: np.ndarray) -> tuple[int, str] | None:
     """Sample to zoom on: the first collision, else the closest approach of the first traffic vehicle."""
     station = np.asarray(result.columns["station"], dtype=float)
     collisions = [e for e in _timed_events(result) if e.get("action") == "collision"]
@@ -456,7 +458,7 @@ def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
     return None
 
 
-def _draw_footprints(ax, result: RunResult, index: int) -> None:
+def _draw_footprints(ax, result: RunRecord, index: int) -> None:
     """Traffic vehicles' footprints and the ego's position at one sample (zoom panel)."""
     units = result.units
     for number, track in enumerate(result.vehicles):
@@ -474,13 +476,14 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
     ax.plot(ego_x, ego_y, "D", color=EGO_COLOR, mec="black", ms=8, zorder=6)
 
 
-def _plot_criticality(result: RunResult, axes: dict, time: np.ndarray) -> None:
+def _plot_criticality(result: RunRecord, axes: dict, time: np.ndarray) -> None:
     """The minimum-distance instant on the speed and distance panels; TTC over time where it is defined."""
-    instant = (result.criticality or {}).get("min_distance_time_s")
+    criticality = scenario_units.criticality(result.criticality, result.units) or {}
+    instant = criticality.get("min_distance_time_s")
     if instant is not None:
         for name in ("speed", "distance"):
             axes[name].axvline(instant, color="tab:red", ls=":", lw=1.3)
-        axes["distance"].annotate(f"min distance {result.criticality['min_distance']:.4g} "
+        axes["distance"].annotate(f"min distance {criticality['min_distance']:.4g} "
                                   f"{length_label(result.units)}", (instant, 0.02), xycoords=("data", "axes fraction"),
                                   fontsize=8, color="tab:red", ha="left")
     ttc = result.ttc_series() if result.ttc_series is not None else None
@@ -491,7 +494,7 @@ def _plot_criticality(result: RunResult, axes: dict, time: np.ndarray) -> None:
         twin.set_ylabel("time to collision [s] (red)", color="tab:red")
 
 
-def plot_run(result: RunResult, path: Path) -> None:
+def plot_run(result: RunRecord, path: Path) -> None:
     """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above.
     Values at the format's extremes (km-wide views of a lane) make matplotlib's arithmetic overflow harmlessly:
     its RuntimeWarnings are not the user's concern, so they are not printed."""
@@ -500,7 +503,7 @@ def plot_run(result: RunResult, path: Path) -> None:
         _plot_run(result, path)
 
 
-def _plot_run(result: RunResult, path: Path) -> None:
+def _plot_run(result: RunRecord, path: Path) -> None:
     units = result.units
     length = length_label(units)
     time = np.asarray(result.columns["time"], dtype=float)

@@ -74,8 +74,10 @@ class SurfaceSection:
 
 
 @dataclass
-class RunResult:
-    """Everything a run produced, in SI; converted to the scenario's units only when written."""
+class RunRecord:
+    """Everything a run produced, all in SI (m, m/s, m/s2, s, rad): the time series, the traffic's tracks, the
+    events, the final state and the criticality measures. `units` is the scenario's: the results are converted to
+    it only where they are given out (scenario_units.py: summary.json, api.Result, the plot; files.py: the CSV)."""
 
     scenario_path: str
     units: Units
@@ -87,17 +89,19 @@ class RunResult:
     # mu_fl.. (friction meaning "mu") or surface_fl.. ("attribute"), none for a vehicle without friction input
     columns: dict[str, np.ndarray]
     vehicles: Sequence[VehicleTrack]  # a list, or VehicleTracks (made on demand) from the master
-    events: Sequence[dict]  # summary.json entries, already in the scenario's units (a list, or the master's
-    # EventLog: read back from its file on demand)
+    # summary.json's events with the ego's distance, speed, lateral (and a BRK threshold's magnitude) in SI (a
+    # list, or the master's EventLog: read back from its file on demand)
+    events: Sequence[dict]
     collisions: int
     collision_points: list[tuple[float, float]]  # (station, lateral) in m, for the plot
     surfaces: Sequence[SurfaceSection]  # a list, or the road's SurfaceSections (made on demand)
     warnings: list[str] = field(default_factory=list)
-    final: dict = field(default_factory=dict)  # summary "final", scenario units
+    final: dict = field(default_factory=dict)  # summary "final": time_s, distance (m), speed (m/s), lateral (m)
     timing: dict = field(default_factory=dict)  # summary "timing": wall_s, real_time_factor, steps, samples
     friction_meaning: str | None = "mu"  # what an RSA value means for the vehicle: "mu", "attribute" or None
     vehicle: dict = field(default_factory=dict)  # summary "vehicle": the EgoModel's summary and the bounds used
-    # summary "criticality" (docs/results.md): run-wide and per-vehicle extremes, scenario units; None: not measured
+    # summary "criticality" (docs/results.md): run-wide and per-vehicle extremes, SI (min_distance m, max_drac
+    # m/s2, times s); None: not measured
     criticality: dict | None = None
     # s per sample, the smallest time to collision (nan: none defined), computed when called (the plot)
     ttc_series: Callable[[], np.ndarray] | None = None

@@ -1,37 +1,40 @@
 """The run's criticality record: per traffic vehicle, the extreme of each measure (measures.py) and the instant
 it was first reached, and what the run needs to locate those instants instead of taking the best sample.
 
-Design: how the master uses these (one record for the run, `Extremes`, one row per traffic vehicle).
+How the run uses it (one record, `Extremes`, one row per traffic vehicle; the follower, follower.py, keeps the
+per-vehicle instants and asks the FMU for snapshots and probes):
 1. Looks. At a look (`Extremes.look`, one pass) a vehicle's values at the ego's state are offered to the
    record (a value replaces the recorded extreme only when better by more than FLAT, so the first instant
-   an extreme is reached stays), and the look returns the vehicle's rates and its horizon. The master
-   keeps a next-look instant per vehicle and their minimum, as it keeps its traffic bounds: at a
-   communication point it looks at the vehicles whose instant has come, and drops every next-look instant
-   when something fires (an action changes a vehicle's motion). A look also leaves `Extremes.quiet`, a
-   bound before which none of the vehicle's located instants (2) can be: the master starts a step from an FMU
-   snapshot only when such a bound ends within it. It also looks at every vehicle at its
-   spawn, its departure and the run's end (an extreme at the end of an interval), and at every located
-   instant below.
+   an extreme is reached stays), and the look returns the vehicle's rates and its horizon, a lower bound on
+   when it next needs a look. The follower keeps a next-look instant per vehicle and their minimum, as the
+   trigger schedule keeps its traffic bounds, and looks at a communication point at the vehicles whose instant
+   has come. A look also leaves `Extremes.quiet`, a bound before which none of the vehicle's located instants
+   (2) can be, and `Extremes.course`, a bound before which no collision course or headway can begin (4): a step
+   starts from an FMU snapshot only when such a bound ends within it. Every vehicle is also looked at at its
+   spawn, before and after its own actions, at its contacts' starts and ends, before it leaves the road, at the
+   run's end (an extreme at the end of an interval), and at every located instant below.
 2. Located instants. Inside a step an extreme is the root of its rate (`Extremes.rates`: distance, TTC,
    minus DRAC, headway; from < 0 to >= 0), or a contact's start or end (the master's contact triggers
-   already locate them; TTC is 0 and the distance 0 there), or a collision course's start or end (TTC
-   turns finite / infinite). The master adds a trigger kind "criticality" whose condition at a probe is: a
-   looked-at vehicle's rate turned from < 0 at the step's start to >= 0, or its collision course began or
-   ended. It bisects it like any trigger (rollback, TIME_TOLERANCE) and looks at the vehicle at the
-   located instant.
+   already locate them; TTC is 0 and the distance 0 there), or a collision course's start or end (TTC's rate
+   turns defined / undefined; also where a vehicle on a course crosses RANGE). The follower finds a change of
+   sign between the rates at the step's start and at its end and bisects it from the snapshot (locate.py), then
+   looks at the vehicle on both sides of the located instant.
 3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range) while a
    vehicle is on a collision course or has a headway: TTC, DRAC and headway are followed at every
    communication point there (the driver's 20 Hz samples at least), their roots and courses found by the
    sign checks of 2, which assume at most one change of sign between two communication points (no horizon
-   bounds TTC's or headway's rate yet). Within RANGE with neither (a car beside the ego's path), the
-   distance's horizon below, cut to `course_horizon`'s proven bound on when a course or a headway can
-   begin. Beyond RANGE only the
-   distance applies, and the horizon is a proven lower bound, from the ego's bounds as in triggers.py (the
-   acceleration A of its CG, its yaw rate r_max, the radius R of its footprint): the earliest of coming
-   within RANGE (`distance_horizon`) and of a new minimum distance, which needs both the distance below the
-   recorded minimum (`distance_horizon`) and an approach ending (`approach_horizon` near,
-   `heading_horizon` far), and never past the end of a lateral transition.
-4. PET: when an action starts a lateral move, `band_times` gives the instant the vehicle's footprint
+   bounds TTC's or headway's rate yet). Otherwise only the distance is followed by looks, and the horizon is a
+   proven lower bound, from the ego's bounds as in triggers.py (the acceleration A of its CG, its yaw rate
+   r_max, the radius R of its footprint), on a new minimum distance, which needs both the distance below the
+   recorded minimum (`distance_horizon`) and an approach ending (`approach_horizon` near, `heading_horizon`
+   far), and never past the end of a lateral transition.
+4. Courses. Between its looks a vehicle off any course and headway is checked (`course_check`: TTC and the
+   headway alone, a third of a look's cost) at every communication point from `course` on, which is
+   `course_horizon`'s proven bound within RANGE and the instant it can come within RANGE beyond it: a check that
+   finds a course or a headway within RANGE makes the vehicle due a look at once (a course's start is then
+   located as in 2). A car passing in the next lane within RANGE is checked at nearly every communication point
+   (the ego could steer toward it within about 0.05 s) but looked at only as its distance's bounds require.
+5. PET: when an action starts a lateral move, `band_times` gives the instant the vehicle's footprint
    leaves the ego's lane (closed form); the master steps to it like a driver sample and calls
    `Extremes.path_left`; the conflict stations then pending (`Extremes.pending_stations`) are distance
    triggers for the ego's front, horizon reach_time(station - front, station_rate + R r_max, A) as for the

@@ -56,6 +56,9 @@ class CriticalityFollower:
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
         self.touched: set[int] = set()  # the vehicles something fired for at this instant (looked at after)
+        self._calm: float | None = None  # `_calm_until`, None: to be computed again
+        # traffic.active when the looks' minima and the course bounds' minimum were last taken over every vehicle
+        self._looks_of = self._courses_of = None
 
     def summary(self, vehicle_ids) -> dict:
         """summary.json's `criticality` (docs/results.md) in SI; with an FMU that cannot roll back, how exactly its
@@ -77,8 +80,14 @@ class CriticalityFollower:
         at the step's start, from which an extreme inside the step is located (only for an FMU that can roll
         back). The vehicles whose bound on their next located instant ends inside the step are looked at now
         first (a look moves that bound on: the step may then need no snapshot)."""
+        calm = self._calm
+        if calm is None:
+            calm = self._calm = self._calm_until()
+        if limit < calm:
+            return False  # none of the bounds below ends by `limit`: no look, no check, no snapshot
         if self.pet_pending and self.pet_due <= limit:
             self.pet_due = self.pet_horizon(state)
+            self._calm = None
         if not self.exact:
             return False
         if self.looks_quiet <= limit:
@@ -117,6 +126,14 @@ class CriticalityFollower:
 
     # ---- inside
 
+    def _calm_until(self) -> float:
+        """The earliest step end for which `wants_snapshot` has anything to do: a PET horizon to compute again, and
+        with rollback a look's or a check's bound ending, a lane leave (recomputed when any of them changes)."""
+        calm = self.pet_due if self.pet_pending else math.inf
+        if self.exact:
+            calm = min(calm, self.earliest_quiet, min(self.leaves_lane.values(), default=math.inf))
+        return calm
+
     def criticality_due(self, t: float, limit: float) -> bool:
         """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU
         snapshot): a vehicle's look comes due after the instant before which none of its located instants can
@@ -152,6 +169,8 @@ class CriticalityFollower:
                 if next_look[i] <= t or (ahead is not None and quiet_until[i] <= ahead and look_time[i] < t)]
         else:
             vehicles = due = sorted(i for i in only if traffic.present[i])
+        if not due and traffic.active is self._looks_of:
+            return  # no bound moved and no vehicle left: the minima below still hold
         for i in due:
             rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate, bounds.radius,
                                            evaluated.get(i))
@@ -166,15 +185,19 @@ class CriticalityFollower:
         earliest_quiet = min([quiet_until[i] if quiet_until[i] > next_look[i] else next_look[i] for i in vehicles],
                              default=math.inf)
         earliest_course = min([course_until[i] for i in vehicles], default=math.inf)
-        if only is not None:
+        if only is None:
+            self._looks_of = self._courses_of = traffic.active  # the minima over every vehicle on the road
+        else:
             # the others' instants are kept: the earliest so far stays a bound (at worst early: then a look
             # finds nothing due and recomputes it over every vehicle)
+            self._looks_of = self._courses_of = None
             earliest = min(self.earliest_look, earliest)
             earliest_quiet = min(self.looks_quiet, earliest_quiet)
             earliest_course = min(self.earliest_course, earliest_course)
         self.earliest_look = earliest
         self.looks_quiet, self.earliest_course = earliest_quiet, earliest_course
         self.earliest_quiet = earliest_course if earliest_course < earliest_quiet else earliest_quiet
+        self._calm = None
 
     def _grow(self) -> None:
         size = self.traffic.size
@@ -195,17 +218,23 @@ class CriticalityFollower:
         traffic, bounds, extremes = self.traffic, self.bounds, self.extremes
         next_look, course_until, check_time = self.next_look, self.course_until, self.check_time
         vehicles = traffic.active_list()
-        for i in [i for i in vehicles if course_until[i] <= until and check_time[i] < t and next_look[i] > t]:
+        due = [i for i in vehicles if course_until[i] <= until and check_time[i] < t and next_look[i] > t]
+        if not due and traffic.active is self._courses_of:
+            return  # no bound moved and no vehicle left: the minimum still holds
+        self._courses_of = traffic.active
+        for i in due:
             check_time[i] = t
             bound = extremes.course_check(traffic, i, state, bounds.acceleration, bounds.yaw_rate, bounds.radius)
             if bound == bound:
                 course_until[i] = t + bound
             else:  # due a look now (its look sets the bound again)
                 next_look[i] = self.earliest_look = self.looks_quiet = NO_LOOK
+                self._looks_of = None
                 course_until[i] = math.inf
         earliest_course = self.earliest_course = min([course_until[i] for i in vehicles], default=math.inf)
         looks_quiet = self.looks_quiet
         self.earliest_quiet = earliest_course if earliest_course < looks_quiet else looks_quiet
+        self._calm = None
 
     def look_before_change(self, i: int, state: EgoState) -> None:
         """Vehicle i at this instant with the motion it had until now, before an action changes it or it leaves
@@ -376,6 +405,7 @@ class CriticalityFollower:
         leaving first; the ego leaving first: the far end of the area the vehicle will enter)."""
         traffic, road = self.traffic, self.road
         self.leaves_lane.pop(i, None)
+        self._calm = None
         lane = road.lane_at(-state.y)
         centre = road.lane_center(lane)
         enter, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
@@ -429,6 +459,7 @@ class CriticalityFollower:
         self.pet_station = min(float(stations.min()) if len(stations) else math.inf,
                                float(far.min()) + min(self.bounds.length, self.bounds.width) if len(far) else math.inf)
         self.pet_due = NO_LOOK
+        self._calm = None
 
     def pet_horizon(self, state: EgoState) -> float:
         """When the ego's front can first reach the pending conflict station: the front's station rate is at

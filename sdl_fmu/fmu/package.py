@@ -12,24 +12,17 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
+from ..names import SHIPPED_MODELS, Dynamics, equations_module
 from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
                       generate_model_source, model_guid, runtime_sources, variable_table)
 from .documentation import DOCUMENTATION, LICENSE_ENTRY, index_html, license_text
 from .structure import declared_dependencies, reinitialized_states
 from .xml import build_description, model_description, model_description_fmi3
 
-if TYPE_CHECKING:
-    from ..vehicle.vehicle_map import Dynamics
-
 FmiVersion = Literal[2, 3]  # the FMI standard's major version an FMU is built for
 
-# dynamics name -> (model name, module with equations())
-MODELS = {
-    "simple": ("EgoVehicleSimple", "sdl_fmu.dynamics.simple"),
-    "advanced": ("EgoVehicleAdvanced", "sdl_fmu.dynamics.advanced"),
-}
 WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
 # only the fmi* functions are exported: CasADi's generated functions stay internal to the library
 EXPORT_FLAGS = ["-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
@@ -56,7 +49,7 @@ def fmi_headers() -> Path:
 
 
 def fmu_path(out_dir: Path, dynamics: Dynamics, fmi_version: FmiVersion = 2) -> Path:
-    return Path(out_dir) / f"fmi{fmi_version}" / f"{MODELS[dynamics][0]}.fmu"
+    return Path(out_dir) / f"fmi{fmi_version}" / f"{SHIPPED_MODELS[dynamics]}.fmu"
 
 
 def mingw_compiler() -> str | None:
@@ -129,7 +122,7 @@ def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
         if version not in FMI_VERSIONS:
             raise BuildError(f"FMI version {version!r} is not supported: choose one of "
                              f"{', '.join(map(str, FMI_VERSIONS))}")
-    model, module = MODELS[dynamics]
+    model, module = SHIPPED_MODELS[dynamics], equations_module(dynamics)
     equations = importlib.import_module(module).equations()
     cross = mingw_compiler()
     if cross is None:

@@ -1,0 +1,32 @@
+"""Names every stage shares, defined once: the shipped models and the wheels. The build side (dynamics/, fmu/), the
+run side (vehicle/, cosim/), the output stage and the command line all read them here; nothing here imports the
+rest of the package but paths.py.
+
+A shipped model is a name (`--dynamics simple`), an FMU model name, the module of its equations
+(`sdl_fmu.dynamics.<name>`) and a shipped vehicle map (`scenarios/vehicles/<name>.toml`). Adding one is an entry in
+SHIPPED_MODELS, its module and its map.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal, get_args
+
+from .paths import VEHICLE_MAP_DIRECTORY
+
+Dynamics = Literal["simple", "advanced"]  # the shipped models (the type checkers' spelling of SHIPPED)
+SHIPPED: tuple[Dynamics, ...] = get_args(Dynamics)
+# the shipped model -> its FMU's model name (modelIdentifier, and modelDescription/<model name>.json)
+SHIPPED_MODELS: dict[Dynamics, str] = {"simple": "EgoVehicleSimple", "advanced": "EgoVehicleAdvanced"}
+
+WHEELS = ("fl", "fr", "rl", "rr")  # the wheels' order everywhere (FMU variables, contact points, results columns)
+
+
+def equations_module(name: Dynamics) -> str:
+    """The module whose equations() builds the shipped model `name`."""
+    return f"{__package__}.dynamics.{name}"
+
+
+def shipped_map_path(name: Dynamics) -> Path:
+    """The shipped vehicle map of the shipped model `name` (`--dynamics name` means this map)."""
+    return VEHICLE_MAP_DIRECTORY / f"{name}.toml"

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -34,15 +35,24 @@ class _ArgumentError(Exception):
 
 
 def _build(args) -> int:
-    from .fmu.package import build_fmus  # the build side: CasADi and the compilers
+    """Builds the FMUs into the per-user cache that `run` and `verify` use (what is there already is kept: the cache
+    is keyed by every build input) and copies them to --out."""
+    from .fmu.cache import cached_fmus  # the build side: CasADi and the compilers
+    from .fmu.package import fmu_path
 
     names = list(SHIPPED) if args.dynamics == "all" else [args.dynamics]
     versions = tuple(map(int, FMI_VERSIONS)) if args.fmi_version == "all" else (int(args.fmi_version),)
+    out = Path(args.out)
     try:
-        Path(args.out).mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
+        out.mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
         for dynamics in names:
-            for path in build_fmus(dynamics, Path(args.out), versions):
-                print(path)
+            for version, cached in zip(versions, cached_fmus(dynamics, versions)):
+                target = fmu_path(out, dynamics, version)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                partial = target.with_suffix(".fmu.partial")
+                shutil.copyfile(cached, partial)
+                partial.replace(target)  # atomic: never a half-copied FMU
+                print(target)
     except OSError as error:
         raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
     return 0
@@ -174,7 +184,7 @@ def parser() -> argparse.ArgumentParser:
     commands = main.add_subparsers(dest="command", required=True, parser_class=_Parser, title="commands",
                                    metavar="command")
 
-    build = commands.add_parser("build", help="build the ego-vehicle FMUs (export them to a folder)")
+    build = commands.add_parser("build", help="build the ego-vehicle FMUs (into the cache run uses; exported)")
     build.add_argument("--dynamics", choices=[*SHIPPED, "all"], default="all",
                        help="which model's FMUs: simple, advanced or all (default: all)")
     build.add_argument("--fmi-version", choices=[*FMI_VERSIONS, "all"], default="all",

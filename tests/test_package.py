@@ -244,13 +244,24 @@ def test_a_cached_fmu_is_reused(simple_fmu):
     assert cache.cached_fmu("simple") == simple_fmu
 
 
-@pytest.mark.slow
-def test_build_still_exports_to_a_folder(tmp_path, capsys):
+def test_build_exports_the_fmus_of_the_cache_run_uses(tmp_path, capsys, simple_fmus):
+    # the session's cache holds both Simple FMUs (the fixture): build takes them from there, byte for byte
     assert main(["build", "--dynamics", "simple", "--out", str(tmp_path / "export")]) == 0
     exported = [tmp_path / "export" / f"fmi{version}" / "EgoVehicleSimple.fmu" for version in (2, 3)]
     assert capsys.readouterr().out.split() == [str(path) for path in exported]
-    for path in exported:
-        assert "modelDescription.xml" in zipfile.ZipFile(path).namelist()
+    for path, version in zip(exported, (2, 3)):
+        assert path.read_bytes() == simple_fmus[version].read_bytes()
+    assert sorted(p.name for p in (tmp_path / "export").rglob("*") if p.is_file()) == ["EgoVehicleSimple.fmu"] * 2
+
+
+@pytest.mark.slow
+def test_build_fills_the_cache_run_uses(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(cache.CACHE_VARIABLE, str(tmp_path / "cache"))
+    assert main(["build", "--dynamics", "simple", "--fmi-version", "2", "--out", str(tmp_path / "export")]) == 0
+    (exported,) = capsys.readouterr().out.split()
+    assert main(["run", "head_on", "--until-time", "1", "--out", str(tmp_path / "run")]) == 0
+    assert "building" not in capsys.readouterr().err  # run found the FMU that build made
+    assert api.ego_fmu("simple").read_bytes() == Path(exported).read_bytes()
 
 
 def python_floor() -> tuple[int, int]:

@@ -17,7 +17,9 @@ trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it
 and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
 until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire_due`). Traffic motion is
 closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
-own period (`driver_period`): its samples are instants the master steps to, independent of `step`.
+own period (`driver_period`), and so are the follow driver's decisions and a controller FMU in the loop (clocks.py):
+their samples are instants the master steps to, independent of `step`, so none of them is stepped or read inside a
+located step.
 """
 
 from __future__ import annotations
@@ -36,15 +38,19 @@ from ..sdl.vehicles import VehicleModel
 from ..storage import EventLog
 from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
+from ..vehicle.controller import ControllerModel
 from .brake import BrakeHold
+from .clocks import SampleClocks
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
+from .follow import REACTION_TIME, FollowDriver
 from .follower import CriticalityFollower
-from .inputs import Inputs
+from .inputs import CONTROLLER_COLUMNS, Inputs
 from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICALITY_TOLERANCE: the master's API)
 from .recorder import Recorder, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
+from .signals import lead_of
 from .traffic import Traffic, choose_model
 from .triggers import EgoKinematics, ego_bounds
 
@@ -55,7 +61,10 @@ MAX_TIME = 3600.0  # s, a run never goes beyond
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
-EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit"]  # summary.json's ES reason
+# summary.json's ES reason
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision"]
+DriverName = Literal["lane", "follow"]  # the built-in driver (docs/controllers.md)
+OnCollision = Literal["continue", "stop"]  # what the first contact does
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
@@ -73,6 +82,9 @@ class RunOptions:
     tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
     progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
+    driver: DriverName = "lane"  # lane: holds its lane and speed; follow: also follows the vehicle ahead
+    controller: ControllerModel | None = None  # a controller in the loop (docs/controllers.md)
+    on_collision: OnCollision = "continue"  # stop: the run ends at the first contact (ES reason "collision")
 
 
 class Cosimulation:
@@ -102,12 +114,27 @@ class Cosimulation:
         wheel_arm = max(math.hypot(x, y) for x, y in model.wheels)
         self.bounds = ego_bounds(model, mu_max, speed, wheel_arm, MAX_STEER)
         self.traffic = Traffic()
-        self.inputs = Inputs(self.ego, model, make_driver(speed, start_lateral, model), self.road, self.surfaces,
-                             geometry)
+        driver = make_driver(speed, start_lateral, model)
+        periods = {"driver": options.driver_period}
+        if options.driver == "follow":
+            driver = FollowDriver(driver)
+            periods["follow"] = REACTION_TIME
+        controller = None
+        if options.controller is not None:
+            periods["controller"] = options.controller.period
+            try:
+                controller = options.controller.instantiate()
+            except Exception:
+                self.ego.close()
+                raise
+        self.controller = controller
+        self.clocks = SampleClocks(periods)
+        self.inputs = Inputs(self.ego, model, driver, self.road, self.surfaces, geometry, options.driver_period,
+                             controller, lambda state: lead_of(state, model.length, model.width, self.traffic))
         self.end_distance, self.end_reason = self._end_distance()
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
                                         self.bounds, self.traffic, self.inputs)
-        self.recorder = Recorder(model.wheel_columns)
+        self.recorder = Recorder(model.wheel_columns, () if controller is None else CONTROLLER_COLUMNS)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
         if not self.exact:
@@ -149,13 +176,11 @@ class Cosimulation:
             self.fire_due(state)
             self.look(state, everyone=True)
             follower.touched.clear()
-            inputs.sample_driver(state, None)
+            clocks = self.clocks
+            inputs.sample(state, {name: 0 for name in clocks.periods}, self.collisions, len(self.events))
             inputs.apply(state, True)
             self.record(state)
             step, progress = self.options.step, self.options.progress
-            period = self.options.driver_period
-            sample = 1  # index of the next driver sample, at next_sample = sample * period
-            next_sample = sample * period
             until_time = self.options.until_time
             stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
             # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
@@ -167,7 +192,7 @@ class Cosimulation:
                     self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
                     self.finish(state, "time_limit")
                     break
-                limit = min(t + step, next_sample, stop_time)
+                limit = min(t + step, clocks.earliest, stop_time)
                 if earliest < limit:
                     horizons = schedule.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
@@ -200,7 +225,7 @@ class Cosimulation:
                         self.time_uncertainty = end - t
                     state = ego.read()
                 self.steps += 1
-                driver_sample = state.time >= next_sample
+                due = clocks.due(state.time)  # the driver's, follow driver's and controller's samples now
                 if base is not None or fired or state.time >= follower.earliest_look or not self.exact:
                     self.follow_criticality(base, t, state, everyone=False)
                 if fired:
@@ -211,11 +236,8 @@ class Cosimulation:
                     follower.touched.clear()
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
-                if driver_sample:
-                    inputs.sample_driver(state, period)
-                    while next_sample <= state.time:
-                        sample += 1
-                        next_sample = sample * period
+                if due:
+                    inputs.sample(state, due, self.collisions, len(self.events))
                 inputs.apply(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
                 if progress is not None:
@@ -225,6 +247,8 @@ class Cosimulation:
             return self.result(state, wall)
         finally:
             self.ego.close()
+            if self.controller is not None:
+                self.controller.close()
 
     def record(self, state: EgoState) -> None:
         """A sample of the ego and its inputs; the first time the ego leaves the bounds the trigger prediction
@@ -233,7 +257,8 @@ class Cosimulation:
         if not self.schedule.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
                                                   or math.hypot(state.ax, state.ay) > bounds.acceleration):
             self.warnings.append(self.schedule.exceeded_warning(state))
-        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values)
+        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values,
+                             () if self.controller is None else inputs.controller_columns())
 
     # ---- what happens at an instant -------------------------------------------------------------
 
@@ -275,11 +300,14 @@ class Cosimulation:
                     if not schedule.action_due(int(i), kinematics):
                         break
             _, overlap, away = schedule.vehicle_conditions(active, kinematics)
-        for i in active[overlap & ~traffic.in_contact[active]]:
+        contacts = active[overlap & ~traffic.in_contact[active]]
+        for i in contacts:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)
             self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
             self.log("A", "collision", state, vehicle=recorder.vehicle_ids[i])
+        if len(contacts) and self.options.on_collision == "stop":
+            self.finish(state, "collision")
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
@@ -325,7 +353,8 @@ class Cosimulation:
         self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: EndReason) -> None:
-        """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
+        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit or collision
+        (--on-collision stop)."""
         if self.finished:
             return
         if self.inputs.brake_hold is not None:
@@ -369,8 +398,20 @@ class Cosimulation:
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
             criticality=self.criticality_summary(),
+            controller=None if self.options.controller is None else self.options.controller.summary(),
+            driver=self.driver_summary(),
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
+
+    def driver_summary(self) -> dict | None:
+        """summary.json's `driver` for the follow driver (docs/controllers.md); None (no key) for the lane driver."""
+        if self.options.driver != "follow":
+            return None
+        from . import follow
+
+        return {"name": "follow", "law": "Gipps (1981)", "reaction_time_s": follow.REACTION_TIME,
+                "braking_m/s2": follow.BRAKING, "leader_braking_m/s2": follow.LEADER_BRAKING,
+                "standstill_gap_m": follow.STANDSTILL_GAP, "period_s": self.options.driver_period}
 
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll

@@ -12,27 +12,28 @@ MERGE = 1e-9
 
 
 class SampleClocks:
-    """Per clock its period and sample count; `earliest` is the next instant any clock samples at."""
+    """Per clock its period and the k of its next sample; `earliest` is the next instant any clock samples at."""
 
     def __init__(self, periods: dict[str, float]):
         self.periods = dict(periods)
-        self.count = {name: 1 for name in self.periods}  # the next sample's k (k = 0 is the start)
-        self.next = {name: period for name, period in self.periods.items()}
-        self.earliest = min(self.next.values())
+        # per clock [name, period, k of the next sample, its instant]: lists, read and moved on at every step end
+        self._clocks = [[name, period, 1, period] for name, period in self.periods.items()]
+        self.earliest = min(clock[3] for clock in self._clocks)
 
     def due(self, t: float) -> dict[str, int]:
         """The clocks that sample at t (a step that ended at `earliest`), each with the k of this sample, and moves
         them on; {} before `earliest` (a step that ended at a trigger's instant)."""
         if t < self.earliest:
             return {}
+        limit = t + MERGE
         due = {}
-        for name, instant in self.next.items():
-            if instant <= t + MERGE:
-                period, k = self.periods[name], self.count[name]
-                while k * period <= t + MERGE:
+        for clock in self._clocks:
+            if clock[3] <= limit:
+                period, k = clock[1], clock[2] + 1
+                while k * period <= limit:
                     k += 1
-                due[name] = k - 1
-                self.count[name] = k
-                self.next[name] = k * period
-        self.earliest = min(self.next.values())
+                due[clock[0]] = k - 1
+                clock[2], clock[3] = k, k * period
+        clocks = self._clocks
+        self.earliest = clocks[0][3] if len(clocks) == 1 else min(clock[3] for clock in clocks)
         return due

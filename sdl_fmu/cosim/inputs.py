@@ -36,6 +36,7 @@ class Inputs:
         self.controller = controller
         self.lead = lead  # the lead-vehicle signals at a state (signals.lead_of), for the follow driver and controller
         self.rules = None if controller is None else controller.model.rules
+        self.counts: Callable[[], tuple[int, int]] = lambda: (0, 0)  # the run's (collisions, events) so far
         self.brake_hold: BrakeHold | None = None  # BRK holding the pedals
         self.driver_controls = (0.0, 0.0, 0.0)
         self.controls = (0.0, 0.0, 0.0)
@@ -47,22 +48,22 @@ class Inputs:
     def surfaces_under_wheels(self, state: EgoState) -> tuple[float, ...]:
         return wheel_surfaces(self.road, self.surfaces, self.geometry.contact_points(state.x, state.y, state.psi))
 
-    def sample(self, state: EgoState, due: dict[str, int], collisions: int = 0, events: int = 0) -> None:
+    def sample(self, state: EgoState, due: dict[str, int]) -> None:
         """The samples due at this state (clocks.SampleClocks.due: name -> k), in this order: the follow driver's
         decision, the driver (its speed integral over the period, unless this is its first sample), the controller
-        (which reads the driver's fresh commands). collisions and events: the run's counts so far."""
+        (which reads the driver's fresh commands)."""
         lead, changed = None, False
         if "follow" in due:
             lead = self.lead(state)
             changed = self.driver.decide(state, lead)
-        if "driver" in due:
-            self.sample_driver(state, self.driver_period if due["driver"] > 0 else None)
+        k = due.get("driver")
+        if k is not None:
+            self.sample_driver(state, self.driver_period if k > 0 else None)
         elif changed and self.brake_hold is None:  # the decision acts at once: new pedals, same steer
             self.driver_controls = (*self.driver.pedals(state), self.driver_controls[2])
-        if "controller" in due:
-            if lead is None:
-                lead = self.lead(state)
-            self.request = self.controller.sample(due["controller"], self.signals(state, lead, collisions, events))
+        k = due.get("controller")
+        if k is not None:
+            self.request = self.controller.sample(k, self.signals(state, lead or self.lead(state), *self.counts()))
 
     def signals(self, state: EgoState, lead: Lead, collisions: int, events: int) -> dict[str, float]:
         """The signals a controller may read, by name (vehicle.controller_map.SIGNALS), SI."""

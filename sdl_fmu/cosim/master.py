@@ -131,6 +131,7 @@ class Cosimulation:
         self.clocks = SampleClocks(periods)
         self.inputs = Inputs(self.ego, model, driver, self.road, self.surfaces, geometry, options.driver_period,
                              controller, lambda state: lead_of(state, model.length, model.width, self.traffic))
+        self.inputs.counts = lambda: (self.collisions, len(self.events))
         self.end_distance, self.end_reason = self._end_distance()
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
                                         self.bounds, self.traffic, self.inputs)
@@ -177,7 +178,7 @@ class Cosimulation:
             self.look(state, everyone=True)
             follower.touched.clear()
             clocks = self.clocks
-            inputs.sample(state, {name: 0 for name in clocks.periods}, self.collisions, len(self.events))
+            inputs.sample(state, {name: 0 for name in clocks.periods})
             inputs.apply(state, True)
             self.record(state)
             step, progress = self.options.step, self.options.progress
@@ -237,7 +238,7 @@ class Cosimulation:
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
                 if due:
-                    inputs.sample(state, due, self.collisions, len(self.events))
+                    inputs.sample(state, due)
                 inputs.apply(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
                 if progress is not None:

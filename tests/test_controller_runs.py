@@ -115,9 +115,14 @@ def test_a_controller_that_cannot_roll_back_keeps_every_instant_exact(tmp_path, 
         assert [(e["code"], e["action"]) for e in events] == [(e["code"], e["action"]) for e in reference.events]
         for event, other in zip(events, reference.events):
             assert event["time_s"] == pytest.approx(other["time_s"], abs=1e-6)  # bisected to 1e-6 s at any step
+        # the criticality extremes, located inside steps from FMU snapshots of the ego alone, are the same instants
+        for key in ("min_distance_time_s", "min_ttc_time_s", "max_drac_time_s"):
+            if reference.criticality.get(key) is not None:
+                assert result.criticality[key] == pytest.approx(reference.criticality[key], abs=1e-6), key
         if step == 1.0:
             for name, values in reference.arrays.items():
                 assert np.array_equal(result.arrays[name], values, equal_nan=True), name
+            assert result.criticality == reference.criticality
 
 
 def test_a_deceleration_request_is_turned_into_pedal_by_the_vehicle(tmp_path, ccrs, controllers, defaults_simple):

@@ -29,8 +29,8 @@ import numpy as np
 from .cosim import master
 from .cosim.ego import FmuError
 from .names import SHIPPED, Dynamics
-from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, LIMITS, MAX_TIME, InputError,
-                      checked_option, checked_seed, option_error, regular_file)
+from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DRIVERS, LIMITS, MAX_TIME, ON_COLLISION,
+                      InputError, checked_choice, checked_option, checked_seed, option_error, regular_file)
 from .paths import SCENARIO_DIRECTORY
 from .results import summary, timeseries_table, write_results
 from .results_folder import ResultsFolderError, check_results_folder
@@ -41,9 +41,11 @@ from .shipped import shipped_fmu
 from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
 from .units import from_si, length_label, speed_label
 from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
+from .vehicle.controller import ControllerError, ControllerModel
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
-           "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "LIMITS", "RUN_OPTIONS"]
+           "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "LIMITS",
+           "RUN_OPTIONS", "DRIVERS", "ON_COLLISION"]
 
 
 class RunTimeout(RuntimeError):
@@ -206,6 +208,20 @@ def ego_fmu(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = No
     """The ego FMU's path: `fmu` if given (checked against the vehicle map, or the shipped map of `dynamics`), else
     the map's own FMU or the cached build for `dynamics` (built on first use)."""
     return ego_model(dynamics, fmu, vehicle).fmu_path
+
+
+def controller_model(controller: str | os.PathLike | None = None,
+                     controller_map: str | os.PathLike | None = None) -> ControllerModel | None:
+    """The run's ControllerModel (docs/controllers.md): `controller` (or the map's own `fmu`) driven through the
+    controller map `controller_map`; None when neither is given. Raises InputError naming the map file and key, or
+    the option and its value."""
+    if controller is None and controller_map is None:
+        return None
+    if controller_map is None:
+        raise option_error("controller", controller, "needs a controller map (controller_map, a TOML file: "
+                                                     "docs/controllers.md)")
+    return ControllerModel.open(None if controller is None else regular_file("controller", controller),
+                                regular_file("controller_map", controller_map))
 
 
 # --- the result ----------------------------------------------------------------------------------
@@ -371,7 +387,9 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         driver_period: float | None = None, until_distance: float | None = None,
         until_time: float | None = None, params: dict[str, float] | None = None,
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
-        out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None) -> Result:
+        out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None,
+        controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
+        driver: str = "lane", on_collision: str = "continue") -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
@@ -383,17 +401,23 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     advanced). progress: a bar on stderr (None: only when stderr is a terminal). out: also write the results
     folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
+    controller, controller_map: a controller FMU in the loop and its controller map (TOML, docs/controllers.md; the
+    map's own `fmu` when controller is None). driver: the built-in driver, "lane" (holds its lane and speed,
+    ignores traffic) or "follow" (also follows the vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
+    (the run ends at the first contact).
     Raises InputError or ScenarioError for user mistakes, each before anything is built or loaded where it can be
     told without the FMU (the options, the scenario, the map, the tire file, the results folder)."""
     vehicle_map = _vehicle_map(dynamics, vehicle)
     scenario = _checked(scenario, vehicle_map, skip_unsupported)
     options = run_options(scenario, speed=speed, seed=seed, step=step, driver_period=driver_period,
-                          until_distance=until_distance, until_time=until_time)
+                          until_distance=until_distance, until_time=until_time, driver=driver,
+                          on_collision=on_collision)
     friction = vehicle_map.friction
     if friction is not None and friction.tire_slots is not None:
         _tire_file_check(tires)
     elif tires is not None:
         raise _no_tire_slots(tires, vehicle_map.name or vehicle_map.label)
+    options.controller = controller_model(controller, controller_map)
     if out is not None:
         try:
             check_results_folder(out)
@@ -408,6 +432,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
     try:
         raw = master.run_scenario(scenario, model, options, _vehicle_table())
+    except ControllerError as error:  # the controller's binary, or values it refused or returned
+        raise InputError("controller", _first_line(error)) from None
     except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {model.fmu_path.name} failed: {_first_line(error)}") from None
     raw.warnings[:0] = [*scenario.warnings, *model.warnings, *_speed_warnings(model, options.speed, scenario.units)]
@@ -417,16 +443,20 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     return result
 
 
-RUN_OPTIONS = ("speed", "seed", "step", "driver_period", "until_distance", "until_time")  # run's numeric options
+# run's options that are values (not files)
+RUN_OPTIONS = ("speed", "seed", "step", "driver_period", "until_distance", "until_time", "driver", "on_collision")
 
 
 def run_options(scenario: Scenario, *, speed: float | None = None, seed: int = 1, step: float | None = None,
                 driver_period: float | None = None, until_distance: float | None = None,
-                until_time: float | None = None) -> master.RunOptions:
-    """run's numeric options (RUN_OPTIONS) checked, as run takes them (speed and until_distance in the scenario's
+                until_time: float | None = None, driver: str = "lane",
+                on_collision: str = "continue") -> master.RunOptions:
+    """run's value options (RUN_OPTIONS) checked, as run takes them (speed and until_distance in the scenario's
     units), and in SI: InputError naming the first bad one. The sweep checks its fixed options with it."""
     units = scenario.units
     return master.RunOptions(
+        driver=checked_choice("driver", driver, DRIVERS),
+        on_collision=checked_choice("on_collision", on_collision, ON_COLLISION),
         seed=checked_seed(seed), step=DEFAULT_STEP if step is None else checked_option("step", step),
         driver_period=DEFAULT_DRIVER_PERIOD if driver_period is None else checked_option("driver_period",
                                                                                          driver_period),

@@ -15,7 +15,7 @@ from pathlib import Path
 from . import __version__, api
 from . import sweep as sweeping
 from .names import SHIPPED
-from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, InputError
+from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
 from .sdl import ScenarioError, describe
 from .units import length_label, speed_label
 
@@ -88,7 +88,8 @@ def _run(args) -> int:
                      seed=args.seed, step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,
-                     progress=None, out=out)
+                     progress=None, out=out, controller=args.controller, controller_map=args.controller_map,
+                     driver=args.driver, on_collision=args.on_collision)
     scenario = result.scenario
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
@@ -115,6 +116,13 @@ def _sweep(args) -> int:
     for option in ("until_time", "until_distance"):
         if getattr(args, option) is not None:
             fixed[option] = getattr(args, option)
+    for option in ("controller", "controller_map"):
+        if getattr(args, option):
+            fixed[option] = getattr(args, option)
+    if args.driver != "lane":
+        fixed["driver"] = args.driver
+    if args.on_collision != "continue":
+        fixed["on_collision"] = args.on_collision
     if args.skip_unsupported:
         fixed["skip_unsupported"] = True
     scenario = api.resolve_scenario(args.scenario)
@@ -177,6 +185,19 @@ exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 130 Ct
             141 the output pipe was closed early (e.g. by head)"""
 
 
+def _loop_arguments(command, every: str = "") -> None:
+    """run's and sweep's options of what drives the ego: a controller in the loop, the built-in driver, collisions."""
+    command.add_argument("--controller", metavar="FMU", help=f"controller FMU in the loop{every} (AEB, ACC, ...; "
+                         "default: the controller map's fmu)")
+    command.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests, "
+                         "period and arbitration (docs/controllers.md)")
+    command.add_argument("--driver", choices=DRIVERS, default="lane",
+                         help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
+                              "(also follows the vehicle ahead: Gipps' car-following law)")
+    command.add_argument("--on-collision", choices=ON_COLLISION, default="continue",
+                         help="continue (default) or stop: end the run at the first contact")
+
+
 def parser() -> argparse.ArgumentParser:
     main = _Parser(prog="sdl-fmu", description=DESCRIPTION, epilog=EPILOG,
                    formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -223,6 +244,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--tires", help="Tire Attribute File (advanced dynamics)")
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _loop_arguments(run)
     run.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)
@@ -250,6 +272,7 @@ def parser() -> argparse.ArgumentParser:
                        help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _loop_arguments(sweep, " for every run")
     sweep.add_argument("--out", help="table folder: new, empty or an interrupted sweep's (resumed); "
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)

@@ -29,6 +29,8 @@ LIMITS = {
 DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start and target speed unless --speed says otherwise
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
+DRIVERS = ("lane", "follow")  # the built-in drivers (docs/controllers.md); lane is the default
+ON_COLLISION = ("continue", "stop")  # what the first contact does; continue is the default
 
 # keywords whose command-line flag is not the keyword with - for _
 COMMAND_LINE_FLAGS = {"params": "param"}
@@ -80,6 +82,12 @@ def checked_option(option: str, value, units: Units | None = None, low_open: boo
         relation = ">" if low_open else ">="
         raise option_error(option, f"{value:g}", f"must be {relation} {low:g} and <= {high:.6g} {label}")
     return si
+
+
+def checked_choice(option: str, value, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise option_error(option, value, f"must be one of {', '.join(choices)}")
+    return value
 
 
 def checked_seed(seed) -> int:

@@ -82,9 +82,8 @@ def _parse_parameters(assignments: list[str]) -> dict[str, float]:
 
 
 def _run(args) -> int:
-    scenario = api.resolve_scenario(args.scenario)
-    out = Path(args.out) if args.out is not None else Path("runs") / scenario.stem
-    result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
+    out = Path(args.out) if args.out is not None else Path("runs") / api.resolve_scenario(args.scenario).stem
+    result = api.run(args.scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
                      seed=args.seed, step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,

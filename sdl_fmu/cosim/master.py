@@ -37,6 +37,7 @@ from ..storage import EventLog
 from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from .brake import BrakeHold
+from .closing import ClosingEnd
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
 from .follower import CriticalityFollower
@@ -55,7 +56,7 @@ MAX_TIME = 3600.0  # s, a run never goes beyond
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
-EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit"]  # summary.json's ES reason
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "not_closing"]  # ES reason
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
@@ -72,6 +73,7 @@ class RunOptions:
     parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
     tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
+    until_not_closing: int | None = None  # end once the ego, having closed on this vehicle (id), no longer does
     progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
 
 
@@ -105,8 +107,10 @@ class Cosimulation:
         self.inputs = Inputs(self.ego, model, make_driver(speed, start_lateral, model), self.road, self.surfaces,
                              geometry)
         self.end_distance, self.end_reason = self._end_distance()
+        closing = None if options.until_not_closing is None else ClosingEnd(options.until_not_closing, self.traffic,
+                                                                             self.bounds)
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
-                                        self.bounds, self.traffic, self.inputs)
+                                        self.bounds, self.traffic, self.inputs, closing)
         self.recorder = Recorder(model.wheel_columns)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
@@ -256,6 +260,8 @@ class Cosimulation:
                 self.release_brakes(state, reason)
         if len(self.traffic.active):
             self.fire_traffic(state)
+        if schedule.closing is not None and not self.finished and schedule.closing.fire(state):
+            self.finish(state, "not_closing")
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
@@ -325,7 +331,7 @@ class Cosimulation:
         self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: EndReason) -> None:
-        """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
+        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit or not_closing."""
         if self.finished:
             return
         if self.inputs.brake_hold is not None:

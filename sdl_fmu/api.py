@@ -615,6 +615,7 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
     InputError; a test or manoeuvre that fails is a result."""
     from . import verify as vehicle_pack
     from .results_folder import ResultsFolderError, check_results_folder
+    from .shipping import ClusterError
     from .verify.datasheet import datasheet, provenance
 
     if pack not in PACKS:
@@ -663,7 +664,12 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
                    "vehicle": None if vehicle is None else str(Path(vehicle).absolute()), "params": params,
                    "controller": controller, "controller_map": controller_map}
         options = {key: value for key, value in options.items() if value}
-        outcomes = aeb.run_grid(aeb.grid(names), options, workers=workers, scheduler=scheduler)
+        footprint = (model.with_parameters(params) if params else model)
+        try:
+            outcomes = aeb.run_grid(aeb.grid(names), options, run, (footprint.length, footprint.width),
+                                    workers=workers, scheduler=scheduler)
+        except ClusterError as error:
+            raise InputError("workers" if scheduler is None else "scheduler", str(error)) from None
         folder = None if out is None else aeb.write(out, outcomes, identity, sheet, in_the_loop, tool)
         return VerifyResult(identity, outcomes, aeb.table(outcomes), folder, aeb.passed(outcomes), pack)
     except ResultsFolderError as error:

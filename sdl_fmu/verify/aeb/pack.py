@@ -7,11 +7,12 @@ fail-safe. Every failure is the test's result (its error), never the pack's."""
 
 from __future__ import annotations
 
-import functools
 import time
 from pathlib import Path
 from typing import Callable
 
+from ...shipping import client as cluster_client
+from ...shipping import materialize, one_file, passed_on
 from ...units import KILOMETRE_PER_HOUR
 from .outcome import TestOutcome, evaluate
 from .protocol import GROUPS, Group, Test
@@ -20,30 +21,17 @@ from .scenario import TARGET, test_scenario
 TEST_TIME_LIMIT = 60.0  # s simulated: a test that has neither touched nor stopped closing by then ends (time_limit)
 TEST_TIMEOUT = 300.0  # s of wall clock per test (a hung FMU is the test's error)
 SHIPPED_OPTIONS = ("fmu", "vehicle", "controller", "controller_map")  # the file-valued options, sent as bytes
+Footprint = tuple[float, float]  # the ego's length and width (m), as the run uses them
 
 
-@functools.lru_cache(maxsize=8)
-def _footprint(dynamics, fmu, vehicle) -> tuple[float, float]:
-    from ... import api
-
-    model = api.ego_model(dynamics, fmu, vehicle)
-    return model.length, model.width
-
-
-def run_test(test: Test, options: dict) -> TestOutcome:
-    """One test through sdl_fmu.api.run with `options` (its keyword options: dynamics, fmu, vehicle, params,
+def run_test(test: Test, options: dict, run: Callable, footprint: Footprint) -> TestOutcome:
+    """One test through `run` (sdl_fmu.api.run) with `options` (its keyword options: dynamics, fmu, vehicle, params,
     controller, controller_map); always returns the outcome, with the error when the run failed."""
-    from ... import api
-
     began = time.perf_counter()
     try:
-        length, width = _footprint(options.get("dynamics"), options.get("fmu"), options.get("vehicle"))
-        params = options.get("params") or {}
-        if "length" in params or "width" in params:  # a footprint set by --param
-            length, width = params.get("length", length), params.get("width", width)
-        result = api.run(test_scenario(test, length, width), speed=test.ego_speed_kmh * KILOMETRE_PER_HOUR,
-                         until_time=TEST_TIME_LIMIT, until_not_closing=TARGET, on_collision="stop",
-                         timeout=TEST_TIMEOUT, plot=False, **options)
+        result = run(test_scenario(test, *footprint), speed=test.ego_speed_kmh * KILOMETRE_PER_HOUR,
+                     until_time=TEST_TIME_LIMIT, until_not_closing=TARGET, on_collision="stop",
+                     timeout=TEST_TIMEOUT, plot=False, **options)
         outcome = evaluate(test, result)
     except Exception as error:  # noqa: BLE001 - an FMU error, a timeout or a bug: the test's result
         text = (str(error).strip() or type(error).__name__).splitlines()[0]
@@ -52,41 +40,40 @@ def run_test(test: Test, options: dict) -> TestOutcome:
     return outcome
 
 
-def _run_shipped(bundles: dict, test: Test, options: dict) -> TestOutcome:
+def _run_shipped(bundles: dict, test: Test, options: dict, run: Callable, footprint: Footprint) -> TestOutcome:
     """run_test on a worker, its files from the shipped bundles (materialised once per worker)."""
-    from ...sweep import materialize
-
     try:
         paths = {option: str(materialize(bundle)) for option, bundle in bundles.items()}
     except OSError as error:
         return TestOutcome(test, error=f"cannot write the shipped files: {error}")
-    return run_test(test, {**options, **paths})
+    return run_test(test, {**options, **paths}, run, footprint)
 
 
-def run_grid(tests: list[Test], options: dict, *, workers: int | None = None, scheduler: str | None = None,
-             client=None, progress: Callable[[TestOutcome], None] | None = None) -> list[TestOutcome]:
+def run_grid(tests: list[Test], options: dict, run: Callable, footprint: Footprint, *, workers: int | None = None,
+             scheduler: str | None = None, client=None,
+             progress: Callable[[TestOutcome], None] | None = None) -> list[TestOutcome]:
     """Every test, in the grid's order. workers=0: one after the other in this process; else on Dask, as a sweep
-    runs (`client`, or `scheduler`'s address, or a LocalCluster of `workers` processes, default one per core)."""
+    runs (`client`, or `scheduler`'s address, or a LocalCluster of `workers` processes, default one per core).
+    `run` is sdl_fmu.api.run (given, so that this pack, which the API runs, does not import it)."""
     if workers == 0 and scheduler is None and client is None:
         outcomes = []
         for test in tests:
-            outcomes.append(run_test(test, options))
+            outcomes.append(run_test(test, options, run, footprint))
             if progress is not None:
                 progress(outcomes[-1])
         return outcomes
     from distributed import as_completed
 
-    from ...sweep import _client, _one_file, _passed_on
-
-    bundles = {option: _one_file(Path(options[option])) for option in SHIPPED_OPTIONS if options.get(option)}
+    bundles = {option: one_file(Path(options[option])) for option in SHIPPED_OPTIONS if options.get(option)}
     common = {key: value for key, value in options.items() if key not in bundles}
     owned = []
     try:
         if client is None:
-            client, owned = _client(workers, scheduler)
-        shipped = {option: client.submit(_passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
+            client, owned = cluster_client(workers, scheduler)
+        shipped = {option: client.submit(passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
                    for option, bundle in bundles.items()}
-        futures = {client.submit(_run_shipped, shipped, test, common, pure=False): k for k, test in enumerate(tests)}
+        futures = {client.submit(_run_shipped, shipped, test, common, run, footprint, pure=False): k
+                   for k, test in enumerate(tests)}
         outcomes: list[TestOutcome | None] = [None] * len(tests)
         for future in as_completed(futures):
             k = futures[future]

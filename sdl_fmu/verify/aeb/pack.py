@@ -16,7 +16,7 @@ from ...shipping import materialize, one_file, passed_on
 from ...units import KILOMETRE_PER_HOUR
 from .outcome import TestOutcome, evaluate
 from .protocol import GROUPS, Group, Test
-from .scenario import TARGET, test_scenario
+from .scenario import TARGET, scenario_of
 
 TEST_TIME_LIMIT = 60.0  # s simulated: a test that has neither touched nor stopped closing by then ends (time_limit)
 TEST_TIMEOUT = 300.0  # s of wall clock per test (a hung FMU is the test's error)
@@ -29,7 +29,7 @@ def run_test(test: Test, options: dict, run: Callable, footprint: Footprint) -> 
     controller, controller_map); always returns the outcome, with the error when the run failed."""
     began = time.perf_counter()
     try:
-        result = run(test_scenario(test, *footprint), speed=test.ego_speed_kmh * KILOMETRE_PER_HOUR,
+        result = run(scenario_of(test, *footprint), speed=test.ego_speed_kmh * KILOMETRE_PER_HOUR,
                      until_time=TEST_TIME_LIMIT, until_not_closing=TARGET, on_collision="stop",
                      timeout=TEST_TIMEOUT, plot=False, **options)
         outcome = evaluate(test, result)

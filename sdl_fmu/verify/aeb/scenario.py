@@ -20,7 +20,7 @@ def start_gap(test: Test) -> float:
     return START_TTC_S * (test.ego_speed_kmh - test.target_speed_kmh) * KILOMETRE_PER_HOUR
 
 
-def test_scenario(test: Test, ego_length: float, ego_width: float) -> Scenario:
+def scenario_of(test: Test, ego_length: float, ego_width: float) -> Scenario:
     """The scenario of one test for an ego of this footprint (m)."""
     target_speed = test.target_speed_kmh * KILOMETRE_PER_HOUR
     lateral = Relative(lateral_offset(test.overlap_pct, ego_width, TARGET_WIDTH_M), relative=True)

@@ -251,8 +251,7 @@ def parser() -> argparse.ArgumentParser:
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)
 
-    verify = commands.add_parser("verify", help="a test pack: standard manoeuvres (vehicle) or the Euro NCAP AEB "
-                                 "car-to-car rear tests (aeb-ccr), results and report")
+    verify = commands.add_parser("verify", help="a test pack: vehicle manoeuvres or AEB car-to-car, report")
     verify.add_argument("--pack", choices=("vehicle", "aeb-ccr"), default="vehicle",
                         help="vehicle (default): the vehicle test pack; aeb-ccr: the AEB car-to-car rear grid")
     verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")

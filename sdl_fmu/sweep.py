@@ -39,8 +39,8 @@ from typing import Callable, Literal
 
 import numpy as np
 
-from .shipping import Bundle, ClusterError, client as _cluster_client, materialize, one_file as _one_file
-from .shipping import passed_on as _passed_on
+from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
+from .shipping import one_file as _one_file, passed_on as _passed_on
 from .units import Units
 
 Status = Literal["ok", "failed", "timeout"]

@@ -52,8 +52,8 @@ def table(outcomes: list[TestOutcome]) -> str:
         mine = [o for o in outcomes if o.test.group == group]
         if not mine:
             continue
-        lines.append(f"{group}: relative impact speed (km/h; '-' avoided, '!' run failed) at overlap "
-                     + " ".join(f"{p:+d}%" for p in OVERLAPS_PCT))
+        lines.append(f"{group}: relative impact speed, km/h ('-' avoided, '!' the run failed), per overlap")
+        lines.append(f"  {'':<16} " + " ".join(f"{f'{p:+d}%':>6}" for p in OVERLAPS_PCT))
         for row, cells in _rows(mine):
             text = " ".join(f"{_cell_text(cells.get(p)):>6}" for p in OVERLAPS_PCT)
             lines.append(f"  {row:<16} {text}")

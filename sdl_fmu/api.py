@@ -34,7 +34,8 @@ from .units import Units
 from .vehicle.vehicle_map import Dynamics
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios",
-           "resolve_scenario", "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
+           "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "tire_slot_starts", "LIMITS", "DRIVERS",
+           "ON_COLLISION"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -64,6 +65,8 @@ def _shipped_variables() -> tuple[str, ...]:
 
 
 EGO_VARIABLES = _shipped_variables()
+DRIVERS = ("lane", "follow")  # the built-in drivers (docs/controllers.md); lane is the default
+ON_COLLISION = ("continue", "stop")  # what the first contact does; continue is the default
 MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
 
 
@@ -249,6 +252,38 @@ def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
     path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
                                                             f"{path.parent.parent} (first use)", file=sys.stderr))
     return EgoModel.open(path, shipped_map)
+
+
+def controller_model(controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None):
+    """The run's ControllerModel (docs/controllers.md): `controller` (or the map's own `fmu`) driven through the
+    controller map `controller_map`; `controller="example-aeb"` without a map: the shipped example AEB (its cached
+    FMU, built on first use, and its shipped map); None when neither is given. Raises InputError naming the map file
+    and key, or the FMU."""
+    from .vehicle.controller import ControllerMapError, ControllerModel
+
+    if controller is None and controller_map is None:
+        return None
+    if controller_map is None and os.fspath(controller) == EXAMPLE_CONTROLLER:  # the shipped example AEB
+        controller, controller_map = example_controller()
+    if controller_map is None:
+        raise _option_error("controller", controller, "needs a controller map (controller_map, a TOML file: "
+                                                      "docs/controllers.md), or is example-aeb")
+    try:
+        return ControllerModel.open(None if controller is None else _regular_file("controller", controller),
+                                    _regular_file("controller_map", controller_map))
+    except ControllerMapError as error:
+        text = str(error)
+        for option in ("controller_map", "controller"):  # the keyword form for the API, the flag form for the CLI
+            flag = f"--{option.replace('_', '-')} "
+            if text.startswith(flag):
+                raise InputError(option, "", subject=text[len(flag):]) from None
+        raise InputError("controller_map", text) from None
+
+
+def _choice(option: str, value, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise _option_error(option, value, f"must be one of {', '.join(choices)}")
+    return value
 
 
 def _parameters(params: dict | None, model) -> dict[str, float]:
@@ -494,7 +529,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         until_time: float | None = None, params: dict[str, float] | None = None,
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
         out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None,
-        until_not_closing: int | None = None) -> Result:
+        controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
+        driver: str = "lane", on_collision: str = "continue", until_not_closing: int | None = None) -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
@@ -506,6 +542,10 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     advanced). progress: a bar on stderr (None: only when stderr is a terminal). out: also write the results
     folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
+    controller, controller_map: a controller FMU in the loop and its controller map (TOML, docs/controllers.md; the
+    map's own `fmu` when controller is None; controller "example-aeb" without a map: the shipped example AEB). driver: the built-in driver, "lane" (holds its lane and speed,
+    ignores traffic) or "follow" (also follows the vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
+    (the run ends at the first contact).
     until_not_closing: a vehicle id: the run ends (ES reason not_closing) once the ego, having closed on that vehicle,
     no longer does (its speed along the road has fallen to the vehicle's or below: a stop behind a stopped one), as a
     test of the AEB car-to-car pack ends.
@@ -513,8 +553,11 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
     from .results_folder import ResultsFolderError, check_results_folder
+    from .vehicle.controller import ControllerError
 
     seed = _seed(seed)
+    driver = _choice("driver", driver, DRIVERS)
+    on_collision = _choice("on_collision", on_collision, ON_COLLISION)
     from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
 
     step = DEFAULT_STEP if step is None else _checked_option("step", step)
@@ -529,6 +572,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     if model.surface_meaning == "attribute":
         _whole_attributes(scenario)
     tire_starts, known_attributes, tire_warnings = tire_slot_starts(tires, model)
+    in_the_loop = controller_model(controller, controller_map)
     if out is not None:
         try:
             check_results_folder(out)
@@ -540,6 +584,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
                          until_distance=until_distance,
                          until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
                          known_attributes=None if known_attributes is None else set(known_attributes),
+                         driver=driver, controller=in_the_loop, on_collision=on_collision,
                          until_not_closing=until_not_closing)
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
@@ -548,6 +593,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
     try:
         raw = run_scenario(scenario, model, options, _vehicle_table())
+    except ControllerError as error:  # the controller's binary, or values it refused or returned
+        raise InputError("controller", _first_line(error)) from None
     except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
     raw.warnings[:0] = [*scenario.warnings, *tire_warnings]
@@ -586,18 +633,6 @@ def example_controller() -> tuple[Path, Path]:
                                                                       f"{path.parent.parent} (first use)",
                                                                       file=sys.stderr))
     return fmu, CONTROLLER_MAP_DIRECTORY / f"{EXAMPLE_CONTROLLER}.toml"
-
-
-def _controller_files(controller, controller_map) -> tuple[str | None, str | None]:
-    """The controller's FMU and map as paths: `example-aeb` (without a map) is the shipped example."""
-    if controller is not None and os.fspath(controller) == EXAMPLE_CONTROLLER and controller_map is None:
-        fmu, shipped = example_controller()
-        return str(fmu), str(shipped)
-    for option, path in (("controller", controller), ("controller_map", controller_map)):
-        if path is not None:
-            _regular_file(option, path)
-    return (None if controller is None else str(Path(controller).absolute()),
-            None if controller_map is None else str(Path(controller_map).absolute()))
 
 
 def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
@@ -658,11 +693,11 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
             folder = None if out is None else vehicle_pack.write(out, identity, outcomes, sheet, tool)
             return VerifyResult(identity, outcomes, vehicle_pack.table(outcomes), folder,
                                 vehicle_pack.passed(outcomes), pack)
-        controller, controller_map = _controller_files(controller, controller_map)
-        in_the_loop = _controller_identity(controller, controller_map)
+        controller = controller_model(controller, controller_map)  # checked before anything runs
         options = {"dynamics": dynamics if vehicle is None else None, "fmu": str(model.fmu_path),
                    "vehicle": None if vehicle is None else str(Path(vehicle).absolute()), "params": params,
-                   "controller": controller, "controller_map": controller_map}
+                   "controller": None if controller is None else str(controller.fmu_path.absolute()),
+                   "controller_map": None if controller is None else str(Path(controller.map_path).absolute())}
         options = {key: value for key, value in options.items() if value}
         footprint = (model.with_parameters(params) if params else model)
         try:
@@ -670,18 +705,19 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
                                     workers=workers, scheduler=scheduler)
         except ClusterError as error:
             raise InputError("workers" if scheduler is None else "scheduler", str(error)) from None
-        folder = None if out is None else aeb.write(out, outcomes, identity, sheet, in_the_loop, tool)
+        folder = None if out is None else aeb.write(out, outcomes, identity, sheet, _controller_identity(controller),
+                                                    tool)
         return VerifyResult(identity, outcomes, aeb.table(outcomes), folder, aeb.passed(outcomes), pack)
     except ResultsFolderError as error:
         raise InputError("out", "", subject=str(error)) from None
 
 
-def _controller_identity(controller: str | None, controller_map: str | None) -> dict | None:
-    """What the AEB report says of the controller: its FMU's identity, its map and the map's parameters."""
-    if controller is None and controller_map is None:
+def _controller_identity(controller) -> dict | None:
+    """What the AEB report says of the controller (a ControllerModel): its FMU's identity, its map, period and
+    parameters."""
+    if controller is None:
         return None
-    model = controller_model(controller, controller_map)
     from .verify.datasheet import fmu_identity
 
-    return {**fmu_identity(model.fmu_path, model.description, model.map_path, model.name),
-            "period_s": model.period, "parameters": dict(model.map.parameters)}
+    return {**fmu_identity(controller.fmu_path, controller.description, controller.map_path, controller.name),
+            "period_s": controller.period, "parameters": dict(controller.parameters)}

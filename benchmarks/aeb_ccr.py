@@ -16,6 +16,7 @@ from pathlib import Path
 
 from provenance import stamp
 from sdl_fmu import api
+from sdl_fmu.verify.aeb import totals
 
 
 def main() -> int:
@@ -38,19 +39,13 @@ def main() -> int:
     report = {"tests": len(outcomes), "cpu_s": [round(x, 2) for x in cpu], "wall_s": [round(x, 2) for x in wall],
               "best_cpu_s": round(min(cpu), 2), "median_test_wall_s": round(per_test, 3),
               "errors": sum(o.error is not None for o in outcomes),
-              "points": {group: total["points"] for group, total in api_totals(outcomes).items()}}
-    print(f"{len(outcomes)} tests: CPU {', '.join(f'{x:.1f}' for x in cpu)} s, wall {', '.join(f'{x:.1f}' for x in wall)}"
-          f" s; median test {per_test * 1000:.0f} ms wall")
+              "points": {group: total["points"] for group, total in totals(outcomes).items()}}
+    print(f"{len(outcomes)} tests: CPU {', '.join(f'{x:.1f}' for x in cpu)} s, "
+          f"wall {', '.join(f'{x:.1f}' for x in wall)} s; median test {per_test * 1000:.0f} ms wall")
     if args.json:
         Path(args.json).write_text(json.dumps({"measured": stamp("one process, tests one after the other"),
                                                **report}, indent=2) + "\n")
     return 0
-
-
-def api_totals(outcomes):
-    from sdl_fmu.verify.aeb import totals
-
-    return totals(outcomes)
 
 
 if __name__ == "__main__":

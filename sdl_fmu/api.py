@@ -543,8 +543,9 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
     controller, controller_map: a controller FMU in the loop and its controller map (TOML, docs/controllers.md; the
-    map's own `fmu` when controller is None; controller "example-aeb" without a map: the shipped example AEB). driver: the built-in driver, "lane" (holds its lane and speed,
-    ignores traffic) or "follow" (also follows the vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
+    map's own `fmu` when controller is None; controller "example-aeb" without a map: the shipped example AEB).
+    driver: the built-in driver, "lane" (holds its lane and speed, ignores traffic) or "follow" (also follows the
+    vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
     (the run ends at the first contact).
     until_not_closing: a vehicle id: the run ends (ES reason not_closing) once the ego, having closed on that vehicle,
     no longer does (its speed along the road has fallen to the vehicle's or below: a stop behind a stopped one), as a

@@ -134,3 +134,25 @@ def test_the_fmu_is_valid_and_its_outputs_depend_on_the_inputs_at_once(aeb_fmus,
     assert f"binaries/{platform[0]}/ExampleAeb.so" in names
     if mingw_compiler():
         assert f"binaries/{platform[1]}/ExampleAeb.dll" in names
+
+
+def test_example_aeb_by_name_in_run_and_sweep(tmp_path, simple_fmu):
+    # `controller="example-aeb"` without a map is the cached FMU with the shipped map: in run the same run as with the
+    # two given as paths, array for array; in sweep (whose workers get the FMU and the map as files) runs that end ok
+    import distributed
+    import numpy as np
+
+    from sdl_fmu import api
+    from sdl_fmu import sweep as sweeping
+
+    by_name = api.run("demo", until_distance=1000.0, controller="example-aeb", plot=False)
+    fmu, cmap = api.example_controller()
+    by_path = api.run("demo", until_distance=1000.0, controller=fmu, controller_map=cmap, plot=False)
+    assert by_name.summary["controller"]["name"] == "ExampleAeb" == by_path.summary["controller"]["name"]
+    for name, values in by_path.arrays.items():
+        assert np.array_equal(by_name.arrays[name], values, equal_nan=True), name
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as \
+            cluster, distributed.Client(cluster) as client:
+        rows = sweeping.sweep("demo", {"speed": [60.0, 80.0]}, tmp_path / "sweep", client=client, progress=False,
+                              until_distance=1000.0, controller="example-aeb")
+    assert [row["status"] for row in rows] == ["ok", "ok"], rows

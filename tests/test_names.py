@@ -9,7 +9,8 @@ from typing import get_args
 
 import sdl_fmu
 from sdl_fmu import cli
-from sdl_fmu.names import SHIPPED, SHIPPED_MODELS, WHEELS, Dynamics, equations_module, shipped_map_path
+from sdl_fmu.names import (BUILT, SHIPPED, SHIPPED_CONTROLLERS, SHIPPED_MODELS, WHEELS, Dynamics, equations_module,
+                           shipped_controller_map_path, shipped_map_path)
 
 PACKAGE = Path(sdl_fmu.__file__).parent
 
@@ -19,6 +20,10 @@ def test_each_shipped_model_is_a_name_a_model_a_module_and_a_map():
     for name in SHIPPED:
         assert importlib.import_module(equations_module(name)).MODEL_NAME == SHIPPED_MODELS[name]
         assert tomllib.loads(shipped_map_path(name).read_text())["name"] == name
+    assert BUILT == {**SHIPPED_MODELS, **SHIPPED_CONTROLLERS}  # every FMU the cache builds
+    for name, model in SHIPPED_CONTROLLERS.items():
+        assert importlib.import_module(equations_module(name)).MODEL_NAME == model
+        assert shipped_controller_map_path(name).is_file()
     choices = {action.dest: action.choices for action in cli.parser()._subparsers._group_actions[0].choices["run"]
                ._actions}
     assert tuple(choices["dynamics"]) == SHIPPED
@@ -26,9 +31,9 @@ def test_each_shipped_model_is_a_name_a_model_a_module_and_a_map():
 
 
 def test_no_other_module_spells_the_shipped_models():
-    """A string literal naming a shipped model's FMU (EgoVehicleSimple), or the tuple of the shipped names, only in
-    names.py: any other list of them would be a second registry."""
-    model_names = set(SHIPPED_MODELS.values())
+    """A string literal naming a shipped model's or controller's FMU (EgoVehicleSimple, ExampleAeb), or the tuple of
+    the shipped names, only in names.py: any other list of them would be a second registry."""
+    model_names = set(BUILT.values())
     found = []
     for path in sorted(PACKAGE.rglob("*.py")):
         if path.name == "names.py" and path.parent == PACKAGE:

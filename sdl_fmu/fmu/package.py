@@ -15,7 +15,7 @@ import zipfile
 from pathlib import Path
 from typing import Literal
 
-from ..names import SHIPPED_MODELS, Dynamics, equations_module
+from ..names import BUILT, Dynamics, equations_module
 from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
                       generate_model_source, model_guid, runtime_sources, variable_table)
 from .documentation import DOCUMENTATION, LICENSE_ENTRY, index_html, license_text
@@ -57,7 +57,7 @@ def fmi_headers() -> Path:
 
 
 def fmu_path(out_dir: Path, dynamics: Dynamics, fmi_version: FmiVersion = 2) -> Path:
-    return Path(out_dir) / f"fmi{fmi_version}" / f"{SHIPPED_MODELS[dynamics]}.fmu"
+    return Path(out_dir) / f"fmi{fmi_version}" / f"{BUILT[dynamics]}.fmu"
 
 
 def mingw_compiler() -> str | None:
@@ -167,7 +167,7 @@ def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
         if version not in FMI_VERSIONS:
             raise BuildError(f"FMI version {version!r} is not supported: choose one of "
                              f"{', '.join(map(str, FMI_VERSIONS))}")
-    model = SHIPPED_MODELS[dynamics]
+    model = BUILT[dynamics]
     equations = importlib.import_module(equations_module(dynamics)).equations()
     cross = mingw_compiler()
     if cross is None:
@@ -184,7 +184,7 @@ def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
 
 def _build(dynamics: Dynamics, equations, out_dir: Path, fmi_versions: tuple[FmiVersion, ...], cross: str | None,
            shown: _Progress) -> list[Path]:
-    model, module = SHIPPED_MODELS[dynamics], equations_module(dynamics)
+    model, module = BUILT[dynamics], equations_module(dynamics)
     with tempfile.TemporaryDirectory(prefix=f"{model}-") as work:
         shown.stage("generating the C code")
         generated = Path(work) / "generated"

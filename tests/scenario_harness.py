@@ -152,6 +152,17 @@ class ScenarioInstance:
         assert self.call("GetBooleanStatus", 3, ctypes.byref(value)) == fuzz.OK  # fmi2Terminated
         return bool(value.value)
 
+    def get_state(self) -> ctypes.c_void_p:
+        state = ctypes.c_void_p()
+        assert self.call("GetFMUstate" if not self.fmi3 else "GetFMUState", ctypes.byref(state)) == fuzz.OK
+        return state
+
+    def set_state(self, state: ctypes.c_void_p) -> int:
+        return self.call("SetFMUstate" if not self.fmi3 else "SetFMUState", state)
+
+    def free_state(self, state: ctypes.c_void_p) -> int:
+        return self.call("FreeFMUstate" if not self.fmi3 else "FreeFMUState", ctypes.byref(state))
+
     def free(self) -> None:
         getattr(self.library, f"fmi{self.version}FreeInstance")(self.component)
 
@@ -165,3 +176,170 @@ def recorded_inputs(columns: dict, k: int) -> dict:
     values = {name: float(columns[column][k]) for name, column in EGO_INPUTS.items()}
     values["ego_stopped"] = bool(columns["stopped"][k])
     return values
+
+
+# ---- the replay of a recorded run --------------------------------------------------------------------------------
+
+CONTROLS = ("throttle", "brake", "steer")
+LEAD = ("lead_present", "lead_id", "lead_gap", "lead_speed", "lead_relative_speed", "lead_ttc", "lead_lateral_offset")
+
+
+def run_lead(columns: dict, tracks: list, k: int, ego_length: float, ego_width: float):
+    """The lead-vehicle signals at the run's sample k from signals.py, over the vehicles on the road there (their
+    tracks are the run's closed-form motions at the sample times)."""
+    from sdl_fmu.cosim.signals import lead_vehicle
+
+    present = [(track.vehicle - 1, track) for track in tracks if track.first <= k < track.first + len(track.station)]
+    lead = lead_vehicle(float(columns["x"][k]), float(columns["y"][k]), float(columns["psi"][k]),
+                        float(columns["vx"][k]), float(columns["vy"][k]), ego_length, ego_width,
+                        [track.station[k - track.first] for _, track in present],
+                        [track.lateral[k - track.first] for _, track in present],
+                        [track.speed[k - track.first] for _, track in present],
+                        [track.length for _, track in present], [track.width for _, track in present],
+                        [index for index, _ in present])
+    return (lead.present, lead.vehicle_id, lead.gap, lead.speed, lead.relative_speed, lead.ttc, lead.lateral_offset)
+
+
+def replay(result, fmu: Path, directory: Path, ego_length: float, ego_width: float) -> list:
+    """Replays a run (api.Result) through its scenario FMU without prediction: the recorded ego state of every
+    sample set as the inputs, the FMU stepped from sample to sample. Returns every difference from the run (empty:
+    the same bits): the commands after each step against the run's controls of that sample, the surfaces under
+    the wheels and the lead signals at each sample (the latter where nothing fired there: the FMU fires what is
+    due at a sample inside its step, after the outputs of that sample were read), the traffic slots against the
+    tracks, and the events (code, action, vehicle, instant, order) and the collisions."""
+    raw = result.raw
+    columns = raw.columns
+    samples = len(columns["time"])
+    instance = ScenarioInstance(fmu, directory)
+    assert instance.component, instance.messages
+    assert instance.debug_logging(True) == fuzz.OK
+    instance.initialize({"trigger_prediction": False}, recorded_inputs(columns, 0))
+    tracks = list(raw.vehicles)
+    fired_at = {event["time_s"] for event in result.events}
+    wheels = [name for name in columns if name.startswith(("mu_", "surface_"))]
+    slots = sum(1 for name in instance.variables if name.endswith("_present") and name.startswith("tv"))
+    problems = []
+    for k in range(samples):
+        t = float(columns["time"][k])
+        h = float(columns["time"][k + 1]) - t if k + 1 < samples else 0.01
+        if k > 0:
+            assert instance.set(**recorded_inputs(columns, k)) == fuzz.OK, instance.messages[-3:]
+        for name in wheels:
+            if instance.get(name) != float(columns[name][k]):
+                problems.append(("surface", k, name, instance.get(name), float(columns[name][k])))
+        if t not in fired_at:
+            got = tuple(float(instance.get(name)) for name in LEAD)
+            want = tuple(map(float, run_lead(columns, tracks, k, ego_length, ego_width)))
+            if got != want:
+                problems.append(("lead", k, got, want))
+            for slot in range(1, slots + 1):
+                if not instance.get(f"tv{slot}_present"):
+                    continue
+                track = tracks[instance.get(f"tv{slot}_id") - 1]
+                if not track.first <= k < track.first + len(track.station):
+                    problems.append(("slot", k, slot, "not on the road in the run"))
+                    continue
+                got = (instance.get(f"tv{slot}_x"), instance.get(f"tv{slot}_y"))
+                want = (float(track.station[k - track.first]), -float(track.lateral[k - track.first]))
+                if got != want:
+                    problems.append(("slot", k, slot, got, want))
+        status = instance.step(t, h)[0]
+        assert status == fuzz.OK, instance.messages[-3:]
+        got = [instance.get(name) for name in CONTROLS]
+        want = [float(columns[name][k]) for name in CONTROLS]
+        if got != want:
+            problems.append(("controls", k, got, want))
+    events, run_events = instance.events(), list(result.events)
+    for ours, theirs in zip(events, run_events):
+        if (ours.code, ours.action, ours.vehicle, ours.time) != (theirs["code"], theirs["action"],
+                                                                 theirs.get("vehicle"), theirs["time_s"]):
+            problems.append(("event", ours, theirs))
+            break
+    if len(events) != len(run_events):
+        problems.append(("events", len(events), len(run_events)))
+    if instance.get("collisions") != result.collisions:
+        problems.append(("collisions", instance.get("collisions"), result.collisions))
+    instance.free()
+    return problems
+
+
+# ---- a fixed-step master: the scenario FMU and an ego FMU side by side ------------------------------------------
+
+EGO_OUTPUTS = ("x", "y", "psi", "v", "s", "vx", "vy", "yaw_rate", "ax", "ay")
+
+
+def path_acceleration(outputs: dict) -> float:
+    """dv/dt of the ego from its outputs: (vx ax + vy ay) / v (ax, ay: its acceleration in its body frame), the
+    rate of the speed the scenario FMU's prediction uses."""
+    v = outputs["v"]
+    return (outputs["vx"] * outputs["ax"] + outputs["vy"] * outputs["ay"]) / v if v > 0 else outputs["ax"]
+
+
+class Ego:
+    """An ego FMU of sdl-fmu's interface through fmpy, stepped by a master."""
+
+    def __init__(self, fmu: Path, start: dict):
+        from fmpy import extract
+        from fmpy.fmi2 import FMU2Slave
+        from fmpy.fmi3 import FMU3Slave
+
+        description = read_model_description(str(fmu))
+        self.fmi3 = description.fmiVersion.startswith("3")
+        self.vr = {v.name: v.valueReference for v in description.modelVariables}
+        self.types = {v.name: v.type for v in description.modelVariables}
+        slave_type = FMU3Slave if self.fmi3 else FMU2Slave
+        self.slave = slave_type(guid=description.guid, unzipDirectory=extract(str(fmu)),
+                                modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ego")
+        self.slave.instantiate()
+        if not self.fmi3:
+            self.slave.setupExperiment(startTime=0.0)
+        self.set(**start)
+        if self.fmi3:
+            self.slave.enterInitializationMode(startTime=0.0)
+        else:
+            self.slave.enterInitializationMode()
+        self.slave.exitInitializationMode()
+        self.time = 0.0
+
+    def set(self, **values) -> None:
+        for name, value in values.items():
+            kind = self.types[name]
+            if kind in ("Real", "Float64"):
+                (self.slave.setFloat64 if self.fmi3 else self.slave.setReal)([self.vr[name]], [float(value)])
+            elif kind in ("Integer", "Int32"):
+                (self.slave.setInt32 if self.fmi3 else self.slave.setInteger)([self.vr[name]], [int(value)])
+            else:
+                self.slave.setBoolean([self.vr[name]], [bool(value)])
+
+    def outputs(self) -> dict:
+        get = self.slave.getFloat64 if self.fmi3 else self.slave.getReal
+        values = dict(zip(EGO_OUTPUTS, get([self.vr[n] for n in EGO_OUTPUTS])))
+        values["stopped"] = bool(self.slave.getBoolean([self.vr["stopped"]])[0])
+        return values
+
+    def step_to(self, end: float) -> None:
+        self.slave.doStep(self.time, end - self.time)
+        self.time = end
+
+    def save(self):
+        return self.slave.getFMUState() if self.fmi3 else self.slave.getFMUstate()
+
+    def restore(self, state, time: float) -> None:
+        (self.slave.setFMUState if self.fmi3 else self.slave.setFMUstate)(state)
+        self.time = time
+
+    def discard(self, state) -> None:
+        (self.slave.freeFMUState if self.fmi3 else self.slave.freeFMUstate)(state)
+
+    def close(self) -> None:
+        self.slave.terminate()
+        self.slave.freeInstance()
+
+
+def scenario_inputs(outputs: dict) -> dict:
+    return {**{f"ego_{name}": outputs[name] for name in EGO_OUTPUTS}, "ego_stopped": outputs["stopped"]}
+
+
+def wheel_names(dynamics: str) -> tuple[str, ...]:
+    prefix = "mu" if dynamics == "simple" else "surface"
+    return tuple(f"{prefix}_{w}" for w in ("fl", "fr", "rl", "rr"))

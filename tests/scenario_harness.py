@@ -45,9 +45,13 @@ def parse_event(message: str) -> Event | None:
 class ScenarioInstance:
     """One instance of a scenario FMU's Linux binary."""
 
-    def __init__(self, fmu: Path, directory: Path, early_return: bool = False, name: bytes = b"scenario"):
+    def __init__(self, fmu: Path, directory: Path, early_return: bool = False, name: bytes = b"scenario",
+                 resources_text: str | None = None):
+        """resources_text: what resources/scenario.sdlfmu holds instead of the FMU's own."""
         with zipfile.ZipFile(fmu) as archive:
             archive.extractall(directory)
+        if resources_text is not None:
+            (Path(directory) / "resources" / "scenario.sdlfmu").write_text(resources_text)
         self.directory = Path(directory)
         self.description = read_model_description(str(directory))
         self.fmi3 = self.description.fmiVersion.startswith("3")

@@ -44,8 +44,8 @@ def _flag(relative: bool) -> str:
 
 
 def _text(value: str, limit: int = 70) -> str:
-    """A name as one line of printable text (the data file's names are for log lines)."""
-    cleaned = re.sub(r"[\x00-\x1f\x7f#]", " ", value).strip() or "?"
+    """A name as one line of printable ASCII (the data file's names are for log lines; others become '?')."""
+    cleaned = re.sub(r"[^\x20-\x7e]", "?", value).replace("#", "?").strip() or "?"
     return cleaned[:limit]
 
 

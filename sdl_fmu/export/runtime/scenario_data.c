@@ -74,6 +74,14 @@ static void fail(Reader *r, const char *format, ...) {
 
 static int blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 
+/* A field quoted in a message: at most 40 characters, printable ASCII only (others shown as '?'). */
+static const char *quoted(const char *start, size_t length, char *buffer) {
+    size_t i, n = length > 40 ? 40 : length;
+    for (i = 0; i < n; i++) buffer[i] = start[i] >= 0x20 && start[i] < 0x7f ? start[i] : '?';
+    buffer[n] = '\0';
+    return buffer;
+}
+
 /* The next line with content (comments and blank lines skipped); 0 at the end of the text or on a failure. */
 static int next_line(Reader *r) {
     while (!r->failed && r->next < r->end) {
@@ -172,12 +180,12 @@ static int parse_hex(const char *s, size_t n, double *value) {
 }
 
 static int read_real(Reader *r, const char *name, double low, double high, double *value) {
+    char shown[41];
     const char *start;
     size_t length;
     if (!field(r, name, &start, &length)) return 0;
     if (!parse_hex(start, length, value)) {
-        fail(r, "%s: '%.*s' is not a hexadecimal floating-point number", name, (int)(length > 40 ? 40 : length),
-             start);
+        fail(r, "%s: '%s' is not a hexadecimal floating-point number", name, quoted(start, length, shown));
         return 0;
     }
     if (!(*value >= low && *value <= high)) {
@@ -188,6 +196,7 @@ static int read_real(Reader *r, const char *name, double low, double high, doubl
 }
 
 static int read_whole(Reader *r, const char *name, double low, double high, double *value) {
+    char shown[41];
     const char *start, *p;
     size_t length;
     double number = 0.0;
@@ -197,13 +206,13 @@ static int read_whole(Reader *r, const char *name, double low, double high, doub
     if (*p == '+' || *p == '-') negative = *p++ == '-';
     for (; p < start + length; p++) {
         if (*p < '0' || *p > '9' || ++digits > 16) {
-            fail(r, "%s: '%.*s' is not a whole number", name, (int)(length > 40 ? 40 : length), start);
+            fail(r, "%s: '%s' is not a whole number", name, quoted(start, length, shown));
             return 0;
         }
         number = number * 10 + (*p - '0');
     }
     if (digits == 0) {
-        fail(r, "%s: '%.*s' is not a whole number", name, (int)(length > 40 ? 40 : length), start);
+        fail(r, "%s: '%s' is not a whole number", name, quoted(start, length, shown));
         return 0;
     }
     *value = negative ? -number : number;
@@ -215,11 +224,12 @@ static int read_whole(Reader *r, const char *name, double low, double high, doub
 }
 
 static int line_done(Reader *r) {
+    char shown[41];
     const char *start;
     size_t length;
     if (r->failed) return 0;
     if (token(r, &start, &length)) {
-        fail(r, "unexpected field '%.*s'", (int)(length > 40 ? 40 : length), start);
+        fail(r, "unexpected field '%s'", quoted(start, length, shown));
         return 0;
     }
     return 1;
@@ -227,6 +237,7 @@ static int line_done(Reader *r) {
 
 /* A line "<keyword> ..." (the keyword read). */
 static int keyword_line(Reader *r, const char *keyword) {
+    char shown[41];
     const char *start;
     size_t length;
     if (r->failed) return 0;
@@ -236,13 +247,13 @@ static int keyword_line(Reader *r, const char *keyword) {
     }
     token(r, &start, &length);
     if (!is_keyword(start, length, keyword)) {
-        fail(r, "'%s' expected, found '%.*s'", keyword, (int)(length > 40 ? 40 : length), start);
+        fail(r, "'%s' expected, found '%s'", keyword, quoted(start, length, shown));
         return 0;
     }
     return 1;
 }
 
-/* The rest of the line as text (a name), at most `size - 1` characters of printable ASCII or UTF-8. */
+/* The rest of the line as text (a name), at most `size - 1` characters of printable ASCII. */
 static int rest_of_line(Reader *r, const char *name, char *text, size_t size) {
     const char *p = r->cursor;
     size_t n;
@@ -255,8 +266,8 @@ static int rest_of_line(Reader *r, const char *name, char *text, size_t size) {
     memcpy(text, p, n);
     text[n] = '\0';
     for (p = text; *p; p++)
-        if ((unsigned char)*p < 0x20 || *p == 0x7f) {
-            fail(r, "%s: a control character", name);
+        if ((unsigned char)*p < 0x20 || (unsigned char)*p >= 0x7f) {
+            fail(r, "%s: not printable ASCII", name);
             return 0;
         }
     r->cursor = r->content_end;
@@ -312,6 +323,7 @@ static Layout layout_of(const Parsed *parsed) {
 
 /* "parameter <name> <value>": a declared parameter's start value, within its declared range. */
 static int read_parameter(Reader *r, Parsed *parsed) {
+    char shown[41];
     const char *start;
     size_t length;
     int i;
@@ -335,12 +347,13 @@ static int read_parameter(Reader *r, Parsed *parsed) {
         parsed->parameters[v->index] = value;
         return 1;
     }
-    fail(r, "parameter: '%.*s' is not a parameter of the scenario FMU", (int)(length > 40 ? 40 : length), start);
+    fail(r, "parameter: '%s' is not a parameter of the scenario FMU", quoted(start, length, shown));
     return 0;
 }
 
 /* One pass over the text; in pass 2 (parsed->data set) the block is filled at `layout`. */
 static int parse_pass(Reader *r, Parsed *parsed, const Layout *layout, void *(*allocate)(size_t, size_t)) {
+    char shown[41];
     double value, distance, previous_distance = 0.0, count;
     const char *start;
     size_t length, event_cursor = 0;
@@ -401,7 +414,7 @@ static int parse_pass(Reader *r, Parsed *parsed, const Layout *layout, void *(*a
             continue;
         }
         if (!is_keyword(start, length, "vehicle")) {
-            fail(r, "'vehicle' or 'events' expected, found '%.*s'", (int)(length > 40 ? 40 : length), start);
+            fail(r, "'vehicle' or 'events' expected, found '%s'", quoted(start, length, shown));
             break;
         }
         {
@@ -480,7 +493,7 @@ static int parse_pass(Reader *r, Parsed *parsed, const Layout *layout, void *(*a
         else if (is_keyword(start, length, "ES"))
             code_value = CODE_ES;
         else {
-            fail(r, "an event (A, BRK, RSA or ES) expected, found '%.*s'", (int)(length > 40 ? 40 : length), start);
+            fail(r, "an event (A, BRK, RSA or ES) expected, found '%s'", quoted(start, length, shown));
             break;
         }
         if (!read_whole(r, "line", 1, MAX_LINE_NUMBER, &line) ||

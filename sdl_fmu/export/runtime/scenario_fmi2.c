@@ -5,6 +5,7 @@
 #include "fmi2Functions.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "scenario_fmi.h"
@@ -120,13 +121,13 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     if (!functions || !functions->allocateMemory || !functions->freeMemory) return NULL;
     if (!instanceName || !instanceName[0]) {
         if (functions->logger)
-            functions->logger(functions->componentEnvironment, "?", fmi2Error, "logStatusError",
+            functions->logger(functions->componentEnvironment, "?", fmi2Error, "logStatusError", "%s",
                               "fmi2Instantiate: missing instance name");
         return NULL;
     }
     if (fmuType != fmi2CoSimulation) {
         if (functions->logger)
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError", "%s",
                               fmuType == fmi2ModelExchange
                                   ? "fmi2Instantiate: the scenario FMU is for co-simulation only"
                                   : "fmi2Instantiate: unknown fmuType");
@@ -141,9 +142,11 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                                                    functions->freeMemory, log_to_importer, &component->callbacks,
                                                    reason, sizeof(reason));
     if (!component->scenario) {
-        if (functions->logger)
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
-                              "fmi2Instantiate: %s", reason);
+        char message[700];
+        snprintf(message, sizeof(message), "fmi2Instantiate: %s", reason);
+        if (functions->logger) /* the text as the argument of "%s": a '%' in it is no format */
+            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError", "%s",
+                              message);
         functions->freeMemory(component);
         return NULL;
     }

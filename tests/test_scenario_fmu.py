@@ -581,3 +581,28 @@ def test_the_windows_binary_under_wine_runs_as_the_linux_one(hosts, wine, tmp_pa
         assert ours[:3] == theirs[:3]  # time, tv1_x, lead_gap
         assert all(abs(value(a) - value(b)) <= 1e-12 * max(1.0, abs(value(a))) for a, b in zip(ours[3:], theirs[3:]))
     assert value(linux[-1][1]) < value(linux[0][1]) and value(linux[-1][-1]) == 1.0  # approaching, the lead vehicle
+
+
+# ---- the state tables ------------------------------------------------------------------------------------------
+
+MODEL_EXCHANGE = {"EnterEventMode", "NewDiscreteStates", "EnterContinuousTimeMode", "CompletedIntegratorStep",
+                  "SetTime", "SetContinuousStates", "GetEventIndicators", "GetContinuousStates", "GetDerivatives",
+                  "GetNominalsOfContinuousStates", "UpdateDiscreteStates", "GetContinuousStateDerivatives",
+                  "GetNumberOfEventIndicators", "GetNumberOfContinuousStates"}
+
+
+@pytest.mark.parametrize("version", [2, 3])
+def test_the_scenario_fmus_state_tables_are_the_standards(version):
+    """The scenario FMU's MASK_ lines (scenario_fmi2.c, scenario_fmi3.c) are the standard's co-simulation rows;
+    its model-exchange functions refuse on every call (there is no model-exchange instance) and have none."""
+    from test_state_tables import FMI2, FMI2_DEVIATIONS, FMI3, FMI3_DEVIATIONS, mask_table
+
+    from sdl_fmu.export.binary import RUNTIME_DIRECTORY
+
+    table = mask_table(version, RUNTIME_DIRECTORY / f"scenario_fmi{version}.c")
+    expected = {**(FMI2 if version == 2 else FMI3), **(FMI2_DEVIATIONS if version == 2 else FMI3_DEVIATIONS)}
+    expected = {name: states for name, states in expected.items() if name not in MODEL_EXCHANGE
+                and (version == 2 or "Derivative" not in name)}
+    assert set(table) == set(expected) if version == 2 else set(expected) <= set(table)
+    for function, states in expected.items():
+        assert set(table[function]) == set(states), (function, table[function], states)

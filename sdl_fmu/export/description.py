@@ -186,16 +186,53 @@ WIRING = (("ego.x", "scenario.ego_x"), ("ego.y", "scenario.ego_y"), ("ego.psi", 
 
 
 def documentation(interface: Interface, fmi_version: int, sdl_text: str, source: str, description: str,
-                  starts: dict, warnings: list[str], linux: str, windows: str, sources: list[str]) -> str:
+                  starts: dict, start_lateral: float, warnings: list[str], linux: str, windows: str,
+                  sources: list[str]) -> str:
     wiring = "\n".join(f"<tr><td><code>{html.escape(a)}</code></td><td><code>{html.escape(b)}</code></td></tr>"
                        for a, b in WIRING)
     listed_warnings = "".join(f"<li>{html.escape(w)}</li>" for w in warnings) or "<li>none</li>"
     compile_line = (f"cc -std=c99 -O2 -ffp-contract=off -fPIC -shared -Isources "
                     f"{' '.join(f'sources/{s}' for s in sources)} -o {MODEL_IDENTIFIER}.so -lm")
-    example = f"""from fmpy import read_model_description, extract
+    example = f"""from fmpy import extract, read_model_description
 from fmpy.fmi{fmi_version} import FMU{fmi_version}Slave
-# the scenario FMU and an ego FMU (sdl-fmu build --out dist) stepped side by side at a fixed step h, each given the
-# other's outputs at the start of the step (a Jacobi master, as SSP masters run them); see "Wiring" for the names"""
+
+def open_fmu(path):
+    description = read_model_description(path)
+    slave = FMU{fmi_version}Slave(guid=description.guid, unzipDirectory=extract(path), instanceName=path,
+                      modelIdentifier=description.coSimulation.modelIdentifier)
+    slave.instantiate()
+    return slave, {{v.name: v.valueReference for v in description.modelVariables}}
+
+# this FMU and an ego FMU of sdl-fmu's interface (sdl-fmu build --out dist: dist/fmi{fmi_version}/EgoVehicleSimple.fmu)
+scenario, s = open_fmu("scenario.fmu")
+ego, e = open_fmu("EgoVehicleSimple.fmu")
+{"ego.setupExperiment(startTime=0.0)" if fmi_version == 2 else "# (FMI 3.0: the start time goes with enterInitializationMode)"}
+ego.{"setReal" if fmi_version == 2 else "setFloat64"}([e["v0"], e["y0"]], [{starts["speed"]!r}, {-start_lateral!r}])  # the scenario's start
+ego.enterInitializationMode()
+ego.exitInitializationMode()
+motion = ["x", "y", "psi", "v", "s", "vx", "vy", "yaw_rate", "ax", "ay"]
+commands = ["throttle", "brake", "steer", "mu_fl", "mu_fr", "mu_rl", "mu_rr"]
+get, put = ({"(ego.getReal, scenario.setReal)" if fmi_version == 2 else "(ego.getFloat64, scenario.setFloat64)"})
+
+
+def ego_to_scenario():
+    put([s["ego_" + name] for name in motion], get([e[name] for name in motion]))
+    scenario.setBoolean([s["ego_stopped"]], ego.getBoolean([e["stopped"]]))
+
+
+{"scenario.setupExperiment(startTime=0.0)" if fmi_version == 2 else ""}
+scenario.enterInitializationMode()
+ego_to_scenario()
+scenario.exitInitializationMode()
+t, h = 0.0, 0.01  # a fixed-step (Jacobi) master: both FMUs step t -> t + h with each other's outputs at t
+while not scenario.getBoolean([s["ended"]])[0]:
+    values = scenario.{"getReal" if fmi_version == 2 else "getFloat64"}([s[name] for name in commands])
+    ego_to_scenario()
+    ego.{"setReal" if fmi_version == 2 else "setFloat64"}([e[name] for name in commands], values)
+    ego.doStep(t, h)
+    scenario.doStep(t, h)
+    t += h
+print(f"ended at {{t:.2f}} s:", scenario.{"getInteger" if fmi_version == 2 else "getInt32"}([s["events"], s["collisions"]]))"""
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>
@@ -265,6 +302,8 @@ after it (nothing fires, traffic keeps moving).</p>
 {_table(interface, PARAMETER, True)}
 
 <h2>Using it with fmpy</h2>
+<p>The scenario FMU beside the shipped Simple ego FMU, stepped by a fixed-step master written out (an SSP master
+does the same from the SSP's connections):</p>
 <pre>{html.escape(example)}</pre>
 <p><code>sources/</code> holds every C file of the binary and <code>sources/buildDescription.xml</code> lists them;
 one compiler line, run in the unzipped FMU, rebuilds it:</p>

@@ -121,7 +121,8 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
             model_description(interface, guid, fmi_version, description, experiment, sources))
         (root / DOCUMENTATION_ENTRY).parent.mkdir(parents=True)
         (root / DOCUMENTATION_ENTRY).write_text(
-            documentation(interface, fmi_version, text, source, description, starts, list(scenario.warnings),
+            documentation(interface, fmi_version, text, source, description, starts, scenario.road.lane_center(1),
+                          list(scenario.warnings),
                           LINUX_BINARY_DIRECTORY[fmi_version], WINDOWS_BINARY_DIRECTORY[fmi_version], sources),
             encoding="utf-8")
         (root / LICENSE_ENTRY).parent.mkdir(parents=True)

@@ -144,10 +144,10 @@ def test_a_scenario_made_in_python_carries_its_description():
 # ---- one meaning: the replay ------------------------------------------------------------------------------------
 
 
-def replay_scenario(scenario, dynamics, folder: Path, until_time=None):
+def replay_scenario(scenario, dynamics, folder: Path, until_time=None, driver="lane"):
     model = api.ego_model(dynamics)
-    result = api.run(scenario, dynamics=dynamics, until_time=until_time)
-    fmu = write_scenario_fmu(scenario, folder / "scenario.fmu", ego=model, until_time=until_time)
+    result = api.run(scenario, dynamics=dynamics, until_time=until_time, driver=driver)
+    fmu = write_scenario_fmu(scenario, folder / "scenario.fmu", ego=model, until_time=until_time, driver=driver)
     return replay(result, fmu.path, folder / "unzipped", model.length, model.width), result
 
 
@@ -157,11 +157,20 @@ def test_replaying_the_demo_gives_the_run_bit_for_bit(tmp_path):
     assert len(list(result.events)) == 29  # spawns, actions, departures, RSA, BRK on and off, the end
 
 
+def test_replaying_a_follow_driver_run_gives_the_run_bit_for_bit(tmp_path):
+    """The follow driver (Gipps' law, deciding every 2/3 s, its decisions merged with the driver's samples): the
+    demo's traffic ahead limits it."""
+    problems, result = replay_scenario(api.load("demo"), "simple", tmp_path, until_time=60.0, driver="follow")
+    assert problems == [] and len(list(result.events)) > 10
+
+
 @pytest.mark.slow
+@pytest.mark.parametrize("driver", ["lane", "follow"])
 @pytest.mark.parametrize("dynamics", ["simple", "advanced"])
 @pytest.mark.parametrize("name", SHIPPED)
-def test_replaying_every_shipped_scenario_gives_the_run_bit_for_bit(name, dynamics, tmp_path):
-    problems, _ = replay_scenario(api.load(name, skip_unsupported=True, dynamics=dynamics), dynamics, tmp_path)
+def test_replaying_every_shipped_scenario_gives_the_run_bit_for_bit(name, dynamics, driver, tmp_path):
+    problems, _ = replay_scenario(api.load(name, skip_unsupported=True, dynamics=dynamics), dynamics, tmp_path,
+                                  driver=driver)
     assert problems == []
 
 
@@ -179,10 +188,12 @@ def test_replaying_generated_scenarios_gives_the_run_bit_for_bit(seed, tmp_path)
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("driver", ["lane", "follow"])
 @pytest.mark.parametrize("dynamics", ["simple", "advanced"])
 @pytest.mark.parametrize("seed", range(2, 30))
-def test_replaying_many_generated_scenarios_gives_the_run_bit_for_bit(seed, dynamics, tmp_path):
-    problems, _ = replay_scenario(generated(seed, tmp_path, dynamics), dynamics, tmp_path, until_time=100.0)
+def test_replaying_many_generated_scenarios_gives_the_run_bit_for_bit(seed, dynamics, driver, tmp_path):
+    problems, _ = replay_scenario(generated(seed, tmp_path, dynamics), dynamics, tmp_path, until_time=100.0,
+                                  driver=driver)
     assert problems == []
 
 
@@ -467,23 +478,35 @@ def test_each_event_is_a_log_line_and_the_last_one_is_in_the_outputs(demo_fmus, 
     assert instance.get("traffic_count") == 2 and instance.get("tv2_id") == 2 and instance.get("tv2_present")
 
 
-@pytest.mark.parametrize("throttle_mode, brake_mode, steer_mode, expected", [
-    (1, 2, 0, (0.0, 0.6, "driver")),   # override throttle, max brake: the brake request cuts the throttle
-    (0, 0, 0, ("driver", "driver", "driver")),
-    (2, 1, 1, (0.0, 0.6, 0.2)),
-])
-def test_the_controller_requests_are_arbitrated_per_channel(demo_fmus, tmp_path, throttle_mode, brake_mode,
-                                                            steer_mode, expected):
-    instance = ScenarioInstance(demo_fmus[2].path, tmp_path)
-    instance.initialize({"arbitration_throttle": throttle_mode, "arbitration_brake": brake_mode,
-                         "arbitration_steer": steer_mode}, {"ego_v": 20.0, "ego_vx": 20.0, "ego_y": -1.8288})
-    driver = [instance.get(name) for name in ("driver_throttle", "driver_brake", "driver_steer")]
-    assert driver[0] > 0.0  # below the target speed: the driver accelerates
-    assert instance.set(request_active=True, request_throttle=0.9, request_brake=0.6, request_steer=0.2) == 0
-    got = [instance.get(name) for name in ("throttle", "brake", "steer")]
-    assert got == [driver[i] if want == "driver" else want for i, want in enumerate(expected)]
-    assert instance.set(request_active=False) == 0
-    assert [instance.get(name) for name in ("throttle", "brake", "steer")] == driver
+def test_the_controller_requests_are_arbitrated_as_the_run_arbitrates(demo_fmus, tmp_path):
+    """arbitration.arbitrate (the run's) and the FMU's outputs, bit for bit, for every rule of every channel and 40
+    random requests each (pedals, steer beyond the driver's limit, decelerations beyond brake_decel_max, inactive
+    requests), against the driver's commands of the moment."""
+    import itertools
+
+    from sdl_fmu.cosim.arbitration import arbitrate
+    from sdl_fmu.vehicle.controller import Request
+
+    rules = ("driver", "override", "max")
+    rng = random.Random(20261126)
+    brake_decel_max = demo_fmus[2].parameters["ego_brake_decel_max"]
+    for number, (throttle_rule, brake_rule, steer_rule) in enumerate(itertools.product(range(3), repeat=3)):
+        instance = ScenarioInstance(demo_fmus[2].path, tmp_path / str(number))
+        speed = rng.choice([10.0, 40.0])  # below the target: the driver accelerates; above: it brakes
+        instance.initialize({"arbitration_throttle": throttle_rule, "arbitration_brake": brake_rule,
+                             "arbitration_steer": steer_rule}, {"ego_v": speed, "ego_vx": speed, "ego_y": -1.0})
+        driver = tuple(instance.get(name) for name in ("driver_throttle", "driver_brake", "driver_steer"))
+        for _ in range(40):
+            request = Request(rng.random() < 0.8, rng.choice([0.0, rng.random(), 1.0]),
+                              rng.choice([0.0, rng.random(), 1.0]), rng.uniform(-1.5, 1.5),
+                              rng.choice([0.0, rng.uniform(0, 15)]))
+            assert instance.set(request_active=request.active, request_throttle=request.throttle,
+                                request_brake=request.brake, request_steer=request.steer,
+                                request_deceleration=request.deceleration) == 0
+            want = arbitrate(driver, request, {"throttle": rules[throttle_rule], "brake": rules[brake_rule],
+                                               "steer": rules[steer_rule]}, brake_decel_max)
+            assert tuple(instance.get(name) for name in ("throttle", "brake", "steer")) == want, (request, want)
+        instance.free()
 
 
 @pytest.mark.slow

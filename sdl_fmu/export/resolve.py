@@ -29,6 +29,7 @@ DEFAULT_SLOTS = 8  # traffic slots at most, unless asked for (fewer when the sce
 WHERE = {None: 0, "F": 1, "B": 2}
 THRESHOLDS = {"time": 0, "distance": 1, "velocity": 2, "relative_velocity": 3}
 ARBITRATION = {"driver": 0, "override": 1, "max": 2}
+DRIVERS = {"lane": 1, "follow": 2}
 # the vehicle map's optional outputs -> the parameter saying whether the ego input is connected
 CONNECTED = {"distance": "ego_s_connected", "vx": "ego_vx_connected", "vy": "ego_vy_connected",
              "yaw_rate": "ego_yaw_rate_connected", "ax": "ego_ax_connected", "ay": "ego_ay_connected",
@@ -126,7 +127,7 @@ def end_distance(scenario: Scenario, until_distance: float | None, until_time: f
 
 
 def parameter_starts(scenario: Scenario, ego, *, speed: float | None, until_distance: float | None,
-                     until_time: float | None, driver_period: float | None,
+                     until_time: float | None, driver_period: float | None, driver: str = "lane",
                      arbitration: dict[str, str] | None = None) -> dict[str, float | int | bool]:
     """The start values of the scenario FMU's parameters: the options as `sdl-fmu run` takes them (SI), the ego's
     properties from its EgoModel, and the trigger bounds `sdl-fmu run` derives for it (Cosimulation.__init__)."""
@@ -139,7 +140,7 @@ def parameter_starts(scenario: Scenario, ego, *, speed: float | None, until_dist
         "speed": speed, "until_distance": 0.0 if until_distance is None else float(until_distance),
         "until_time": 0.0 if until_time is None else float(until_time),
         "driver_period": DEFAULT_DRIVER_PERIOD if driver_period is None else float(driver_period),
-        "driver": 1, "trigger_prediction": True,
+        "driver": DRIVERS[driver], "trigger_prediction": True,
         "ego_length": ego.length, "ego_width": ego.width, "ego_cg_to_front_axle": ego.cg_to_front,
         "ego_cg_to_rear_axle": ego.cg_to_rear, "ego_track_front": ego.track_front, "ego_track_rear": ego.track_rear,
         "ego_mass": ego.mass, "ego_drive_accel_max": ego.drive_accel_max, "ego_drive_power_max": ego.drive_power_max,

@@ -27,7 +27,7 @@ from ..sdl.parser import decode_text, describe
 from ..sdl.vehicles import VehicleModel, default_vehicle_table_path, load_vehicle_table
 from .binary import INTERFACE_FILE, MODEL_IDENTIFIER, binary_key, cached_binaries, compiled_sources, scenario_interface
 from .description import documentation, model_description
-from .resolve import default_slots, end_distance, parameter_starts, scenario_data
+from .resolve import ARBITRATION, DRIVERS, default_slots, end_distance, parameter_starts, scenario_data
 
 DATA_ENTRY = "resources/scenario.sdlfmu"
 TEXT_ENTRY = "resources/scenario.sdl"
@@ -80,22 +80,30 @@ def _check_starts(interface, starts: dict) -> None:
 
 def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, fmi_version: FmiVersion = 2,
                        speed: float | None = None, seed: int = 1, until_distance: float | None = None,
-                       until_time: float | None = None, driver_period: float | None = None, step: float = 0.01,
-                       traffic_slots: int | None = None, arbitration: dict[str, str] | None = None,
+                       until_time: float | None = None, driver_period: float | None = None, driver: str = "lane",
+                       step: float = 0.01, traffic_slots: int | None = None, arbitration: dict[str, str] | None = None,
                        vehicle_table: dict[int, VehicleModel] | None = None) -> ScenarioFmu:
     """Writes the scenario FMU of `scenario` (a loaded Scenario) for the ego vehicle `ego` (an EgoModel) to
     `out_path`. Options in SI as `sdl-fmu run` takes them after conversion (speed m/s, until_distance m,
-    until_time s, driver_period s); `step` is only the DefaultExperiment's stepSize. Raises ScenarioFmuError (one
+    until_time s, driver_period s), `driver` "lane" or "follow", `arbitration` the controller map's rules per channel
+    ("driver", "override", "max"; a channel the controller does not request: "driver"); `step` is only the
+    DefaultExperiment's stepSize. Raises ScenarioFmuError (one
     line) for values the FMU cannot take; building the generic binary the first time raises BuildError without a C
     compiler."""
     if fmi_version not in (2, 3):
         raise ScenarioFmuError(f"fmi_version {fmi_version!r}: choose 2 or 3")
+    if driver not in DRIVERS:
+        raise ScenarioFmuError(f"driver {driver!r}: choose one of {', '.join(DRIVERS)}")
+    for channel, rule in (arbitration or {}).items():
+        if channel not in ("throttle", "brake", "steer") or rule not in ARBITRATION:
+            raise ScenarioFmuError(f"arbitration {channel} = {rule!r}: the channels are throttle, brake, steer and the "
+                                   f"rules {', '.join(ARBITRATION)}")
     slots = default_slots(scenario) if traffic_slots is None else int(traffic_slots)
     if not 0 <= slots <= MAX_SLOTS:
         raise ScenarioFmuError(f"traffic_slots {traffic_slots}: must be from 0 to {MAX_SLOTS}")
     table = vehicle_table if vehicle_table is not None else load_vehicle_table(default_vehicle_table_path())
     starts = parameter_starts(scenario, ego, speed=speed, until_distance=until_distance, until_time=until_time,
-                              driver_period=driver_period, arbitration=arbitration)
+                              driver_period=driver_period, driver=driver, arbitration=arbitration)
     interface = scenario_interface(slots, starts)
     _check_starts(interface, starts)
     salt = f"{binary_key(fmi_version)} {INTERFACE_FILE.read_text(encoding='utf-8')} slots {slots}"

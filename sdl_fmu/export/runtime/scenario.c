@@ -424,15 +424,25 @@ static double driver_steer(const View *view, const Ego *e) {
     return steer < -MAX_STEER ? -MAX_STEER : steer > MAX_STEER ? MAX_STEER : steer;
 }
 
-static void driver_pedals(const View *view, const double *d, const Ego *e, double *throttle, double *brake) {
-    double v = e->v, error = PARAMETER(view, SPEED) - v;
+/* Driver.resistance: the rolling and air resistance's deceleration at speed v, the feed-forward. */
+static double resistance(const View *view, double v) {
     double mass = PARAMETER(view, EGO_MASS);
     double drag_factor = PARAMETER(view, EGO_AIR_DENSITY) * PARAMETER(view, EGO_DRAG_AREA) / (2 * mass);
-    double resistance = PARAMETER(view, EGO_ROLLING_RESISTANCE) * STANDARD_GRAVITY * (v > 0 ? 1.0 : 0.0) +
-                        drag_factor * python_square(v);
-    double demand = SPEED_GAIN * error + SPEED_INTEGRAL_GAIN * d[D_INTEGRAL] + resistance;
+    return PARAMETER(view, EGO_ROLLING_RESISTANCE) * STANDARD_GRAVITY * (v > 0 ? 1.0 : 0.0) +
+           drag_factor * python_square(v);
+}
+
+/* Driver.demand: PI on the speed error plus the resistance's feed-forward. */
+static double driver_demand(const View *view, const double *d, const Ego *e) {
+    double error = PARAMETER(view, SPEED) - e->v;
+    return SPEED_GAIN * error + SPEED_INTEGRAL_GAIN * d[D_INTEGRAL] + resistance(view, e->v);
+}
+
+/* Driver.pedals_for: (throttle, brake) that give the acceleration `demand` at speed v. */
+static void pedals_for(const View *view, double demand, double v, int deadband, double *throttle, double *brake) {
     *throttle = *brake = 0.0;
     if (demand >= 0) {
+        double mass = PARAMETER(view, EGO_MASS);
         double power_limited = PARAMETER(view, EGO_DRIVE_POWER_MAX) / (mass * (v < 1e-3 ? 1e-3 : v));
         double drive_accel_max = PARAMETER(view, EGO_DRIVE_ACCEL_MAX);
         double available = power_limited < drive_accel_max ? power_limited : drive_accel_max, value;
@@ -441,19 +451,115 @@ static void driver_pedals(const View *view, const double *d, const Ego *e, doubl
         *throttle = value > 1.0 ? 1.0 : value;
         return;
     }
-    if (demand > -BRAKE_DEADBAND) return;
+    if (deadband && demand > -BRAKE_DEADBAND) return;
     {
         double value = -demand / PARAMETER(view, EGO_BRAKE_DECEL_MAX);
         *brake = value > 1.0 ? 1.0 : value;
     }
 }
 
+static int following(const View *view) { return (int)PARAMETER(view, DRIVER) == DRIVER_FOLLOW; }
+
+/* The driver's pedals: the lane driver's (Driver.pedals), or the follow driver's (FollowDriver.pedals: the lane
+ * driver's unless Gipps' law asks for less acceleration; then pedals for the law's, or the hold brake at rest). */
+static void driver_pedals(const View *view, double *d, const Ego *e, double *throttle, double *brake) {
+    double v = e->v, demand = driver_demand(view, d, e), acceleration = d[D_FOLLOW_ACCELERATION];
+    if (!following(view)) {
+        pedals_for(view, demand, v, 1, throttle, brake);
+        return;
+    }
+    if (d[D_FOLLOW_LIMITED] == 0.0 || demand <= acceleration + resistance(view, v)) {
+        d[D_FOLLOW_LIMITING] = 0.0;
+        pedals_for(view, demand, v, 1, throttle, brake);
+        return;
+    }
+    d[D_FOLLOW_LIMITING] = 1.0;
+    if ((e->stopped || v < STOPPED_SPEED) && d[D_FOLLOW_ALLOWED] < HOLD_SPEED) {
+        *throttle = 0.0;
+        *brake = HOLD_BRAKE;
+        return;
+    }
+    pedals_for(view, acceleration + resistance(view, v), v, 0, throttle, brake);
+}
+
 static void driver_update(const View *view, double *d, const Ego *e, double h, double throttle) {
     double error = PARAMETER(view, SPEED) - e->v;
+    if (following(view) && d[D_FOLLOW_LIMITING] != 0.0) return; /* FollowDriver.update: no wind-up */
     if (!(throttle >= 1.0 && error > 0)) {
         double integral = d[D_INTEGRAL] + error * h;
         d[D_INTEGRAL] = integral < -5.0 ? -5.0 : integral > 5.0 ? 5.0 : integral;
     }
+}
+
+/* follow.safe_speed: Gipps' braking term, the speed the driver may have REACTION_TIME from now. */
+static double safe_speed(double v, double gap, double lead_speed) {
+    double tau = REACTION_TIME, b = BRAKING, leader = LEADER_BRAKING, lead = lead_speed > 0.0 ? lead_speed : 0.0;
+    double argument = b * b * tau * tau + b * (2.0 * (gap - STANDSTILL_GAP) - v * tau + lead * lead / leader);
+    double speed;
+    if (!(argument > 0.0)) return 0.0;
+    speed = -b * tau + sqrt(argument);
+    return speed > 0.0 ? speed : 0.0;
+}
+
+/* signals.lead_vehicle: the lead-vehicle signals from the ego and the vehicles on the road at `time`. */
+typedef struct {
+    int present, id;
+    double gap, speed, relative_speed, ttc, lateral_offset;
+} Lead;
+
+static Lead lead_of(const View *view, const double *d, const Ego *e, double time) {
+    Lead lead = {0, 0, NO_GAP, 0.0, 0.0, NO_TTC, 0.0};
+    double a = PARAMETER(view, EGO_LENGTH) / 2, b = PARAMETER(view, EGO_WIDTH) / 2;
+    double c = fabs(cos(e->psi)), s = fabs(sin(e->psi));
+    double along = a * c + b * s, across = a * s + b * c, best_gap = INFINITY;
+    Motion best_motion = {0, 0, 0, 0, 0};
+    int i, n = (int)d[D_SPAWNED], best = -1;
+    for (i = 0; i < n; i++) {
+        const double *vh = vehicle_const(view, d, i), *event = vehicle_event(view, i);
+        Motion m;
+        double dx, dy, gap;
+        if (vh[V_PRESENT] == 0.0) continue;
+        m = motion_of(vh, time);
+        dx = m.station - e->x;
+        if (!(dx > 0.0)) continue;
+        dy = -m.lateral - e->y;
+        if (!(fabs(dy) < across + event[A_WIDTH] / 2)) continue;
+        gap = dx - along - event[A_LENGTH] / 2;
+        if (gap < best_gap) {
+            best = i;
+            best_gap = gap;
+            best_motion = m;
+        }
+    }
+    if (best >= 0) {
+        double ego_along = e->vx * cos(e->psi) - e->vy * sin(e->psi);
+        lead.present = 1;
+        lead.id = best + 1;
+        lead.gap = best_gap > 0.0 ? best_gap : 0.0;
+        lead.speed = -best_motion.speed;
+        lead.relative_speed = lead.speed - ego_along;
+        lead.ttc = lead.relative_speed < 0.0 ? lead.gap / -lead.relative_speed : NO_TTC;
+        lead.lateral_offset = -best_motion.lateral - e->y;
+    }
+    return lead;
+}
+
+/* FollowDriver.decide: a decision of Gipps' law from the lead-vehicle signals; whether it changes the pedals now. */
+static int follow_decide(const View *view, double *d, const Ego *e) {
+    Lead lead = lead_of(view, d, e, e->time);
+    int changed;
+    if (lead.present) {
+        d[D_FOLLOW_LIMITED] = 1.0;
+        d[D_FOLLOW_ALLOWED] = safe_speed(e->v, lead.gap, lead.speed);
+        d[D_FOLLOW_ACCELERATION] = (safe_speed(e->v, lead.gap, lead.speed) - e->v) / REACTION_TIME;
+    } else {
+        d[D_FOLLOW_LIMITED] = 0.0;
+        d[D_FOLLOW_ALLOWED] = 0.0;
+        d[D_FOLLOW_ACCELERATION] = 0.0;
+    }
+    changed = d[D_FOLLOW_LIMITING] != 0.0 ||
+              (lead.present && driver_demand(view, d, e) > d[D_FOLLOW_ACCELERATION] + resistance(view, e->v));
+    return changed;
 }
 
 /* Inputs.sample_driver: integrate over the period (none at the start), new steer and, unless BRK holds them, new
@@ -781,8 +887,42 @@ static void predict(const Prediction *pr, double time, Ego *b) {
 
 static double time_tolerance(double t) { return 1e-9 * (fabs(t) > 1.0 ? fabs(t) : 1.0); }
 
+/* ---- the sample clocks (clocks.py): the driver every driver_period, the follow driver's decisions every
+ * REACTION_TIME, each at k x its period from the start ---------------------------------------------------------- */
+
+static double clock_instant(const View *view, double k, double period) {
+    return view->p[HIDDEN_START_TIME] + k * period;
+}
+
+/* SampleClocks.earliest: the next instant any clock samples at. */
 static double sample_time(const View *view, const double *d) {
-    return view->p[HIDDEN_START_TIME] + d[D_SAMPLE] * PARAMETER(view, DRIVER_PERIOD);
+    double driver = clock_instant(view, d[D_SAMPLE], PARAMETER(view, DRIVER_PERIOD)), follow;
+    if (!following(view)) return driver;
+    follow = clock_instant(view, d[D_FOLLOW_K], REACTION_TIME);
+    return follow < driver ? follow : driver;
+}
+
+/* SampleClocks.due at the clocks' instant `nominal` (>= the earliest) and Inputs.sample, with the ego at it: every
+ * clock due within MERGE samples once and moves past it; the follow driver decides first, then the driver samples
+ * (a decision that changes the pedals acts at once between driver samples). */
+static void sample_clocks(const View *view, double *d, const Ego *e, double nominal) {
+    double limit = nominal + MERGE, period = PARAMETER(view, DRIVER_PERIOD), k;
+    int changed = 0, driver_due = clock_instant(view, d[D_SAMPLE], period) <= limit;
+    if (following(view) && clock_instant(view, d[D_FOLLOW_K], REACTION_TIME) <= limit) {
+        for (k = d[D_FOLLOW_K] + 1; clock_instant(view, k, REACTION_TIME) <= limit; k += 1.0) continue;
+        d[D_FOLLOW_K] = k;
+        changed = follow_decide(view, d, e);
+    }
+    if (driver_due) {
+        for (k = d[D_SAMPLE] + 1; clock_instant(view, k, period) <= limit; k += 1.0) continue;
+        d[D_SAMPLE] = k;
+        sample_driver(view, d, e, 1);
+    } else if (changed && d[D_BRK_ACTIVE] == 0.0) {
+        double throttle, brake;
+        driver_pedals(view, d, e, &throttle, &brake);
+        d[D_THROTTLE] = throttle;
+        d[D_BRAKE] = brake;
+    }
 }
 
 static void warn_bounds(const View *view, double *d, const Ego *e, const Logger *log) {
@@ -797,15 +937,12 @@ static void warn_bounds(const View *view, double *d, const Ego *e, const Logger 
                      e->time, e->yaw_rate, hypot(e->ax, e->ay), r, a);
 }
 
-/* After what fired at an instant: the run's end by time, the driver's sample, BRK's pedals, the time limit
- * (Cosimulation.run's order). */
-static void after_instant(const View *view, double *d, const Ego *e, int sample, const Logger *log) {
+/* After what fired at an instant: the run's end by time, the samples due (`nominal`: the clocks' instant, or a
+ * negative number for none), BRK's pedals, the time limit (Cosimulation.run's order). */
+static void after_instant(const View *view, double *d, const Ego *e, double nominal, const Logger *log) {
     double until = PARAMETER(view, UNTIL_TIME);
     if (d[D_FINISHED] == 0.0 && until > 0.0 && e->time >= until) finish(view, d, e, END_UNTIL_TIME, log);
-    if (sample) {
-        sample_driver(view, d, e, 1);
-        d[D_SAMPLE] += 1.0;
-    }
+    if (nominal >= 0.0) sample_clocks(view, d, e, nominal);
     apply_brake_hold(view, d);
     if (d[D_FINISHED] == 0.0 && e->time >= MAX_TIME) finish(view, d, e, END_TIME_LIMIT, log);
 }
@@ -821,8 +958,10 @@ void scenario_begin(const View *view, const double *u, double *d, const Logger *
     d[D_MEMORY + MEM_PSI] = u[U_EGO_PSI];
     d[D_MEMORY + MEM_S] = PARAMETER(view, EGO_S_CONNECTED) != 0.0 ? u[U_EGO_S] : 0.0;
     d[D_MEMORY + MEM_YAW_RATE] = 0.0;
+    d[D_FOLLOW_K] = 1.0;
     ego_from_inputs(view, u, d + D_MEMORY, t0, &e);
     fire_due(view, d, &e, log);
+    if (following(view)) follow_decide(view, d, &e); /* the first samples (k = 0): no integration */
     sample_driver(view, d, &e, 0);
     apply_brake_hold(view, d);
     ego_store(d + D_EGO, &e);
@@ -833,13 +972,10 @@ void scenario_begin(const View *view, const double *u, double *d, const Logger *
  * evaluates its samples; every driver sample due by t (k * driver_period <= t) is taken there. */
 static void step_at_points(const View *view, const double *u, double *d, double t, double h, const Logger *log) {
     Ego e;
-    int sampling;
     ego_from_inputs(view, u, d + D_MEMORY, t, &e);
     if (d[D_FINISHED] == 0.0) fire_due(view, d, &e, log);
-    do { /* at the first communication point at or after the sample's instant, as the run samples */
-        sampling = sample_time(view, d) <= t;
-        after_instant(view, d, &e, sampling, log);
-    } while (sampling);
+    /* the samples due at the first communication point at or after their instant, as the run takes them */
+    after_instant(view, d, &e, sample_time(view, d) <= t ? t : -1.0, log);
     ego_store(d + D_EGO, &e);
     d[D_TIME] = t + h;
 }
@@ -899,7 +1035,7 @@ static int step_predicted(const View *view, const double *u, double *d, double t
         tau = probe;
         predict(&pr, tau, &b);
         if (fired) fire_due(view, d, &b, log);
-        after_instant(view, d, &b, tau >= sample_at, log);
+        after_instant(view, d, &b, tau >= sample_at ? next : -1.0, log);
         if (++probes > MAX_PROBES_PER_STEP) {
             if (log != NULL && log->instance != NULL)
                 instance_log(log->instance, STATUS_ERROR, "logStatusError",
@@ -972,13 +1108,33 @@ static double surface_value(const View *view, int lane, double station, double d
     return low > 0 ? view->data[(size_t)record[SL_VALUES] + (size_t)(low - 1)] : default_value;
 }
 
-static double arbitrate(int mode, double driver, double request, int magnitude) {
-    if (mode == ARBITRATION_OVERRIDE) return request;
-    if (mode == ARBITRATION_MAX) {
-        if (magnitude) return fabs(request) > fabs(driver) ? request : driver;
-        return request > driver ? request : driver;
+static double pedal(double value) { return value < 0.0 ? 0.0 : value > 1.0 ? 1.0 : value; }
+
+/* arbitration.arbitrate: the commands from the driver's (or BRK's) and the controller's requests, per channel
+ * (driver: the request ignored; override: the request; max: the larger, pedals only). The brake request is the larger
+ * of the brake pedal and the deceleration / brake_decel_max; while it counts and is above zero the throttle is 0. */
+static void arbitrate(const View *view, const double *u, double *throttle, double *brake, double *steer) {
+    int rule = (int)PARAMETER(view, ARBITRATION_BRAKE);
+    double wanted = 0.0;
+    int counted = 0;
+    if (!(u[U_REQUEST_ACTIVE] > 0.5)) return;
+    if (rule != ARBITRATION_DRIVER) {
+        double from_deceleration = u[U_REQUEST_DECELERATION] / PARAMETER(view, EGO_BRAKE_DECEL_MAX), value;
+        wanted = from_deceleration > u[U_REQUEST_BRAKE] ? from_deceleration : u[U_REQUEST_BRAKE];
+        counted = 1;
+        value = pedal(wanted);
+        if (rule == ARBITRATION_OVERRIDE || value > *brake) *brake = value;
     }
-    return driver;
+    rule = (int)PARAMETER(view, ARBITRATION_THROTTLE);
+    if (rule != ARBITRATION_DRIVER) {
+        double value = pedal(u[U_REQUEST_THROTTLE]);
+        if (rule == ARBITRATION_OVERRIDE || value > *throttle) *throttle = value;
+    }
+    if (counted && wanted > 0.0) *throttle = 0.0;
+    if ((int)PARAMETER(view, ARBITRATION_STEER) == ARBITRATION_OVERRIDE) {
+        double value = u[U_REQUEST_STEER];
+        *steer = value < -MAX_STEER ? -MAX_STEER : value > MAX_STEER ? MAX_STEER : value;
+    }
 }
 
 #define PI 3.14159265358979323846
@@ -986,11 +1142,10 @@ static double arbitrate(int mode, double driver, double request, int magnitude) 
 void scenario_outputs(const View *view, const double *u, const double *d, double *y) {
     Ego e;
     double time = d[D_TIME], cos_psi, sin_psi, throttle, brake, steer, mu[4];
-    double ego_length = PARAMETER(view, EGO_LENGTH), ego_width = PARAMETER(view, EGO_WIDTH);
     double front = PARAMETER(view, EGO_CG_TO_FRONT_AXLE), rear = PARAMETER(view, EGO_CG_TO_REAR_AXLE);
     double half_front = PARAMETER(view, EGO_TRACK_FRONT) / 2, half_rear = PARAMETER(view, EGO_TRACK_REAR) / 2;
     double along_wheel[4], left_wheel[4];
-    int i, n = (int)d[D_SPAWNED], w, best = -1;
+    int i, w;
     if (PARAMETER(view, TRIGGER_PREDICTION) != 0.0)
         ego_load(&e, d + D_EGO, time);
     else
@@ -1003,13 +1158,7 @@ void scenario_outputs(const View *view, const double *u, const double *d, double
     y[Y_DRIVER_THROTTLE] = throttle;
     y[Y_DRIVER_BRAKE] = brake;
     y[Y_DRIVER_STEER] = steer;
-    if (u[U_REQUEST_ACTIVE] > 0.5) {
-        int brake_mode = (int)PARAMETER(view, ARBITRATION_BRAKE);
-        throttle = arbitrate((int)PARAMETER(view, ARBITRATION_THROTTLE), throttle, u[U_REQUEST_THROTTLE], 0);
-        brake = arbitrate(brake_mode, brake, u[U_REQUEST_BRAKE], 0);
-        steer = arbitrate((int)PARAMETER(view, ARBITRATION_STEER), steer, u[U_REQUEST_STEER], 1);
-        if (brake_mode != ARBITRATION_DRIVER && u[U_REQUEST_BRAKE] > 0) throttle = 0.0; /* as BRK does */
-    }
+    arbitrate(view, u, &throttle, &brake, &steer);
     y[Y_THROTTLE] = throttle;
     y[Y_BRAKE] = brake;
     y[Y_STEER] = steer;
@@ -1037,45 +1186,14 @@ void scenario_outputs(const View *view, const double *u, const double *d, double
 
     /* the lead vehicle (signals.lead_vehicle) */
     {
-        double a = ego_length / 2, b = ego_width / 2, c = fabs(cos(e.psi)), s = fabs(sin(e.psi));
-        double along = a * c + b * s, across = a * s + b * c, best_gap = INFINITY;
-        Motion best_motion = {0, 0, 0, 0, 0};
-        for (i = 0; i < n; i++) {
-            const double *vh = vehicle_const(view, d, i), *event = vehicle_event(view, i);
-            Motion m;
-            double dx, dy, gap;
-            if (vh[V_PRESENT] == 0.0) continue;
-            m = motion_of(vh, time);
-            dx = m.station - e.x;
-            if (!(dx > 0.0)) continue;
-            dy = -m.lateral - e.y;
-            if (!(fabs(dy) < across + event[A_WIDTH] / 2)) continue;
-            gap = dx - along - event[A_LENGTH] / 2;
-            if (gap < best_gap) {
-                best = i;
-                best_gap = gap;
-                best_motion = m;
-            }
-        }
-        if (best < 0) {
-            y[Y_LEAD_PRESENT] = 0.0;
-            y[Y_LEAD_ID] = 0.0;
-            y[Y_LEAD_GAP] = NO_GAP;
-            y[Y_LEAD_SPEED] = 0.0;
-            y[Y_LEAD_RELATIVE_SPEED] = 0.0;
-            y[Y_LEAD_TTC] = NO_TTC;
-            y[Y_LEAD_LATERAL_OFFSET] = 0.0;
-        } else {
-            double gap = best_gap > 0.0 ? best_gap : 0.0, speed = -best_motion.speed;
-            double ego_along = e.vx * cos(e.psi) - e.vy * sin(e.psi), relative = speed - ego_along;
-            y[Y_LEAD_PRESENT] = 1.0;
-            y[Y_LEAD_ID] = best + 1;
-            y[Y_LEAD_GAP] = gap;
-            y[Y_LEAD_SPEED] = speed;
-            y[Y_LEAD_RELATIVE_SPEED] = relative;
-            y[Y_LEAD_TTC] = relative < 0.0 ? gap / -relative : NO_TTC;
-            y[Y_LEAD_LATERAL_OFFSET] = -best_motion.lateral - e.y;
-        }
+        Lead lead = lead_of(view, d, &e, time);
+        y[Y_LEAD_PRESENT] = lead.present;
+        y[Y_LEAD_ID] = lead.id;
+        y[Y_LEAD_GAP] = lead.gap;
+        y[Y_LEAD_SPEED] = lead.speed;
+        y[Y_LEAD_RELATIVE_SPEED] = lead.relative_speed;
+        y[Y_LEAD_TTC] = lead.ttc;
+        y[Y_LEAD_LATERAL_OFFSET] = lead.lateral_offset;
     }
 
     y[Y_COLLISIONS] = d[D_COLLISIONS];
@@ -1125,14 +1243,14 @@ int state_check(const View *view, const double *d, char *reason, size_t reason_s
     int i, spawned, active = 0, n = view->n_vehicles;
     const char *bad = NULL;
     if (!flag(d[D_STARTED]) || !flag(d[D_BRK_ACTIVE]) || !flag(d[D_FINISHED]) || !flag(d[D_BOUNDS_WARNED]) ||
-        !flag(d[D_EGO + EGO_STOPPED]))
+        !flag(d[D_EGO + EGO_STOPPED]) || !flag(d[D_FOLLOW_LIMITED]) || !flag(d[D_FOLLOW_LIMITING]))
         bad = "a flag is neither 0 nor 1";
     else if (!whole_in(d[D_NEXT_EVENT], 0, view->n_events))
         bad = "the next event is out of range";
     else if (d[D_BRK_ACTIVE] != 0.0 && (!whole_in(d[D_BRK_EVENT], 0, view->n_events - 1) ||
                                         (int)event_at(view, (int)d[D_BRK_EVENT])[E_CODE] != CODE_BRK))
         bad = "the active BRK is not a BRK event";
-    else if (!whole_in(d[D_SAMPLE], 0, 9007199254740992.0))
+    else if (!whole_in(d[D_SAMPLE], 0, 9007199254740992.0) || !whole_in(d[D_FOLLOW_K], 0, 9007199254740992.0))
         bad = "the driver's sample index is out of range";
     else if (!whole_in(d[D_END_REASON], 0, END_TIME_LIMIT) || !whole_in(d[D_LAST_CODE], 0, CODE_ES) ||
              !whole_in(d[D_LAST_ACTION], 0, ACTION_END))

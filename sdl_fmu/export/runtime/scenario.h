@@ -35,7 +35,16 @@
 #define NO_TTC 1000.0              /* s (cosim/signals.py) */
 #define NO_GAP 1000.0              /* m */
 
-/* the driver (cosim/driver.py) */
+/* the sample clocks (cosim/clocks.py): instants of different clocks closer than this are one instant */
+#define MERGE 1e-9
+/* the drivers (cosim/driver.py, cosim/follow.py) */
+enum { DRIVER_LANE = 1, DRIVER_FOLLOW = 2 };
+#define REACTION_TIME (2.0 / 3.0)
+#define BRAKING 3.4
+#define LEADER_BRAKING 3.2
+#define STANDSTILL_GAP 2.0
+#define HOLD_SPEED 0.1
+#define HOLD_BRAKE 0.3
 #define SPEED_GAIN 1.0
 #define SPEED_INTEGRAL_GAIN 0.2
 #define BRAKE_DEADBAND 0.5
@@ -108,6 +117,11 @@ enum {
     D_EGO,                  /* the ego at D_TIME as the FMU believes it: E_* fields */
     D_MEMORY = D_EGO + 12,  /* the previous communication point, for the inputs that are not connected */
     D_BOUNDS_WARNED = D_MEMORY + 5,
+    D_FOLLOW_K,             /* the follow driver: k of its next decision at k * REACTION_TIME */
+    D_FOLLOW_LIMITED,       /* 1: a vehicle ahead at the last decision (the law's acceleration and speed hold) */
+    D_FOLLOW_ACCELERATION,  /* m/s2, the law's, held since the last decision */
+    D_FOLLOW_ALLOWED,       /* m/s, the law's safe speed at the last decision (with D_FOLLOW_LIMITED) */
+    D_FOLLOW_LIMITING,      /* 1: the law set the last pedals (the lane driver's integral is then held) */
     D_HEADER
 };
 /* an ego state's fields (also the layout of D_EGO) */

@@ -515,6 +515,9 @@ def test_random_call_sequences(demo_fmus, version):
     report = fmi_fuzz.fuzz(demo_fmus[version].path, sequences=1000, seed=20261126, hang_timeout=120.0)
     assert report.sequences == 1000 and report.calls > 10000
     assert report.crashes == [] and report.hangs == [] and report.violations == []
+    # no error the oracle does not predict: the scenario FMU has no numerical failure, and a step that ran to its
+    # budget (a sample never taken at a negative start time did, before the fix) is one
+    assert report.unpredicted == []
     statuses = report.statuses
     assert sum(n for key, n in statuses.items() if key.endswith("DoStep OK")) > 1000
     assert sum(n for key, n in statuses.items() if key.endswith("SetFMUstate OK") or key.endswith("SetFMUState OK"))
@@ -645,3 +648,24 @@ def test_the_documentations_fmpy_example_runs_as_written(version, tmp_path, simp
                                timeout=300)
     assert completed.returncode == 0, completed.stderr[-2000:]
     assert completed.stdout.strip() == "ended at 18.19 s: [4, 1]"
+
+
+@pytest.mark.parametrize("start", [-1.0, 7.3])
+def test_a_start_time_other_than_zero_shifts_the_scenario_in_time(demo_fmus, tmp_path, start):
+    """The clocks count from the start time (driver samples at start + k x driver_period): the same inputs at the
+    same times after the start give the same commands and events (found by the fuzzer: with a negative start time
+    a sample was never taken and the step ran to its budget)."""
+    runs = []
+    for offset in (0.0, start):
+        instance = ScenarioInstance(demo_fmus[2].path, tmp_path / str(offset))
+        instance.initialize({}, {"ego_v": 26.0, "ego_vx": 26.0, "ego_y": -1.8288}, start_time=offset)
+        commands = []
+        for k in range(500):  # 5 s, the speed passing the driver's target (26.8 m/s); no event before 500 ft
+            t, v = offset + k * 0.01, 26.0 + 0.004 * k
+            assert instance.set(ego_x=v * k * 0.01, ego_s=v * k * 0.01, ego_v=v, ego_vx=v) == 0
+            assert instance.step(t, 0.01)[0] == 0, instance.messages[-2:]
+            commands.append((instance.get("throttle"), instance.get("steer")))
+        runs.append(commands)
+        instance.free()
+    assert runs[0] == runs[1]
+    assert len(set(runs[0])) == 101  # the driver sampled at t = start + k x 0.05 s, 100 times, and at the start

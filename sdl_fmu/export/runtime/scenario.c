@@ -29,7 +29,7 @@ static double python_square(double x) {
     return pow(x, two);
 }
 
-/* ---- the data ---------------------------------------------------------------------------------------------- */
+/* ---- the data --------------------------------------------------------------------------------------------------- */
 
 void view_make(View *view, const double *p) {
     const double *data = p + DATA_START;
@@ -106,7 +106,7 @@ static double end_distance(const View *view, int *reason) {
     return view->last_distance + RUNOUT;
 }
 
-/* ---- the ego ------------------------------------------------------------------------------------------------ */
+/* ---- the ego ---------------------------------------------------------------------------------------------------- */
 
 static void ego_store(double *to, const Ego *e) {
     to[EGO_X] = e->x;
@@ -201,7 +201,7 @@ static Kinematics kinematics_of(const Ego *e) {
     return k;
 }
 
-/* ---- traffic motion (traffic.py) ---------------------------------------------------------------------------- */
+/* ---- traffic motion (traffic.py) -------------------------------------------------------------------------------- */
 
 /* motion_at (Traffic.at): (station, lateral, speed) at time t; the transition's end values themselves once done. */
 static void motion_at(const double *vh, double t, double *station, double *lateral, double *speed) {
@@ -248,7 +248,7 @@ static Motion motion_of(const double *vh, double t) {
     return m;
 }
 
-/* ---- triggers (triggers.py) ------------------------------------------------------------------------------------ */
+/* ---- triggers (triggers.py) ------------------------------------------------------------------------------------- */
 
 /* reach_time_scalar: smallest tau >= 0 with rate tau + acceleration tau^2 / 2 >= distance. */
 static double reach_time(double distance, double rate, double acceleration) {
@@ -374,7 +374,7 @@ static double vehicle_horizon(const View *view, const double *d, int i, const Ki
     }
 }
 
-/* ---- BRK (brake.py) ------------------------------------------------------------------------------------------ */
+/* ---- BRK (brake.py) --------------------------------------------------------------------------------------------- */
 
 static int release_reason(const View *view, const double *d, const Ego *e) {
     const double *event = event_at(view, (int)d[D_BRK_EVENT]);
@@ -586,7 +586,7 @@ static void apply_brake_hold(const View *view, double *d) {
     }
 }
 
-/* ---- the log ------------------------------------------------------------------------------------------------------ */
+/* ---- the log ---------------------------------------------------------------------------------------------------- */
 
 static const char *const CODE_NAMES[] = {"", "A", "BRK", "RSA", "ES"};
 static const char *const ACTION_NAMES[] = {"", "spawn", "maneuver", "collision", "despawn", "on", "off", "set", "end"};
@@ -615,7 +615,7 @@ static void log_warning(const Logger *log, const char *message, int line) {
     instance_log(log->instance, STATUS_WARNING, "logStatusWarning", "line %d: %s", line, message);
 }
 
-/* ---- what happens at an instant (master.py) ------------------------------------------------------------------- */
+/* ---- what happens at an instant (master.py) --------------------------------------------------------------------- */
 
 static void release_brakes(const View *view, double *d, const Ego *e, int reason, const Logger *log) {
     char detail[64];
@@ -777,7 +777,7 @@ static void fire_due(const View *view, double *d, const Ego *e, const Logger *lo
     if (e->s >= end_distance(view, &reason)) finish(view, d, e, reason, log);
 }
 
-/* ---- triggers on a state (the prediction's probes) ------------------------------------------------------------- */
+/* ---- triggers on a state (the prediction's probes) -------------------------------------------------------------- */
 
 /* TriggerSchedule.triggered over every kind: whether something is due at this state (all are false after fire_due). */
 static int triggered(const View *view, const double *d, const Ego *e) {
@@ -829,7 +829,7 @@ static double horizon(const View *view, const double *d, const Ego *e) {
     return bound;
 }
 
-/* ---- the belief of the ego's path over a step ----------------------------------------------------------------- */
+/* ---- the belief of the ego's path over a step ------------------------------------------------------------------- */
 
 typedef struct {
     double t, h;               /* the step */
@@ -883,12 +883,12 @@ static void predict(const Prediction *pr, double time, Ego *b) {
     b->stopped = pr->stopped_connected ? e->stopped : fabs(b->v) < STOPPED_SPEED;
 }
 
-/* ---- the steps ---------------------------------------------------------------------------------------------------- */
+/* ---- the steps -------------------------------------------------------------------------------------------------- */
 
 static double time_tolerance(double t) { return 1e-9 * (fabs(t) > 1.0 ? fabs(t) : 1.0); }
 
 /* ---- the sample clocks (clocks.py): the driver every driver_period, the follow driver's decisions every
- * REACTION_TIME, each at k x its period from the start ---------------------------------------------------------- */
+ * REACTION_TIME, each at k x its period from the start  */
 
 static double clock_instant(const View *view, double k, double period) {
     return view->p[HIDDEN_START_TIME] + k * period;
@@ -937,12 +937,13 @@ static void warn_bounds(const View *view, double *d, const Ego *e, const Logger 
                      e->time, e->yaw_rate, hypot(e->ax, e->ay), r, a);
 }
 
-/* After what fired at an instant: the run's end by time, the samples due (`nominal`: the clocks' instant, or a
- * negative number for none), BRK's pedals, the time limit (Cosimulation.run's order). */
-static void after_instant(const View *view, double *d, const Ego *e, double nominal, const Logger *log) {
+/* After what fired at an instant: the run's end by time, the samples due (with `sampling`, at the clocks' instant
+ * `nominal`), BRK's pedals, the time limit (Cosimulation.run's order). */
+static void after_instant(const View *view, double *d, const Ego *e, int sampling, double nominal,
+                          const Logger *log) {
     double until = PARAMETER(view, UNTIL_TIME);
     if (d[D_FINISHED] == 0.0 && until > 0.0 && e->time >= until) finish(view, d, e, END_UNTIL_TIME, log);
-    if (nominal >= 0.0) sample_clocks(view, d, e, nominal);
+    if (sampling) sample_clocks(view, d, e, nominal);
     apply_brake_hold(view, d);
     if (d[D_FINISHED] == 0.0 && e->time >= MAX_TIME) finish(view, d, e, END_TIME_LIMIT, log);
 }
@@ -975,7 +976,7 @@ static void step_at_points(const View *view, const double *u, double *d, double 
     ego_from_inputs(view, u, d + D_MEMORY, t, &e);
     if (d[D_FINISHED] == 0.0) fire_due(view, d, &e, log);
     /* the samples due at the first communication point at or after their instant, as the run takes them */
-    after_instant(view, d, &e, sample_time(view, d) <= t ? t : -1.0, log);
+    after_instant(view, d, &e, sample_time(view, d) <= t, t, log);
     ego_store(d + D_EGO, &e);
     d[D_TIME] = t + h;
 }
@@ -1035,7 +1036,7 @@ static int step_predicted(const View *view, const double *u, double *d, double t
         tau = probe;
         predict(&pr, tau, &b);
         if (fired) fire_due(view, d, &b, log);
-        after_instant(view, d, &b, tau >= sample_at ? next : -1.0, log);
+        after_instant(view, d, &b, tau >= sample_at, next, log);
         if (++probes > MAX_PROBES_PER_STEP) {
             if (log != NULL && log->instance != NULL)
                 instance_log(log->instance, STATUS_ERROR, "logStatusError",
@@ -1077,7 +1078,7 @@ int scenario_check_step(const View *view, double h, char *reason, size_t reason_
     return 0;
 }
 
-/* ---- outputs -------------------------------------------------------------------------------------------------------- */
+/* ---- outputs ---------------------------------------------------------------------------------------------------- */
 
 /* Road.lane_at: the lane under a lateral position (+ right); beyond the outer lanes the shoulder. */
 static int lane_at(const View *view, double lateral) {

@@ -584,7 +584,8 @@ static int parse_pass(Reader *r, Parsed *parsed, const Layout *layout, void *(*a
                     parsed->lane_settings[index]++;
                     parsed->settings++;
                 } else {
-                    size_t surface_record = layout->surfaces + (size_t)data[layout->lane_index + (size_t)index] * SL_SIZE;
+                    size_t surface_record =
+                        layout->surfaces + (size_t)data[layout->lane_index + (size_t)index] * SL_SIZE;
                     size_t place = (size_t)parsed->lane_filled[index]++;
                     data[(size_t)data[surface_record + SL_STARTS] + place] = distance;
                     data[(size_t)data[surface_record + SL_VALUES] + place] = surface;

@@ -145,7 +145,8 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     (void)requiredIntermediateVariables;
     (void)intermediateUpdate;
     if (!instanceName || !instanceName[0]) {
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3Instantiate: missing instance name");
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3Instantiate: missing instance name");
         return NULL;
     }
     if (eventModeUsed) {

@@ -669,3 +669,33 @@ def test_a_start_time_other_than_zero_shifts_the_scenario_in_time(demo_fmus, tmp
         instance.free()
     assert runs[0] == runs[1]
     assert len(set(runs[0])) == 101  # the driver sampled at t = start + k x 0.05 s, 100 times, and at the start
+
+
+def braking_target(tmp_path):
+    """A Scenario made in Python, as the vehicle test packs make them: a car 40 m ahead in the ego's lane, moving its
+    way at 20 m/s and braking to rest over 5 s from its spawn (an `initial` transition, which SDL text cannot give)."""
+    import dataclasses
+
+    from sdl_fmu.sdl.events import Action, ApproachingVehicle, ClosureTrigger, ModelChoice, Relative
+
+    base = api.load("head_on")
+    target = ApproachingVehicle(line=1, distance=0.0, speed=Relative(-20.0, False), gap=40.0,
+                                lateral=Relative(0.0, True), model=ModelChoice(1, 1), actions=(),
+                                initial=Action(ClosureTrigger(1.0, None), Relative(0.0, True), Relative(0.0, False),
+                                               5.0))
+    return dataclasses.replace(base, path=str(tmp_path / "braking_target"), events=(target,), end_distance=None)
+
+
+@pytest.mark.parametrize("driver, on_collision", [("follow", "continue"), ("lane", "stop")])
+def test_a_scenario_made_in_python_with_an_initial_transition_replays_bit_for_bit(driver, on_collision, tmp_path,
+                                                                                 simple_model):
+    """The follow driver stops behind the braking car; the lane driver hits it and, with on_collision stop, the run
+    ends there (end_reason 6)."""
+    scenario = braking_target(tmp_path)
+    result = api.run(scenario, until_time=20.0, driver=driver, on_collision=on_collision)
+    fmu = write_scenario_fmu(scenario, tmp_path / "target.fmu", ego=simple_model, until_time=20.0, driver=driver,
+                             on_collision=on_collision)
+    assert replay(result, fmu.path, tmp_path / "replayed", simple_model.length, simple_model.width) == []
+    assert result.collisions == (1 if driver == "lane" else 0)
+    last = list(result.events)[-1]
+    assert last["code"] == "ES" and last["reason"] == ("collision" if on_collision == "stop" else "until_time")

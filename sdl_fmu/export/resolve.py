@@ -67,8 +67,13 @@ def _event_line(event, model: int | None) -> str:
         actions = "".join(f" {_hex(a.trigger.seconds)} {WHERE[a.trigger.where]} {_hex(a.lateral.value)} "
                           f"{_flag(a.lateral.relative)} {_hex(a.speed.value)} {_flag(a.speed.relative)} "
                           f"{_hex(a.duration)}" for a in event.actions)
+        initial = event.initial
+        start = "0" if initial is None else (f"1 {_hex(initial.lateral.value)} {_flag(initial.lateral.relative)} "
+                                             f"{_hex(initial.speed.value)} {_flag(initial.speed.relative)} "
+                                             f"{_hex(initial.duration)}")
         return (f"A {head} {_hex(event.speed.value)} {_flag(event.speed.relative)} {_hex(event.gap)} "
-                f"{_hex(event.lateral.value)} {_flag(event.lateral.relative)} {model} {len(event.actions)}{actions}"
+                f"{_hex(event.lateral.value)} {_flag(event.lateral.relative)} {model} {start} "
+                f"{len(event.actions)}{actions}"
                 f"  # {event.distance:.6g} m: speed {'*' * event.speed.relative}{event.speed.value:.6g} m/s, "
                 f"gap {event.gap:.6g} m, lateral {'*' * event.lateral.relative}{event.lateral.value:.6g} m, "
                 f"model {model}, {len(event.actions)} action(s)")
@@ -128,6 +133,7 @@ def end_distance(scenario: Scenario, until_distance: float | None, until_time: f
 
 def parameter_starts(scenario: Scenario, ego, *, speed: float | None, until_distance: float | None,
                      until_time: float | None, driver_period: float | None, driver: str = "lane",
+                     on_collision: str = "continue",
                      arbitration: dict[str, str] | None = None) -> dict[str, float | int | bool]:
     """The start values of the scenario FMU's parameters: the options as `sdl-fmu run` takes them (SI), the ego's
     properties from its EgoModel, and the trigger bounds `sdl-fmu run` derives for it (Cosimulation.__init__)."""
@@ -140,7 +146,7 @@ def parameter_starts(scenario: Scenario, ego, *, speed: float | None, until_dist
         "speed": speed, "until_distance": 0.0 if until_distance is None else float(until_distance),
         "until_time": 0.0 if until_time is None else float(until_time),
         "driver_period": DEFAULT_DRIVER_PERIOD if driver_period is None else float(driver_period),
-        "driver": DRIVERS[driver], "trigger_prediction": True,
+        "driver": DRIVERS[driver], "trigger_prediction": True, "on_collision_stop": on_collision == "stop",
         "ego_length": ego.length, "ego_width": ego.width, "ego_cg_to_front_axle": ego.cg_to_front,
         "ego_cg_to_rear_axle": ego.cg_to_rear, "ego_track_front": ego.track_front, "ego_track_rear": ego.track_rear,
         "ego_mass": ego.mass, "ego_drive_accel_max": ego.drive_accel_max, "ego_drive_power_max": ego.drive_power_max,

@@ -81,11 +81,11 @@ def _check_starts(interface, starts: dict) -> None:
 def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, fmi_version: FmiVersion = 2,
                        speed: float | None = None, seed: int = 1, until_distance: float | None = None,
                        until_time: float | None = None, driver_period: float | None = None, driver: str = "lane",
-                       step: float = 0.01, traffic_slots: int | None = None, arbitration: dict[str, str] | None = None,
+                       on_collision: str = "continue", step: float = 0.01, traffic_slots: int | None = None, arbitration: dict[str, str] | None = None,
                        vehicle_table: dict[int, VehicleModel] | None = None) -> ScenarioFmu:
     """Writes the scenario FMU of `scenario` (a loaded Scenario) for the ego vehicle `ego` (an EgoModel) to
     `out_path`. Options in SI as `sdl-fmu run` takes them after conversion (speed m/s, until_distance m,
-    until_time s, driver_period s), `driver` "lane" or "follow", `arbitration` the controller map's rules per channel
+    until_time s, driver_period s), `driver` "lane" or "follow", `on_collision` "continue" or "stop", `arbitration` the controller map's rules per channel
     ("driver", "override", "max"; a channel the controller does not request: "driver"); `step` is only the
     DefaultExperiment's stepSize. Raises ScenarioFmuError (one
     line) for values the FMU cannot take; building the generic binary the first time raises BuildError without a C
@@ -94,6 +94,8 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
         raise ScenarioFmuError(f"fmi_version {fmi_version!r}: choose 2 or 3")
     if driver not in DRIVERS:
         raise ScenarioFmuError(f"driver {driver!r}: choose one of {', '.join(DRIVERS)}")
+    if on_collision not in ("continue", "stop"):
+        raise ScenarioFmuError(f"on_collision {on_collision!r}: choose continue or stop")
     for channel, rule in (arbitration or {}).items():
         if channel not in ("throttle", "brake", "steer") or rule not in ARBITRATION:
             raise ScenarioFmuError(f"arbitration {channel} = {rule!r}: the channels are throttle, brake, steer and the "
@@ -103,7 +105,8 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
         raise ScenarioFmuError(f"traffic_slots {traffic_slots}: must be from 0 to {MAX_SLOTS}")
     table = vehicle_table if vehicle_table is not None else load_vehicle_table(default_vehicle_table_path())
     starts = parameter_starts(scenario, ego, speed=speed, until_distance=until_distance, until_time=until_time,
-                              driver_period=driver_period, driver=driver, arbitration=arbitration)
+                              driver_period=driver_period, driver=driver, on_collision=on_collision,
+                              arbitration=arbitration)
     interface = scenario_interface(slots, starts)
     _check_starts(interface, starts)
     salt = f"{binary_key(fmi_version)} {INTERFACE_FILE.read_text(encoding='utf-8')} slots {slots}"

@@ -591,7 +591,8 @@ static void apply_brake_hold(const View *view, double *d) {
 static const char *const CODE_NAMES[] = {"", "A", "BRK", "RSA", "ES"};
 static const char *const ACTION_NAMES[] = {"", "spawn", "maneuver", "collision", "despawn", "on", "off", "set", "end"};
 static const char *const REASON_NAMES[] = {"", "time", "distance", "velocity", "relative_velocity", "stopped", "end"};
-static const char *const END_NAMES[] = {"", "scenario", "until_distance", "until_time", "runout", "time_limit"};
+static const char *const END_NAMES[] = {"", "scenario", "until_distance", "until_time", "runout", "time_limit",
+                                        "collision"};
 static const char *const THRESHOLD_NAMES[] = {"time", "distance", "velocity", "relative_velocity"};
 
 /* One entry of summary.json's events: counted, shown in the last_event_* outputs, logged (category logEvents). */
@@ -647,9 +648,17 @@ static void spawn(const View *view, double *d, const Ego *e, const double *event
     lateral = resolve(event[A_LATERAL], event[A_LATERAL_RELATIVE], -e->y);
     vh[V_T0] = e->time;
     vh[V_STATION0] = e->x + event[A_GAP];
-    vh[V_DURATION] = 0.0;
-    vh[V_LATERAL0] = vh[V_LATERAL1] = lateral;
-    vh[V_SPEED0] = vh[V_SPEED1] = speed;
+    vh[V_LATERAL0] = lateral;
+    vh[V_SPEED0] = speed;
+    if (event[A_INITIAL] != 0.0) { /* _initial_transition: a transition from the spawn */
+        vh[V_LATERAL1] = resolve(event[A_INITIAL_LATERAL], event[A_INITIAL_LATERAL_RELATIVE], -e->y);
+        vh[V_SPEED1] = resolve(event[A_INITIAL_SPEED], event[A_INITIAL_SPEED_RELATIVE], e->v);
+        vh[V_DURATION] = event[A_INITIAL_DURATION];
+    } else {
+        vh[V_LATERAL1] = lateral;
+        vh[V_SPEED1] = speed;
+        vh[V_DURATION] = 0.0;
+    }
     vh[V_NEXT_ACTION] = 0.0;
     vh[V_IN_CONTACT] = 0.0;
     vh[V_PRESENT] = 1.0;
@@ -723,7 +732,7 @@ static void start_action(const View *view, double *d, int i, const Ego *e) {
  * departures, each in the order of the vehicles' ids. */
 static void fire_traffic(const View *view, double *d, const Ego *e, const Logger *log) {
     Kinematics kin = kinematics_of(e);
-    int n = (int)d[D_SPAWNED], i;
+    int n = (int)d[D_SPAWNED], i, contacts = 0;
     char detail[64];
     for (i = 0; i < n; i++) {
         double *vh = vehicle(view, d, i);
@@ -743,12 +752,14 @@ static void fire_traffic(const View *view, double *d, const Ego *e, const Logger
         c = vehicle_condition(view, d, i, &kin);
         if (c.overlap && vh[V_IN_CONTACT] == 0.0) {
             d[D_COLLISIONS] += 1.0;
+            contacts++;
             snprintf(detail, sizeof(detail), "vehicle %d", i + 1);
             log_event(d, log, e, CODE_A, ACTION_COLLISION, i + 1, (int)vehicle_event(view, i)[E_LINE], detail);
         }
         vh[V_IN_CONTACT] = c.overlap ? 1.0 : 0.0;
         if (c.away && !c.overlap) vh[V_PRESENT] = 2.0;
     }
+    if (contacts > 0 && PARAMETER(view, ON_COLLISION_STOP) != 0.0) finish(view, d, e, END_COLLISION, log);
     for (i = 0; i < n; i++) { /* Traffic.remove: off the road, its slot freed */
         double *vh = vehicle(view, d, i);
         if (vh[V_PRESENT] != 2.0) continue;
@@ -1253,7 +1264,7 @@ int state_check(const View *view, const double *d, char *reason, size_t reason_s
         bad = "the active BRK is not a BRK event";
     else if (!whole_in(d[D_SAMPLE], 0, 9007199254740992.0) || !whole_in(d[D_FOLLOW_K], 0, 9007199254740992.0))
         bad = "the driver's sample index is out of range";
-    else if (!whole_in(d[D_END_REASON], 0, END_TIME_LIMIT) || !whole_in(d[D_LAST_CODE], 0, CODE_ES) ||
+    else if (!whole_in(d[D_END_REASON], 0, END_COLLISION) || !whole_in(d[D_LAST_CODE], 0, CODE_ES) ||
              !whole_in(d[D_LAST_ACTION], 0, ACTION_END))
         bad = "a code is out of range";
     else if (!whole_in(d[D_COLLISIONS], 0, 2147483647.0) || !whole_in(d[D_EVENTS], 0, 2147483647.0) ||

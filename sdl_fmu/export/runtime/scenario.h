@@ -66,7 +66,7 @@ enum { THRESHOLD_TIME = 0, THRESHOLD_DISTANCE = 1, THRESHOLD_VELOCITY = 2, THRES
 enum { REASON_NONE = 0, REASON_TIME, REASON_DISTANCE, REASON_VELOCITY, REASON_RELATIVE_VELOCITY, REASON_STOPPED,
        REASON_END };
 /* why the run ended (end_reason) */
-enum { END_NONE = 0, END_SCENARIO, END_UNTIL_DISTANCE, END_UNTIL_TIME, END_RUNOUT, END_TIME_LIMIT };
+enum { END_NONE = 0, END_SCENARIO, END_UNTIL_DISTANCE, END_UNTIL_TIME, END_RUNOUT, END_TIME_LIMIT, END_COLLISION };
 /* where a closure-time action may fire: either side, F (vehicle in front), B (behind) */
 enum { WHERE_ANY = 0, WHERE_FRONT = 1, WHERE_BEHIND = 2 };
 /* arbitration of a channel while request_active */
@@ -85,9 +85,10 @@ enum {
 #define LANE_INDEX_SIZE (2 * RIGHT_SHOULDER + 1) /* lanes -101..101 */
 /* an event record: [code, line, distance, payload...] */
 enum { E_CODE, E_LINE, E_DISTANCE, E_PAYLOAD };
-/* A payload */
+/* A payload; the initial transition (a Scenario made in Python may start one at the spawn) */
 enum { A_SPEED = E_PAYLOAD, A_SPEED_RELATIVE, A_GAP, A_LATERAL, A_LATERAL_RELATIVE, A_MODEL, A_LENGTH, A_WIDTH,
-       A_N_ACTIONS, A_ACTIONS };
+       A_INITIAL, A_INITIAL_LATERAL, A_INITIAL_LATERAL_RELATIVE, A_INITIAL_SPEED, A_INITIAL_SPEED_RELATIVE,
+       A_INITIAL_DURATION, A_N_ACTIONS, A_ACTIONS };
 /* an action record inside it */
 enum { ACT_SECONDS, ACT_WHERE, ACT_LATERAL, ACT_LATERAL_RELATIVE, ACT_SPEED, ACT_SPEED_RELATIVE, ACT_DURATION,
        ACT_SIZE };

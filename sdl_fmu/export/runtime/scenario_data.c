@@ -17,8 +17,9 @@
  *   parameter <name> <start value>                           (the FMU's parameters' start values; 0/1 Booleans)
  *   vehicle <model> <length> <width> <name...>              (the vehicle table rows the A events use)
  *   events <n>
- *   A <line> <distance> <speed> <*> <gap> <lateral> <*> <model> <n actions> [<closure s> <where 0/1(F)/2(B)>
- *     <lateral> <*> <speed> <*> <duration>] x n                (<*>: 1 relative to the ego's value, else 0)
+ *   A <line> <distance> <speed> <*> <gap> <lateral> <*> <model> <initial: 0 | 1 <lateral> <*> <speed> <*>
+ *     <duration>> <n actions> [<closure s> <where 0/1(F)/2(B)> <lateral> <*> <speed> <*> <duration>] x n
+ *     (<*>: 1 relative to the ego's value, else 0; initial: a transition from the spawn, which SDL text cannot give)
  *   BRK <line> <distance> <pedal 0..1> <threshold 0..3> <magnitude>
  *   RSA <line> <distance> <n> [<lane> <value>] x n
  *   ES <line> <distance>
@@ -520,8 +521,16 @@ static int parse_pass(Reader *r, Parsed *parsed, const Layout *layout, void *(*a
                 !read_real(r, "lateral", -MAX_LENGTH, MAX_LENGTH, &a[A_LATERAL]) ||
                 !read_whole(r, "lateral relative", 0, 1, &a[A_LATERAL_RELATIVE]) ||
                 !read_whole(r, "model", 1, MAX_MODEL_NUMBER, &a[A_MODEL]) ||
-                !read_whole(r, "actions", 0, MAX_ACTIONS, &a[A_N_ACTIONS]))
+                !read_whole(r, "initial", 0, 1, &a[A_INITIAL]))
                 break;
+            if (a[A_INITIAL] != 0.0 &&
+                (!read_real(r, "initial lateral", -MAX_LENGTH, MAX_LENGTH, &a[A_INITIAL_LATERAL]) ||
+                 !read_whole(r, "initial lateral relative", 0, 1, &a[A_INITIAL_LATERAL_RELATIVE]) ||
+                 !read_real(r, "initial speed", -MAX_SPEED, MAX_SPEED, &a[A_INITIAL_SPEED]) ||
+                 !read_whole(r, "initial speed relative", 0, 1, &a[A_INITIAL_SPEED_RELATIVE]) ||
+                 !read_real(r, "initial duration", 0.0, MAX_DURATION, &a[A_INITIAL_DURATION])))
+                break;
+            if (!read_whole(r, "actions", 0, MAX_ACTIONS, &a[A_N_ACTIONS])) break;
             if ((model = find_model(parsed, a[A_MODEL])) < 0) {
                 fail(r, "model %.0f is not in the vehicle table", a[A_MODEL]);
                 break;

@@ -1,6 +1,7 @@
 """Imports flow one way: the output stage (the package sdl_fmu/results/: the record, the files, the plot, the results
-folder, the storage) never imports the run stage (sdl_fmu/cosim/), the low modules (paths, lazy_sequence, and the
-output stage's storage) import nothing of the package but each other (storage's EventLog is a
+folder, the storage) never imports the run stage (sdl_fmu/cosim/, sdl_fmu/vehicle/), the run side's vehicle
+(vehicle/) never imports the build side (dynamics/, fmu/), the low modules (paths, units, names, options, tire_files,
+results/storage, lazy_sequence) import nothing of the package but each other (storage's EventLog is a
 lazy_sequence.LazySequence), and no module of the package imports itself through a circle.
 
 Read from the source with `ast`, so every import counts: at the top, inside a function, under TYPE_CHECKING."""
@@ -11,9 +12,11 @@ from pathlib import Path
 import sdl_fmu
 
 PACKAGE = Path(sdl_fmu.__file__).parent
-OUTPUT_STAGE = "sdl_fmu.results"
-LOW = ("sdl_fmu.paths", "sdl_fmu.results.storage", "sdl_fmu.lazy_sequence")
-RUN_STAGE = "sdl_fmu.cosim"
+OUTPUT_STAGE = ("sdl_fmu.results",)
+LOW = ("sdl_fmu.paths", "sdl_fmu.units", "sdl_fmu.names", "sdl_fmu.options", "sdl_fmu.tire_files",
+       "sdl_fmu.results.storage", "sdl_fmu.lazy_sequence")
+RUN_STAGE = ("sdl_fmu.cosim", "sdl_fmu.vehicle")
+BUILD_SIDE = ("sdl_fmu.dynamics", "sdl_fmu.fmu")
 
 
 def modules(package: Path) -> dict[str, Path]:
@@ -93,12 +96,25 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def inside(module: str, packages: tuple[str, ...]) -> bool:
+    return any(module == package or module.startswith(package + ".") for package in packages)
+
+
 def test_the_output_stage_never_imports_the_run_stage():
     graph = import_graph(PACKAGE)
-    output = [m for m in graph if m == OUTPUT_STAGE or m.startswith(OUTPUT_STAGE + ".")]
-    assert {f"{OUTPUT_STAGE}.{name}" for name in ("record", "files", "plots", "folder", "storage")} <= set(output)
+    output = [module for module in graph if inside(module, OUTPUT_STAGE)]
+    assert {f"sdl_fmu.results.{name}" for name in ("record", "files", "plots", "folder", "storage")} <= set(output)
     for module in output:
-        assert not [m for m in reached(graph, module) if m == RUN_STAGE or m.startswith(RUN_STAGE + ".")], module
+        assert not [m for m in reached(graph, module) if inside(m, RUN_STAGE)], module
+
+
+def test_the_vehicle_never_imports_the_build_side():
+    # building a shipped model's FMU on first use lives above both (sdl_fmu/shipped.py)
+    graph = import_graph(PACKAGE)
+    vehicle = [module for module in graph if inside(module, ("sdl_fmu.vehicle",))]
+    assert len(vehicle) >= 4
+    for module in vehicle:
+        assert not [m for m in reached(graph, module) if inside(m, BUILD_SIDE)], module
 
 
 def test_the_low_modules_import_nothing_of_the_package_but_each_other():

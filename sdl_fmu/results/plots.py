@@ -21,8 +21,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
+from ..names import WHEELS
 from ..units import from_si, length_label, speed_label
-from ..vehicle.model import WHEELS
 from . import scenario_units
 
 if TYPE_CHECKING:

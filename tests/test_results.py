@@ -200,12 +200,95 @@ def test_plot_png_is_written(tmp_path, dynamics, collision):
     assert (out / "plot.png").read_bytes()[:8] == PNG_SIGNATURE
 
 
-def test_event_labels_do_not_overlap():
-    events = [{"code": "A", "action": "spawn", "vehicle": 1, "time_s": t} for t in (0.0, 0.1, 0.2, 5.0, 9.99)]
-    placed = plots._label_rows(events, 0.0, 10.0, axis_px=700)
-    rows = [row for _, row, _ in placed]
-    assert rows[:3] == [0, 1, 2] and rows[3] == 0  # crowded labels stack, a distant one reuses the first row
-    assert placed[-1][2] == "right"  # a label at the right edge is drawn leftward of its line
+def test_label_rows_stack_crowded_labels_and_reuse_a_free_row():
+    # spans (x, width) in pixels on a 700 px axes: three labels 5 px apart stack, one far right of them goes back to
+    # the first row, one at the right edge is drawn leftward of its line; with more crowded labels than rows the
+    # last ones get no row (left out rather than drawn over another)
+    placed = plots._label_rows([(0.0, 60.0), (5.0, 60.0), (10.0, 60.0), (300.0, 60.0), (695.0, 60.0)], 700.0)
+    assert [row for row, _ in placed] == [0, 1, 2, 0, 0] and placed[-1][1] == "right"
+    crowded = plots._label_rows([(float(k), 60.0) for k in range(plots.MAX_LABEL_ROWS + 2)], 700.0)
+    assert [row for row, _ in crowded] == [*range(plots.MAX_LABEL_ROWS), None, None]
+
+
+def drawn_figure(result, monkeypatch, tmp_path):
+    """The figure plot_run draws for `result` (captured at savefig)."""
+    from matplotlib.figure import Figure
+
+    figures = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figures.append(self), original(self, *a, **k)))
+    plots.plot_run(result, tmp_path / "plot.png")
+    return figures[0]
+
+
+def test_event_labels_do_not_overlap_as_drawn(tmp_path, monkeypatch):
+    # 40 events in bursts 0.1 s apart over 30 s, labels of every length: the labels drawn in the speed panel,
+    # measured by the renderer, overlap none of the others (each left out where no row has room)
+    result = make_result()
+    n = 601
+    t = np.arange(n) * 0.05
+    for name, values in list(result.columns.items()):
+        result.columns[name] = np.resize(values, n)
+    result.columns.update(time=t, s=15.24 * t, station=15.24 * t, x=15.24 * t)
+    kinds = [{"code": "A", "action": "spawn", "vehicle": 12}, {"code": "BRK", "action": "off", "reason": "velocity"},
+             {"code": "RSA", "action": "set", "lane": -1, "value": 7.5}, {"code": "A", "action": "maneuver",
+                                                                          "vehicle": 3, "index": 2}]
+    result.events = [{**kinds[k % 4], "time_s": 0.1 * (k % 8) + 3.0 * (k // 8), "distance": 0.0, "speed": 15.24,
+                      "lateral": 1.8288} for k in range(40)]
+    figure = drawn_figure(result, monkeypatch, tmp_path)
+    speed_ax = figure.axes[0]
+    renderer = figure.canvas.get_renderer()
+    boxes = [text.get_window_extent(renderer) for text in speed_ax.texts if text.get_visible()]
+    assert len(boxes) >= 20
+    for k, box in enumerate(boxes):
+        for other in boxes[k + 1:]:
+            assert not box.overlaps(other), (box, other)
+
+
+def test_the_zoom_follows_the_runs_criticality_minimum():
+    # two vehicles: A1's closest approach (centre to centre) comes first, but the run's minimum footprint distance
+    # (the criticality record) is A2's at 0.3 s: the zoom shows that instant and names A2
+    result = make_result()
+    result.vehicles.append(VehicleTrack(vehicle=2, model=1, name="Sedan", length=4.5, width=1.8,
+                                        station=np.array([NAN, 20.0, 19.0, 18.0, 17.0]),
+                                        lateral=np.array([NAN, -1.8288, -1.8288, -1.8288, -1.8288]),
+                                        speed=np.array([NAN, 10.0, 10.0, 10.0, 10.0])))
+    entry = {"min_ttc_s": None, "min_ttc_time_s": None, "max_drac": None, "max_drac_time_s": None, "min_pet_s": None,
+             "min_headway_s": None, "min_headway_time_s": None}
+    result.criticality = {"min_distance": 1.2, "min_distance_time_s": 0.3, **entry,
+                          "vehicles": [{"vehicle": 1, "min_distance": 9.0, "min_distance_time_s": 0.2, **entry},
+                                       {"vehicle": 2, "min_distance": 1.2, "min_distance_time_s": 0.3, **entry}]}
+    index, what = plots._focus(result, result.columns["time"])
+    # 1.2 m / 0.3048 = 3.937 ft, by hand
+    assert index == 3 and what == "minimum distance 3.937 ft to A2 Sedan, t = 0.30 s (the run's criticality minimum)"
+
+
+def test_a_lead_vehicle_and_the_gap_to_it_are_drawn(tmp_path, monkeypatch):
+    # the record's lead series (the run stage computes it from signals.py's definition): the speed panel draws the
+    # lead vehicle's speed, and a panel of its own the bumper gap (in ft: 30.48 m / 0.3048) and the relative speed
+    result = make_result()
+    present = np.array([False, True, True, True, False])
+    result.lead_series = lambda: {"present": present, "index": np.where(present, 0, -1),
+                                  "gap": np.array([1000.0, 30.48, 27.432, 24.384, 1000.0]),
+                                  "speed": np.array([0.0, 6.096, 6.096, 6.096, 0.0]),
+                                  "relative_speed": np.array([0.0, -9.144, -9.144, -9.144, 0.0]),
+                                  "ttc": np.array([1000.0, 3.333, 3.0, 2.667, 1000.0]),
+                                  "lateral_offset": np.zeros(5)}
+    figure = drawn_figure(result, monkeypatch, tmp_path)
+    speed_ax = figure.axes[0]
+    lead_line = next(line for line in speed_ax.lines if line.get_label() == "lead vehicle speed")
+    assert np.allclose(lead_line.get_ydata(), [NAN, 20.0, 20.0, 20.0, NAN], equal_nan=True)
+    lead_ax = next(ax for ax in figure.axes if ax.get_title(loc="left").startswith("lead vehicle"))
+    gap = next(line for line in lead_ax.lines if line.get_label() == "bumper gap")
+    assert np.allclose(gap.get_ydata(), [NAN, 100.0, 90.0, 80.0, NAN], equal_nan=True)
+    assert [text.get_text() for text in lead_ax.texts] == ["A1"]
+
+
+def test_without_a_lead_vehicle_no_lead_panel_is_drawn(tmp_path, monkeypatch):
+    result = make_result()
+    result.lead_series = lambda: {"present": np.zeros(5, dtype=bool)}
+    figure = drawn_figure(result, monkeypatch, tmp_path)
+    assert not [ax for ax in figure.axes if ax.get_title(loc="left").startswith("lead vehicle")]
 
 
 def test_plot_handles_long_runs(tmp_path):

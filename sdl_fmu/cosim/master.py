@@ -51,7 +51,7 @@ from .follow import REACTION_TIME, FollowDriver
 from .follower import CriticalityFollower
 from .inputs import CONTROLLER_COLUMNS, Inputs
 from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICALITY_TOLERANCE: the master's API)
-from .recorder import Recorder, ttc_series
+from .recorder import Recorder, lead_series, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
 from .signals import lead_of
@@ -391,6 +391,7 @@ class Cosimulation:
             controller=None if self.options.controller is None else self.options.controller.summary(),
             driver=self.driver_summary(),
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
+            lead_series=partial(lead_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
 
     def driver_summary(self) -> dict | None:

@@ -14,6 +14,7 @@ from ..vehicle import EgoState
 from .extremes import RANGE
 from .geometry import Footprint
 from .measures import distances, ttcs
+from .signals import lead_track
 from .traffic import Traffic
 from .triggers import EgoBounds
 
@@ -121,3 +122,14 @@ def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: Eg
     series[~np.isfinite(series)] = np.nan
     return series
 
+
+def lead_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: EgoBounds, columns: dict) -> dict:
+    """Per sample, the lead-vehicle signals (signals.lead_track: whether there is a vehicle ahead in the ego's
+    path, its index, the bumper gap to it, its speed along the road, ...) from the samples and the vehicles'
+    closed-form motions, computed when asked for (RunRecord.lead_series: the plot), not during the run."""
+    last = np.where(last < 0, len(columns["time"]), last)
+    times = np.asarray(columns["time"])
+    vehicles = ((i, int(first[i]), *traffic.track(i, times[first[i]:last[i]]), float(traffic.length[i]),
+                 float(traffic.width[i])) for i in range(len(first)))
+    return lead_track(columns["x"], columns["y"], columns["psi"], columns["vx"], columns["vy"], bounds.length,
+                      bounds.width, vehicles)

@@ -105,5 +105,9 @@ class RunRecord:
     criticality: dict | None = None
     # s per sample, the smallest time to collision (nan: none defined), computed when called (the plot)
     ttc_series: Callable[[], np.ndarray] | None = None
+    # per sample, the lead vehicle (docs/results.md: a vehicle ahead in the ego's path) as arrays `present`, `index`
+    # (traffic index, -1: none), `gap` (bumper to bumper, m), `speed` (m/s along the road, + the ego's way),
+    # `relative_speed`, `ttc` (s), `lateral_offset` (m), computed when called (the plot)
+    lead_series: Callable[[], dict] | None = None
     controller: dict | None = None  # summary "controller" (docs/controllers.md): a controller in the loop, or None
     driver: dict | None = None  # summary "driver": the follow driver's law and parameters; None for the lane driver

@@ -567,8 +567,10 @@ def test_braking_ego_and_a_stopped_car_ahead_minimum_distance_ttc_and_drac_whate
     # (the stopping distance still ahead), dTTC/dt = -1 + g a / v^2 = 0 at v^2 / 2a = G: v = sqrt(2 a G) =
     # sqrt(120) m/s, t = (20 - sqrt(120)) / 6 = 1.50763 s, TTC = 2 G / v = sqrt(2 G / a) = 1.82574 s.
     # DRAC = v^2 / (2 g) = v^2 / (2 G + v^2 / a) grows with v: its maximum is at t = 0, 400 / (2 g0) =
-    # 4.61538 m/s2. None of these instants but t = 0 is a communication point (multiples of 0.05 s or of the
-    # step): they are located.
+    # 4.61538 m/s2. The time headway to the stopped car (it applies to a vehicle ahead that stands still) is
+    # g / v, the same quantity as TTC here (the car does not move): its minimum is TTC's, at the same instant.
+    # None of these instants but t = 0 is a communication point (multiples of 0.05 s or of the step): they are
+    # located.
     g0 = 10 + 400 / 12
     traffic = traffic_of((0.0, g0 + 4.55, 0.0, 0.0, 0.0, 0.0, 0.0))
     extremes = master_like_run(traffic, braking(20.0, 6.0), step, end=6.0)
@@ -579,7 +581,9 @@ def test_braking_ego_and_a_stopped_car_ahead_minimum_distance_ttc_and_drac_whate
     assert summary["min_ttc_time_s"] == pytest.approx((20 - math.sqrt(120)) / 6, abs=1e-6)
     assert summary["max_drac"] == pytest.approx(400 / (2 * g0), rel=1e-12)
     assert summary["max_drac_time_s"] == 0.0
-    assert summary["vehicles"][0]["vehicle"] == 7
+    assert summary["min_headway_s"] == pytest.approx(math.sqrt(20 / 6), abs=1e-6)
+    assert summary["min_headway_time_s"] == pytest.approx((20 - math.sqrt(120)) / 6, abs=1e-6)
+    assert summary["vehicles"][0]["vehicle"] == 7 and not summary["contact"]
 
 
 @pytest.mark.parametrize("step", STEPS)

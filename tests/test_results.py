@@ -1,6 +1,7 @@
 """Writing a run's results: timeseries.csv units and cells, summary.json keys, atomic directory, plot.png."""
 
 import csv
+import dataclasses
 import json
 
 import numpy as np
@@ -39,7 +40,10 @@ def make_result(units="English", dynamics="simple", collision=False) -> RunRecor
         vehicle=1, model=3, name="Pickup", length=5.3, width=2.0,
         station=np.array([NAN, NAN, 33.528, 31.0, 28.472]),  # 110 ft at the third sample
         lateral=np.array([NAN, NAN, -1.8288, -1.8288, -1.8288]),
-        speed=np.array([NAN, NAN, 6.096, 6.096, 6.096]),
+        speed=np.array([NAN, NAN, 6.096, 6.096, 6.096]),  # approaching (SDL's sign): 20 ft/s toward the ego
+        # the bumper gap as the run stage gives it (an ego 4.6 m long, yaw 0): 30.48 - 2.3 - 2.65 = 25.53 m at the
+        # third sample (100 ft between the centres), then 2.528 m and 2.528 + 3.048 m less
+        bumper_gap=np.array([NAN, NAN, 25.53, 20.454, 15.378]),
     )
     # the record is SI: 3.048 m (10 ft) at 15.24 m/s (50 ft/s), 1.8288 m (6 ft) right of the dividing line
     events = [
@@ -68,7 +72,8 @@ def read_csv(path):
 
 def expected_header(length, speed, wheels):
     ego = [name.format(L=length, V=speed) for name in EGO_HEADER]
-    vehicle = [f"A1_station_{length}", f"A1_lateral_{length}", f"A1_speed_{speed}", f"A1_gap_{length}"]
+    vehicle = [f"A1_station_{length}", f"A1_lateral_{length}", f"A1_speed_{speed}", f"A1_gap_{length}",
+               f"A1_bumper_gap_{length}"]
     return ego + wheels + vehicle
 
 
@@ -87,8 +92,9 @@ def test_csv_english_header_and_feet(tmp_path):
     assert row["brk_active"] == "1" and row["stopped"] == "0"
     assert float(row["mu_fl_1"]) == pytest.approx(0.3)
     assert float(row["A1_station_ft"]) == pytest.approx(110.0)
-    assert float(row["A1_speed_ft/s"]) == pytest.approx(20.0)
+    assert float(row["A1_speed_ft/s"]) == pytest.approx(-20.0)  # along the road, + the ego's way: it comes toward us
     assert float(row["A1_gap_ft"]) == pytest.approx(100.0)  # vehicle station - ego station
+    assert float(row["A1_bumper_gap_ft"]) == pytest.approx(25.53 / 0.3048)  # 83.7598 ft
 
 
 def test_csv_metric_header_and_metres(tmp_path):
@@ -113,7 +119,7 @@ def test_csv_cells_empty_while_vehicle_absent(tmp_path):
     header, rows = read_csv(out / "timeseries.csv")
     vehicle_columns = [k for k, name in enumerate(header) if name.startswith("A1_")]
     for row in rows[:2]:
-        assert [row[k] for k in vehicle_columns] == ["", "", "", ""]
+        assert [row[k] for k in vehicle_columns] == ["", "", "", "", ""]
     for row in rows[2:]:
         assert all(row[k] != "" for k in vehicle_columns)
     assert all(cell != "" for row in rows for k, cell in enumerate(row) if k not in vehicle_columns)
@@ -333,3 +339,20 @@ def test_plot_of_many_vehicles_sections_and_events_uses_few_artists(tmp_path, mo
     artists = sum(len(ax.lines) + len(ax.collections) + len(ax.patches) + len(ax.texts)
                   for ax in figures[0].axes)
     assert artists < 200
+
+
+def test_traffic_csv_has_the_signed_speed_and_both_gaps(tmp_path):
+    # more than WIDE_VEHICLE_LIMIT vehicles: their columns go to traffic.csv, one row per vehicle per sample, with
+    # the same signs and gaps as timeseries.csv's per-vehicle columns (hand values of make_result's A1)
+    from sdl_fmu.results import files
+
+    result = make_result()
+    result.vehicles = [dataclasses.replace(result.vehicles[0], vehicle=k + 1)
+                       for k in range(files.WIDE_VEHICLE_LIMIT + 1)]
+    out = write_results(result, tmp_path / "run", plot=False)
+    header, rows = read_csv(out / "traffic.csv")
+    assert header == ["time_s", "vehicle", "model", "station_ft", "lateral_ft", "speed_ft/s", "gap_ft", "bumper_gap_ft"]
+    first = dict(zip(header, rows[2]))  # A1 at its first sample on the road (its track's third)
+    assert (first["time_s"], first["vehicle"]) == ("0.200000", "1")
+    assert float(first["speed_ft/s"]) == pytest.approx(-20.0) and float(first["gap_ft"]) == pytest.approx(100.0)
+    assert float(first["bumper_gap_ft"]) == pytest.approx(25.53 / 0.3048)

@@ -84,3 +84,14 @@ def test_the_lead_vehicle_example_keeps_behind_the_car_and_passes_it(simple_fmu)
     lead = result.raw.lead_series()
     assert lead["present"].any()
     assert np.allclose(lead["speed"][lead["present"] & (result.time < 18.0)], 60 * 0.3048)
+    # timeseries.csv's A1 columns (docs/results.md): its speed +60 ft/s (our way) while it drives straight; at its
+    # spawn 500 ft ahead (centres) the bumper gap is 500 ft less the ego's half length and the car's (4.2 m / 2),
+    # the ego at yaw 0 (lane keeping on a straight road: |psi| < 1e-9, its extent ahead L/2 to 1e-9 m)
+    arrays = result.arrays
+    on_road = ~np.isnan(arrays["A1_speed_ft/s"])
+    spawn = int(np.flatnonzero(on_road)[0])
+    assert np.abs(arrays["psi_rad"]).max() < 1e-9
+    assert np.allclose(arrays["A1_speed_ft/s"][on_road & (result.time < 18.0)], 60.0)
+    assert arrays["A1_gap_ft"][spawn] == pytest.approx(500.0, abs=1e-9)
+    ego_length = api.ego_model("simple", fmu=simple_fmu).length
+    assert arrays["A1_bumper_gap_ft"][spawn] == pytest.approx(500.0 - (ego_length / 2 + 2.1) / 0.3048, abs=1e-6)

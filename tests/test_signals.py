@@ -97,3 +97,19 @@ def test_the_lead_track_of_a_run_is_lead_vehicle_at_every_sample_bit_for_bit(sim
     # and the record's own series (made by the run stage from the vehicles' closed-form motions) is this one
     recorded = raw.lead_series()
     assert all(np.array_equal(recorded[key], series[key]) for key in series)
+
+
+def test_bumper_gaps_ahead_behind_and_overlapping_by_hand():
+    # ego 4.5 x 1.8 m at yaw 0 (reaching 2.25 m ahead and behind its centre), cars 4.0 m long: a centre 30 m ahead
+    # is 30 - 2.25 - 2.0 = 25.75 m from bumper to bumper; one 30 m behind -25.75 m; centres 3 m apart (ahead or
+    # behind) overlap along the road: 0
+    import numpy as np
+
+    from sdl_fmu.cosim.signals import bumper_gaps
+
+    along = extents(EGO_LENGTH, EGO_WIDTH, 0.0)[0]
+    assert along == 2.25
+    gaps = bumper_gaps(np.array([30.0, -30.0, 3.0, -3.0]), along, np.full(4, 4.0))
+    assert list(gaps) == [25.75, -25.75, 0.0, 0.0]
+    # and ahead it is lead_vehicle's gap
+    assert lead([30.0], [-EGO_Y], [0.0]).gap == gaps[0]

@@ -422,11 +422,15 @@ class Extremes:
         """summary.json's `criticality` object (docs/results.md) in SI (the results give the lengths, and DRAC, a
         length per s^2, in the scenario's units: results/scenario_units.py): run-wide extremes and one entry per
         vehicle, None (null) where a measure never applied.
-        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s."""
+        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s, contact.
+        A vehicle the ego touched (its minimum distance 0: `contact` true) has no DRAC: DRAC grows without bound
+        toward a contact (closing speed / 2 TTC, TTC -> 0), so any finite value would only say how close to the
+        contact it was last evaluated; its max_drac and max_drac_time_s are null, and the run-wide max_drac is
+        that of the vehicles the ego did not touch."""
         def number(x):
             return None if x != x else float(x)
 
-        def entry(values: dict, times: dict) -> dict:
+        def entry(values: dict, times: dict, contact: bool) -> dict:
             out = {}
             for name, key, time_key in (("min_distance", "min_distance", "min_distance_time_s"),
                                         ("min_ttc", "min_ttc_s", "min_ttc_time_s"),
@@ -436,16 +440,22 @@ class Extremes:
                 out[key] = number(values[name])
                 if time_key:
                     out[time_key] = number(times[name])
+            out["contact"] = contact
             return out
 
         n = len(vehicle_ids)
         self._grow(n)  # a vehicle never looked at has all its measures null
-        vehicles = [{"vehicle": int(vehicle_ids[i]),
-                     **entry({k: self.value[k][i] for k in MEASURES}, {k: self.time[k][i] for k in MEASURES})}
+        touched = [self.value["min_distance"][i] == 0.0 for i in range(n)]
+        value = {name: [math.nan if name == "max_drac" and touched[i] else self.value[name][i] for i in range(n)]
+                 for name in MEASURES}
+        time = {name: [math.nan if name == "max_drac" and touched[i] else self.time[name][i] for i in range(n)]
+                for name in MEASURES}
+        vehicles = [{"vehicle": int(vehicle_ids[i]), **entry({k: value[k][i] for k in MEASURES},
+                                                            {k: time[k][i] for k in MEASURES}, touched[i])}
                     for i in range(n)]
         overall_values, overall_times = {}, {}
         for name in MEASURES:
-            values, times = np.array(self.value[name][:n]), np.array(self.time[name][:n])
+            values, times = np.array(value[name], dtype=float), np.array(time[name], dtype=float)
             if n == 0 or np.isnan(values).all():
                 overall_values[name] = overall_times[name] = math.nan
                 continue
@@ -454,5 +464,5 @@ class Extremes:
             near = np.abs(values - best) <= FLAT
             overall_values[name] = best
             overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
-        return {**entry(overall_values, overall_times), "vehicles": vehicles}
+        return {**entry(overall_values, overall_times, any(touched)), "vehicles": vehicles}
 

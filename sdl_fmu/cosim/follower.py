@@ -20,6 +20,7 @@ from .traffic import Traffic
 from .triggers import EgoBounds
 
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
+HEADWAY_DOMAIN = "headway"  # a change found in a step: the headway began or ceased to apply
 
 
 class CriticalityFollower:
@@ -271,7 +272,9 @@ class CriticalityFollower:
     def _changes_in_step(self, t0: float, state: EgoState) -> list:
         """What changed inside the step for the vehicles looked at now: (vehicle, rate index) where that rate
         turned from < 0 to >= 0 (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), and
-        (vehicle, None) where a collision course began or ended (TTC's rate turned nan or back)."""
+        (vehicle, None) where a collision course began or ended (TTC's rate turned nan or back), (vehicle,
+        HEADWAY_DOMAIN) where the headway began or ceased to apply (a vehicle ahead moving into or out of the
+        ego's path, coming to a stop or turning toward the ego, crossing RANGE)."""
         t1 = state.time
         changes = []
         if t1 < self.earliest_look:
@@ -286,6 +289,8 @@ class CriticalityFollower:
             changes += [(i, k) for k in range(4) if previous[k] < 0 <= now[k]]
             if math.isnan(previous[1]) != math.isnan(now[1]):
                 changes.append((i, None))
+            if math.isnan(previous[3]) != math.isnan(now[3]):
+                changes.append((i, HEADWAY_DOMAIN))
         return changes
 
     def _locate_in_step(self, base, t0: float, state: EgoState) -> None:
@@ -333,10 +338,12 @@ class CriticalityFollower:
             self.located += 1
 
         for i, k in changes:
-            if k is None:
-                off_course = math.isnan(self.look_rates[i][1])
-                before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
-                                            math.isnan(extremes.rates(traffic, i, p)[1]) != was)
+            if k is None or k == HEADWAY_DOMAIN:
+                # the start or end of a measure's domain: the instant its rate turns defined / undefined (nan)
+                which = 1 if k is None else 3
+                was = math.isnan(self.look_rates[i][which])
+                before, at = bisect_instant(t0, t1, lambda p, i=i, was=was, which=which:
+                                            math.isnan(extremes.rates(traffic, i, p)[which]) != was)
             else:
                 rate_of = (lambda p, i=i: extremes.distance_rate(traffic, i, p)) if k == 0 else \
                     (lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k])

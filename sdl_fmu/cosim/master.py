@@ -384,7 +384,7 @@ class Cosimulation:
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
             friction_meaning=model.surface_meaning,
             seed=self.options.seed, road=self.road, columns=columns,
-            vehicles=recorder.vehicle_tracks(self.traffic, columns["time"]),
+            vehicles=recorder.vehicle_tracks(self.traffic, columns, self.bounds.length, self.bounds.width),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
             criticality=self.follower.summary(self.recorder.vehicle_ids),

@@ -29,7 +29,7 @@ distance/hw.py; https://criticality-metrics.readthedocs.io):
   when its rear passed that area's far end (`conflict_far_end`); PET = t_vehicle_enters - t_ego_left.
 - time headway (SUMO's TGAP = space gap / follower speed; CriMe thw.py for a constant ego speed): the
   bumper-to-bumper gap to a vehicle ahead in the ego's path (the footprints overlap laterally) moving the same
-  way, divided by the ego's speed along the road.
+  way or stopped, divided by the ego's speed along the road; 0 once the gap has closed (in contact).
 
 Frames: ISO 8855 inertial, x = station, y = -lateral (road.py). Relative quantities are vehicle - ego: centre
 (dx, dy), velocity (vx, vy), acceleration. A vehicle moving at `speed` toward decreasing station with a
@@ -388,17 +388,18 @@ def drac_rate_known(t: float, t_rate: float, vx: float, vy: float, ax: float, ay
 
 def headway(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
             length: float, width: float) -> float:
-    """Time headway (s) to a vehicle ahead in the ego's path moving the same way: the bumper-to-bumper gap
-    along the road (the vehicle's rear to the front of the ego's footprint) over the ego's speed along the
-    road (SUMO's TGAP). inf when the vehicle is not ahead in the ego's path (the footprints do not overlap
-    laterally, or it is not wholly ahead), not moving the ego's way, or the ego does not move forward."""
+    """Time headway (s) to a vehicle ahead in the ego's path moving the same way or stopped: the bumper-to-bumper
+    gap along the road (the vehicle's rear to the front of the ego's footprint) over the ego's speed along the
+    road (SUMO's TGAP); 0 once the two overlap along the road (in contact: the gap has closed, as TTC is 0 there).
+    inf when the vehicle is not ahead in the ego's path (the footprints do not overlap laterally, or its centre
+    is not ahead of the ego's), comes toward the ego, or the ego does not move forward."""
     a, b, c, s = ego
     ac, as_ = abs(c), abs(s)
     gap = dx - (a * ac + b * as_) - length / 2
-    if (gap <= 0.0 or abs(dy) >= a * as_ + b * ac + width / 2 or station_rate <= 0.0
-            or vehicle_station_rate <= 0.0):
+    if (not dx > 0.0 or abs(dy) >= a * as_ + b * ac + width / 2 or station_rate <= 0.0
+            or vehicle_station_rate < 0.0):
         return INF
-    return gap / station_rate
+    return gap / station_rate if gap > 0.0 else 0.0
 
 
 def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
@@ -414,7 +415,9 @@ def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehi
 
 def headway_rate_known(ego: Footprint, value: float, station_rate: float, vehicle_station_rate: float,
                   station_acceleration: float, yaw_rate: float) -> float:
-    """`headway_rate` where the headway `value` is known to be defined."""
+    """`headway_rate` where the headway `value` is known to be defined (0 where it is held at 0: in contact)."""
+    if value == 0.0:
+        return 0.0
     a, b, c, s = ego
     cos_rate = -math.copysign(1.0, c) * s * yaw_rate
     sin_rate = math.copysign(1.0, s) * c * yaw_rate
@@ -426,10 +429,10 @@ def headways(ego: Footprint, dx, dy, station_rate: float, vehicle_station_rate, 
     a, b, c, s = ego
     ac, as_ = abs(c), abs(s)
     gap = dx - (a * ac + b * as_) - length / 2
-    ahead = (gap > 0.0) & (np.abs(dy) < a * as_ + b * ac + width / 2) & (vehicle_station_rate > 0.0)
+    ahead = (dx > 0.0) & (np.abs(dy) < a * as_ + b * ac + width / 2) & (vehicle_station_rate >= 0.0)
     if station_rate <= 0.0:
         return np.full(np.shape(gap), INF)
-    return np.where(ahead, gap / station_rate, INF)
+    return np.where(ahead, np.where(gap > 0.0, gap / station_rate, 0.0), INF)
 
 
 # ---- post-encroachment time -------------------------------------------------------------------------------

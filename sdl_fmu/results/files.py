@@ -36,9 +36,12 @@ CSV_CHUNK_ROWS = 5000  # rows formatted at a time (~6 MB of cells): memory stays
 
 
 def _vehicle_slice(track: VehicleTrack, name: str, first: int, stop: int) -> np.ndarray:
-    """Samples first..stop-1 of a vehicle's station / lateral / speed, NaN where it is not on the road."""
+    """Samples first..stop-1 of a vehicle's station / lateral / speed / bumper_gap, NaN where it is not on the
+    road (or the gap is not known)."""
     values = getattr(track, name)
     out = np.full(stop - first, np.nan)
+    if values is None:
+        return out
     low, high = max(track.first, first), min(track.first + len(values), stop)
     if high > low:
         out[low - first:high - first] = values[low - track.first:high - track.first]
@@ -101,18 +104,21 @@ def _timeseries_columns(result: RunRecord) -> list[tuple[str, object, str]]:
     for track in result.vehicles:
         prefix = f"A{track.vehicle}"
 
-        def vehicle(name: str, track=track, gap: bool = False):
+        def vehicle(name: str, track=track, gap: bool = False, sign: float = 1.0):
             def values(first: int, stop: int) -> np.ndarray:
                 part = _vehicle_slice(track, name, first, stop)
                 if gap:
                     part = part - np.asarray(ego_station[first:stop], dtype=float)
-                return from_si(part, units)
+                return from_si(0.0 - part if sign < 0.0 else part, units)  # 0.0 - x: no -0.0 for a stopped one
             return values
+        # the speed along the road, + the ego's way (the record's track speed is + toward the ego, as SDL's A
+        # event gives it); the gap from centre to centre (station - the ego's) and from bumper to bumper
         table += [
             (f"{prefix}_station_{length}", vehicle("station"), LENGTH_FORMAT),
             (f"{prefix}_lateral_{length}", vehicle("lateral"), LENGTH_FORMAT),
-            (f"{prefix}_speed_{speed}", vehicle("speed"), LENGTH_FORMAT),
+            (f"{prefix}_speed_{speed}", vehicle("speed", sign=-1.0), LENGTH_FORMAT),
             (f"{prefix}_gap_{length}", vehicle("station", gap=True), LENGTH_FORMAT),
+            (f"{prefix}_bumper_gap_{length}", vehicle("bumper_gap"), LENGTH_FORMAT),
         ]
     return table
 
@@ -161,7 +167,8 @@ def write_traffic_csv(result: RunRecord, path: Path) -> None:
     time = _ego_column(result, "time")
     ego_station = _ego_column(result, "station")
     with open(path, "w", encoding="utf-8", newline="") as file:
-        file.write(f"time_s,vehicle,model,station_{length},lateral_{length},speed_{speed},gap_{length}\n")
+        file.write(f"time_s,vehicle,model,station_{length},lateral_{length},speed_{speed},gap_{length},"
+                   f"bumper_gap_{length}\n")
         unreleased = 0
         for track in result.vehicles:
             rows = slice(track.first, track.first + len(track.station))
@@ -170,9 +177,11 @@ def write_traffic_csv(result: RunRecord, path: Path) -> None:
                      [str(track.vehicle)] * len(station), [str(track.model)] * len(station),
                      _format_column(from_si(station, units), LENGTH_FORMAT),
                      _format_column(from_si(np.asarray(track.lateral, dtype=float), units), LENGTH_FORMAT),
-                     _format_column(from_si(np.asarray(track.speed, dtype=float), units), LENGTH_FORMAT),
+                     _format_column(from_si(0.0 - np.asarray(track.speed, dtype=float), units), LENGTH_FORMAT),
                      _format_column(from_si(station - np.asarray(ego_station[rows], dtype=float), units),
-                                    LENGTH_FORMAT)]
+                                    LENGTH_FORMAT),
+                     _format_column(from_si(np.full(len(station), np.nan) if track.bumper_gap is None else
+                                            np.asarray(track.bumper_gap, dtype=float), units), LENGTH_FORMAT)]
             if len(station):
                 file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
             unreleased += len(station)

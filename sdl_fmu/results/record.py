@@ -24,11 +24,17 @@ class VehicleTrack:
     width: float  # m
     station: np.ndarray  # m along the road from the ego's start
     lateral: np.ndarray  # m from the dividing line, + right
-    speed: np.ndarray  # m/s, + toward the ego's start (approaching)
+    speed: np.ndarray  # m/s, + toward the ego's start (approaching: the SDL A event's sign)
     first: int = 0  # sample index of the arrays' first entry: they cover samples first .. first + len - 1
+    # m, the bumper-to-bumper gap along the road (signals.bumper_gaps: + ahead of the ego, - behind, 0 while the
+    # footprints overlap along the road); None: not known (a track made without the ego's footprint)
+    bumper_gap: np.ndarray | None = None
 
     def dense(self, name: str, samples: int) -> np.ndarray:
-        """One of station / lateral / speed over all `samples` samples, NaN where the vehicle is absent."""
+        """One of station / lateral / speed / bumper_gap over all `samples` samples, NaN where the vehicle is absent
+        (or the gap not known)."""
+        if getattr(self, name) is None:
+            return np.full(samples, np.nan)
         values = np.asarray(getattr(self, name), dtype=float)
         if self.first == 0 and len(values) == samples:
             return values
@@ -38,8 +44,8 @@ class VehicleTrack:
 
 
 class VehicleTracks(LazySequence):
-    """A run's traffic vehicles in spawn order, held as a few numbers per vehicle over one (rows, 3) table of
-    station, lateral, speed (disk-backed for a long run); each VehicleTrack is made when it is asked for,
+    """A run's traffic vehicles in spawn order, held as a few numbers per vehicle over one (rows, 4) table of
+    station, lateral, speed, bumper gap (disk-backed for a long run); each VehicleTrack is made when it is asked for,
     so that thousands of vehicles cost no Python objects until used."""
 
     def __init__(self, table: np.ndarray, vehicles: np.ndarray, models: list, first: np.ndarray,
@@ -57,7 +63,8 @@ class VehicleTracks(LazySequence):
         model = self.models[index]
         block = self.table[self.offsets[index]:self.offsets[index + 1]]
         return VehicleTrack(int(self.vehicles[index]), model.number, model.name, model.length, model.width,
-                            block[:, 0], block[:, 1], block[:, 2], first=int(self.first[index]))
+                            block[:, 0], block[:, 1], block[:, 2], first=int(self.first[index]),
+                            bumper_gap=block[:, 3])
 
     def __repr__(self) -> str:
         return f"VehicleTracks({len(self)} vehicles)"

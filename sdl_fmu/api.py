@@ -302,9 +302,9 @@ class Result:
 
     def plot(self, path: str | os.PathLike) -> Path:
         """Only the plot, as a PNG at `path`."""
-        from .results import plots  # matplotlib: loaded only to plot
+        from .results.plots import plot_run  # matplotlib: loaded only to plot
 
-        plots.plot_run(self.raw, Path(path))
+        plot_run(self.raw, Path(path))
         return Path(path)
 
 

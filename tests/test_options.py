@@ -13,7 +13,7 @@ PACKAGE = Path(sdl_fmu.__file__).parent
 DEFINED_ONCE = ("MAX_TIME", "LIMITS", "DEFAULT_SPEED", "DEFAULT_STEP", "DEFAULT_DRIVER_PERIOD", "COMMAND_LINE_FLAGS")
 # imported inside a function on purpose: only the commands that need them pay for them (matplotlib for a plot or the
 # test packs' reports, CasADi and the compilers for a build, tqdm for a bar, pandas for a DataFrame)
-HEAVY = {"plots", "verify", "fmu.cache", "fmu.package", "tqdm", "pandas"}
+HEAVY = {"plots", "results.plots", "verify", "fmu.cache", "fmu.package", "tqdm", "pandas"}
 
 
 def heavy(module: str) -> bool:

@@ -44,7 +44,8 @@ LANE_WIDTH = 3.5  # m: a braking vehicle that leaves a 3.5 m lane is not driven 
 STOP_SPEED = 0.01  # m/s: below it the vehicle counts as stopped
 TIME_LIMIT = 30.0  # s
 PERTURBATION = 0.005  # rad of road-wheel angle (sdl-fmu's choice: a driver's hands are never exactly still)
-PERTURBATION_TIME = 0.5  # s from the brake application (the Type-0 stops; sdl-fmu's choice)
+PERTURBATION_TIME = 0.2  # s from the brake application (the Type-0 stops; sdl-fmu's choice: a car that steers, as one
+# without locked wheels does, turns by v delta T / L, 0.01 rad, and drifts 0.4 m over the stop: inside the lane)
 LOCK_BRAKING_RATES = (0.15, 0.8)  # R13-H Annex 5, para. 3.1: the range the lock sequence applies to
 # surfaces whose friction puts the first lock within LOCK_BRAKING_RATES: mu, or the default Tire Attribute File's
 # attributes 2 (packed snow, peak 0.2) and 1 (wet asphalt, 0.6) (scenarios/tires/attributes.txt)

@@ -6,11 +6,14 @@ import math
 import numpy as np
 import pytest
 
-from sdl_fmu.cosim.criticality import RANGE, Footprint, distances, drac
+from sdl_fmu.cosim.extremes import RANGE
+from sdl_fmu.cosim.geometry import Footprint
+from sdl_fmu.cosim.measures import distances, drac
 from sdl_fmu.cosim.master import CRITICALITY_TOLERANCE, Cosimulation, RunOptions
 from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT
+from sdl_fmu.vehicle import EgoModel, shipped_map_path
 
 TABLE = load_vehicle_table(default_vehicle_table_path())
 STEPS = (0.001, 0.01, 1.0, 10.0)
@@ -47,8 +50,8 @@ def run(simple_fmu):
     """(result, the master) of a scenario at a step, each run once per session."""
     def at(name: str, step: float = 0.01):
         if (name, step) not in _runs:
-            cosim = Cosimulation(SCENARIOS[name](), simple_fmu, RunOptions(step=step, until_distance=UNTIL.get(name),
-                                                                 parameters=PARAMETERS.get(name, {})), TABLE)
+            model = EgoModel.open(simple_fmu, shipped_map_path("simple")).with_parameters(PARAMETERS.get(name))
+            cosim = Cosimulation(SCENARIOS[name](), model, RunOptions(step=step, until_distance=UNTIL.get(name)), TABLE)
             _runs[(name, step)] = cosim.run(), cosim
         return _runs[(name, step)]
     return at
@@ -421,7 +424,7 @@ def counted_run(scenario, fmu) -> tuple[dict, object]:
                 source[0] = previous
         return wrapped
 
-    follower = cosim.follower  # the looks happen there (the master's hooks hand them on)
+    follower = cosim.follower  # the looks happen there (the master's loop asks and notifies it)
     look = follower.extremes.look
 
     def count(*args, **kwargs):

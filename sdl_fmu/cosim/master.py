@@ -10,14 +10,17 @@ own module:
   another surface) could become true, and whether one is true at a state;
 - `Inputs` (inputs.py): the driver's (or BRK's) pedals, the steer and the surfaces under the wheels;
 - `Recorder` (recorder.py): the samples;
-- `CriticalityFollower` (follower.py): the criticality record (criticality.py), fed through the hooks `look`,
-  `look_before_change`, `criticality_due` and `follow_criticality` below, and the extremes located inside steps.
-Where nothing can happen the loop steps long: to the next driver sample, the `step` limit or the earliest
-trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
-and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
-until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire_due`). Traffic motion is
-closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
-own period (`driver_period`): its samples are instants the master steps to, independent of `step`.
+- `CriticalityFollower` (follower.py): the criticality record (extremes.py) and the extremes located inside
+  steps; the loop asks it whether a step needs an FMU snapshot (`wants_snapshot`) and tells it the step's end
+  (`stepped`).
+Where nothing can happen the loop steps long (`advance`): to the next driver sample, the `step` limit or the
+earliest trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU
+state and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
+until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire`, and the
+handlers beside it). Traffic motion is closed-form in time, so it needs no rollback of its own. The driver model is
+a sampled controller with its own period (`driver_period`), and so are the follow driver's decisions and a controller
+FMU in the loop (clocks.py): their samples are instants the master steps to, independent of `step`, so none of them
+is stepped or read inside a located step.
 """
 
 from __future__ import annotations
@@ -25,39 +28,45 @@ from __future__ import annotations
 import math
 import random
 import time as wall_clock
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Callable, Literal
 
+from ..options import DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, MAX_TIME
 from ..run_result import RunResult
+from ..sdl.checks import attribute_without_tire, brk_ignored, rsa_without_effect
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..storage import EventLog
 from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
+from ..vehicle.controller import ControllerModel
 from .brake import BrakeHold
+from .closing import ClosingEnd
+from .clocks import SampleClocks
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
+from .follow import REACTION_TIME, FollowDriver
 from .follower import CriticalityFollower
-from .inputs import Inputs
+from .inputs import CONTROLLER_COLUMNS, Inputs
 from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICALITY_TOLERANCE: the master's API)
 from .recorder import Recorder, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
+from .signals import lead_of
 from .traffic import Traffic, choose_model
 from .triggers import EgoKinematics, ego_bounds
 
-DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
-MAX_TIME = 3600.0  # s, a run never goes beyond
 # s: closer than this to a possible trigger the master steps this far from a saved state and bisects;
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
-EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit"]  # summary.json's ES reason
-DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
-DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
+# summary.json's ES reason
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision", "not_closing"]
+DriverName = Literal["lane", "follow"]  # the built-in driver (docs/controllers.md)
+OnCollision = Literal["continue", "stop"]  # what the first contact does
 
 
 @dataclass
@@ -69,15 +78,16 @@ class RunOptions:
     driver_period: float = DEFAULT_DRIVER_PERIOD  # s, the driver model's sampling period
     until_distance: float | None = None  # m
     until_time: float | None = None  # s
-    parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
-    tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
-    known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
+    until_not_closing: int | None = None  # end once the ego, having closed on this vehicle (id), no longer does
     progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
+    driver: DriverName = "lane"  # lane: holds its lane and speed; follow: also follows the vehicle ahead
+    controller: ControllerModel | None = None  # a controller in the loop (docs/controllers.md)
+    on_collision: OnCollision = "continue"  # stop: the run ends at the first contact (ES reason "collision")
 
 
 class Cosimulation:
-    """One run of a scenario against one ego vehicle (an EgoModel, or an FMU driven through the shipped map
-    of options.dynamics)."""
+    """One run of a scenario against one ego vehicle: an EgoModel with the run's FMU start values and tires
+    (EgoModel.with_parameters, with_tires), or an FMU driven through the shipped map of options.dynamics."""
 
     def __init__(self, scenario: Scenario, model: EgoModel | Path, options: RunOptions,
                  vehicle_table: dict[int, VehicleModel]):
@@ -90,7 +100,7 @@ class Cosimulation:
         self.rng = random.Random(options.seed)
         if not isinstance(model, EgoModel):
             model = EgoModel.open(model, shipped_map_path(options.dynamics))
-        self.model = model = model.with_parameters({**options.tire_parameters, **options.parameters})
+        self.model = model
         self.exact = model.can_roll_back  # triggers bisected to TIME_TOLERANCE, else located within MIN_LOOKAHEAD
         self.time_uncertainty = 0.0  # s, how exactly the instant of what fires now is known
         self.surfaces = surface_map(scenario, model.default_surface)
@@ -102,12 +112,14 @@ class Cosimulation:
         wheel_arm = max(math.hypot(x, y) for x, y in model.wheels)
         self.bounds = ego_bounds(model, mu_max, speed, wheel_arm, MAX_STEER)
         self.traffic = Traffic()
-        self.inputs = Inputs(self.ego, model, make_driver(speed, start_lateral, model), self.road, self.surfaces,
-                             geometry)
+        self.controller = None
+        self.clocks, self.inputs = self._sampled(options, make_driver(speed, start_lateral, model), geometry)
         self.end_distance, self.end_reason = self._end_distance()
+        closing = None if options.until_not_closing is None else ClosingEnd(options.until_not_closing, self.traffic,
+                                                                             self.bounds)
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
-                                        self.bounds, self.traffic, self.inputs)
-        self.recorder = Recorder(model.wheel_columns)
+                                        self.bounds, self.traffic, self.inputs, closing)
+        self.recorder = Recorder(model.wheel_columns, () if self.controller is None else CONTROLLER_COLUMNS)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
         if not self.exact:
@@ -115,14 +127,33 @@ class Cosimulation:
                                  f"within a communication step of at most {MIN_LOOKAHEAD:g} s, not bisected to "
                                  f"{TIME_TOLERANCE:g} s (time_uncertainty_s on each event)")
         if model.friction is None:
-            self.warnings += [f"line {event.line}: RSA has no effect: the vehicle map of {model.name} has no friction "
-                              "input, so the road surface cannot act on the vehicle"
+            self.warnings += [rsa_without_effect(event.line, model.name)
                               for event in scenario.events if isinstance(event, SurfaceAttribute)]
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
         self.steps = 0
         self.finished = False
         self.follower = CriticalityFollower(self.ego, self.traffic, self.bounds, self.road, self.exact)
+
+    def _sampled(self, options: RunOptions, driver, geometry) -> tuple[SampleClocks, Inputs]:
+        """The sampled parts and their clocks (clocks.py): the driver (lane, or follow with its decisions every
+        reaction time) and a controller in the loop, instantiated here (the ego is closed if it cannot be)."""
+        model = self.model
+        periods = {"driver": options.driver_period}
+        if options.driver == "follow":
+            driver = FollowDriver(driver)
+            periods["follow"] = REACTION_TIME
+        if options.controller is not None:
+            periods["controller"] = options.controller.period
+            try:
+                self.controller = options.controller.instantiate()
+            except Exception:
+                self.ego.close()
+                raise
+        inputs = Inputs(self.ego, model, driver, self.road, self.surfaces, geometry, options.driver_period,
+                        self.controller, lambda state: lead_of(state, model.length, model.width, self.traffic))
+        inputs.counts = lambda: (self.collisions, len(self.events))
+        return SampleClocks(periods), inputs
 
     def _scenario_units(self, value: float) -> float:
         return from_si(value, self.scenario.units)
@@ -142,20 +173,19 @@ class Cosimulation:
     # ---- the loop -------------------------------------------------------------------------------
 
     def run(self) -> RunResult:
+        """The loop (FMPy's simulateCS over its helpers): each pass steps the FMU to the next communication point
+        (a sample of the driver or a controller, the `step` limit or the earliest trigger bound), fires what became
+        true there, and records a sample with the inputs from that instant on."""
         started = wall_clock.perf_counter()
         try:
-            ego, inputs, schedule, follower = self.ego, self.inputs, self.schedule, self.follower
+            ego, inputs, schedule, follower, clocks = self.ego, self.inputs, self.schedule, self.follower, self.clocks
             state = ego.read()
             self.fire_due(state)
-            self.look(state, everyone=True)
-            follower.touched.clear()
-            inputs.sample_driver(state, None)
+            follower.start(state)
+            inputs.sample(state, {name: 0 for name in clocks.periods})
             inputs.apply(state, True)
             self.record(state)
             step, progress = self.options.step, self.options.progress
-            period = self.options.driver_period
-            sample = 1  # index of the next driver sample, at next_sample = sample * period
-            next_sample = sample * period
             until_time = self.options.until_time
             stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
             # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
@@ -167,64 +197,58 @@ class Cosimulation:
                     self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
                     self.finish(state, "time_limit")
                     break
-                limit = min(t + step, next_sample, stop_time)
+                limit = min(t + step, clocks.earliest, stop_time)
                 if earliest < limit:
                     horizons = schedule.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
-                if follower.pet_pending and follower.pet_due <= limit:
-                    follower.pet_due = follower.pet_horizon(state)
-                if self.exact and follower.earliest_quiet <= limit:
-                    self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
-                # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (follower.earliest_quiet <= limit or follower.pet_pending
-                                                     or follower.leaves_lane) and self.criticality_due(t, limit) \
-                    else None
-                if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
-                    # nothing can become true before `end`; something may be true exactly at it (then at no
-                    # other instant: its instant is known exactly)
-                    end = min(limit, earliest)
-                    ego.step_to(end)
-                    state = ego.read()
-                    fired = earliest <= end and schedule.triggered(
-                        state, [kind for kind, instant in horizons.items() if instant <= end])
-                    self.time_uncertainty = 0.0
-                else:
-                    end = min(t + MIN_LOOKAHEAD, limit)
-                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    if self.exact:
-                        fired = step_until_time(ego, end, lambda probe: schedule.triggered(probe, kinds),
-                                                TIME_TOLERANCE)
-                    else:  # what became true did so somewhere in (t, end]
-                        ego.step_to(end)
-                        fired = schedule.triggered(ego.read(), kinds)
-                        self.time_uncertainty = end - t
-                    state = ego.read()
-                self.steps += 1
-                driver_sample = state.time >= next_sample
-                if base is not None or fired or state.time >= follower.earliest_look or not self.exact:
-                    self.follow_criticality(base, t, state, everyone=False)
+                # a snapshot at the step's start, from which the extremes inside the step are located
+                base = ego.save() if follower.wants_snapshot(state, limit) else None
+                state, fired = self.advance(t, limit, horizons, earliest)
+                follower.stepped(base, t, state, fired)
                 if fired:
-                    self.fire_due(state)
-                    schedule.forget()  # spawns, actions, contacts, departures, the next event, BRK: bounds changed
+                    self.fire(state)
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
-                    self.look(state, only=follower.touched)  # the changed motions from this instant on
-                    follower.touched.clear()
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
-                if driver_sample:
-                    inputs.sample_driver(state, period)
-                    while next_sample <= state.time:
-                        sample += 1
-                        next_sample = sample * period
+                due = clocks.due(state.time)  # the samples of the driver, its decisions, a controller
+                if due:
+                    inputs.sample(state, due)
                 inputs.apply(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
                 if progress is not None:
                     progress(self, state)
-            self.look(state, everyone=True)  # an extreme at the end of the run
-            wall = wall_clock.perf_counter() - started
-            return self.result(state, wall)
+            follower.finish(state)  # an extreme at the end of the run
+            return self.result(state, wall_clock.perf_counter() - started)
         finally:
             self.ego.close()
+            if self.controller is not None:
+                self.controller.close()
+
+    def advance(self, t: float, limit: float, horizons: dict, earliest: float) -> tuple[EgoState, bool]:
+        """One communication step from t toward `limit`: (the state at its end, whether a trigger fired there).
+        Where nothing can become true before `limit` (no trigger bound within MIN_LOOKAHEAD of t) one step to
+        the earliest bound or the limit; else a step of at most MIN_LOOKAHEAD, bisected to the instant a trigger
+        turned true (the FMU rolled back), or located within it (time_uncertainty) without rollback."""
+        ego, schedule = self.ego, self.schedule
+        self.steps += 1
+        if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
+            # nothing can become true before `end`; something may be true exactly at it (then at no other instant:
+            # its instant is known exactly)
+            end = min(limit, earliest)
+            ego.step_to(end)
+            state = ego.read()
+            self.time_uncertainty = 0.0
+            return state, earliest <= end and schedule.triggered(
+                state, [kind for kind, instant in horizons.items() if instant <= end])
+        end = min(t + MIN_LOOKAHEAD, limit)
+        kinds = [kind for kind, instant in horizons.items() if instant <= end]
+        if self.exact:
+            fired = step_until_time(ego, end, lambda probe: schedule.triggered(probe, kinds), TIME_TOLERANCE)
+        else:  # what became true did so somewhere in (t, end]
+            ego.step_to(end)
+            fired = schedule.triggered(ego.read(), kinds)
+            self.time_uncertainty = end - t
+        return ego.read(), fired
 
     def record(self, state: EgoState) -> None:
         """A sample of the ego and its inputs; the first time the ego leaves the bounds the trigger prediction
@@ -233,7 +257,8 @@ class Cosimulation:
         if not self.schedule.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
                                                   or math.hypot(state.ax, state.ay) > bounds.acceleration):
             self.warnings.append(self.schedule.exceeded_warning(state))
-        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values)
+        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values,
+                             () if self.controller is None else inputs.controller_columns())
 
     # ---- what happens at an instant -------------------------------------------------------------
 
@@ -243,6 +268,13 @@ class Cosimulation:
         if not self.exact:
             entry["time_uncertainty_s"] = self.time_uncertainty
         self.events.append(entry)
+
+    def fire(self, state: EgoState) -> None:
+        """What became true at this instant fires; the trigger bounds and the fired vehicles' criticality looks are
+        redone from it (spawns, actions, contacts, departures, the next event, BRK change what they rest on)."""
+        self.fire_due(state)
+        self.schedule.forget()
+        self.follower.fired(state)
 
     def fire_due(self, state: EgoState) -> None:
         """Fires everything due at this state, in file order, until nothing more is due."""
@@ -256,6 +288,8 @@ class Cosimulation:
                 self.release_brakes(state, reason)
         if len(self.traffic.active):
             self.fire_traffic(state)
+        if schedule.closing is not None and not self.finished and schedule.closing.fire(state):
+            self.finish(state, "not_closing")
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
@@ -266,7 +300,7 @@ class Cosimulation:
         action, overlap, away = schedule.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
-                self.look_before_change(int(i), state)
+                self.follower.changing(int(i), state)
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
@@ -275,17 +309,20 @@ class Cosimulation:
                     if not schedule.action_due(int(i), kinematics):
                         break
             _, overlap, away = schedule.vehicle_conditions(active, kinematics)
-        for i in active[overlap & ~traffic.in_contact[active]]:
+        contacts = active[overlap & ~traffic.in_contact[active]]
+        for i in contacts:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)
             self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
             self.log("A", "collision", state, vehicle=recorder.vehicle_ids[i])
+        if len(contacts) and self.options.on_collision == "stop":
+            self.finish(state, "collision")
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
-        self.follower.touched.update(changed.tolist())
+        self.follower.touch(changed.tolist())
         for i in active[away & ~overlap]:
-            self.look_before_change(int(i), state)
+            self.follower.changing(int(i), state)
             traffic.remove(i)
             recorder.left(i)
             self.log("A", "despawn", state, vehicle=recorder.vehicle_ids[i])
@@ -295,13 +332,13 @@ class Cosimulation:
             model_number = choose_model(event, self.rng)
             model = self.vehicle_table[model_number]
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
-            self.follower.touched.add(index)
+            self.follower.touch([index])
             self.recorder.spawned(index + 1)
             self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
             brake_hold = self.inputs.brake_hold
             if not self.model.brk_acts:
-                self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics")
+                self.warnings.append(brk_ignored(event.line))
             elif brake_hold is not None:
                 self.warnings.append(f"line {event.line}: BRK ignored: the brake event of line "
                                      f"{brake_hold.event.line} is still on")
@@ -313,9 +350,9 @@ class Cosimulation:
         elif isinstance(event, SurfaceAttribute):
             for lane, value in event.settings:
                 self.log("RSA", "set", state, lane=lane, value=value, line=event.line)
-                if self.options.known_attributes is not None and int(value) not in self.options.known_attributes:
-                    self.warnings.append(f"line {event.line}: RSA attribute {int(value)} (lane {lane}) has no entry "
-                                         "in the Tire Attribute File: attribute 0 (standard tires) is used")
+                known = self.model.known_attributes
+                if known is not None and int(value) not in known:
+                    self.warnings.append(attribute_without_tire(event.line, int(value), lane))
         elif isinstance(event, EndOfScenario):
             self.finish(state, "scenario")
 
@@ -325,27 +362,14 @@ class Cosimulation:
         self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: EndReason) -> None:
-        """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
+        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit, collision
+        (--on-collision stop) or not_closing."""
         if self.finished:
             return
         if self.inputs.brake_hold is not None:
             self.release_brakes(state, "end")
         self.log("ES", "end", state, reason=reason)
         self.finished = True
-
-    # ---- criticality hooks (follower.py) ---------------------------------------------------------
-
-    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None, only=None) -> None:
-        self.follower.look(state, everyone, ahead, only)
-
-    def look_before_change(self, i: int, state: EgoState) -> None:
-        self.follower.look_before_change(i, state)
-
-    def criticality_due(self, t: float, limit: float) -> bool:
-        return self.follower.criticality_due(t, limit)
-
-    def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
-        self.follower.follow_criticality(base, t0, state, everyone)
 
     # ---- the result -----------------------------------------------------------------------------
 
@@ -369,8 +393,20 @@ class Cosimulation:
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
             criticality=self.criticality_summary(),
+            controller=None if self.options.controller is None else self.options.controller.summary(),
+            driver=self.driver_summary(),
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
+
+    def driver_summary(self) -> dict | None:
+        """summary.json's `driver` for the follow driver (docs/controllers.md); None (no key) for the lane driver."""
+        if self.options.driver != "follow":
+            return None
+        from . import follow
+
+        return {"name": "follow", "law": "Gipps (1981)", "reaction_time_s": follow.REACTION_TIME,
+                "braking_m/s2": follow.BRAKING, "leader_braking_m/s2": follow.LEADER_BRAKING,
+                "standstill_gap_m": follow.STANDSTILL_GAP, "period_s": self.options.driver_period}
 
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll

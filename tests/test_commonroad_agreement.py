@@ -24,7 +24,7 @@ import math
 import numpy as np
 import pytest
 
-from sdl_fmu.vehicle import shipped_model
+from sdl_fmu.shipped import shipped_model
 from sdl_fmu.verify import step_steer
 from sdl_fmu.verify.drive import SpeedHold, drive
 

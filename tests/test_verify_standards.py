@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sdl_fmu.units import KILOMETRE_PER_HOUR
-from sdl_fmu.vehicle import shipped_model
+from sdl_fmu.shipped import shipped_model
 from sdl_fmu.verify import braking, effort, lane_change, sine_with_dwell as swd
 from sdl_fmu.verify.drive import SAMPLE_PERIOD, Trace
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..units import KILOMETRE_PER_HOUR
 
 SAMPLE_PERIOD = 0.01  # s: the driver's and the recorder's period (100 Hz, as ISO 7401 / FMVSS 126 data rates)
-# FMVSS 126 S7.6 / S7.7 (49 CFR 571.126): manoeuvres begin at 80 +/- 2 km/h; the same band is used for every entry
+# FMVSS 126 S7.6.1 / S7.9.2 (49 CFR 571.126): manoeuvres begin at 80 +/- 2 km/h; the same band is used for every entry
 ENTRY_SPEED_TOLERANCE = 2.0 * KILOMETRE_PER_HOUR
 RUN_UP_LIMIT = 60.0  # s of full throttle allowed to reach the entry speed (sdl-fmu's choice)
 SETTLE_TIME = 1.0  # s of straight driving at the entry speed before time 0 (sdl-fmu's choice)

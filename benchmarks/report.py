@@ -23,6 +23,7 @@ VEHICLES_TIME_RATIO = 12.0  # 10 000 vehicles take at most 12x the time of 1 000
 SWEEP_SPEEDUP = 1.8  # 2 workers against 1
 CRITICALITY_OVERHEAD = 0.15  # on the demo
 VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
+EXPORT_LIBCOSIM_RTF = 100.0  # the exported demo (Simple ego, step 10 ms) in libcosim
 
 
 def _load(name: str, results: Path) -> dict:
@@ -257,7 +258,28 @@ def verify_pack(results: Path) -> list[str]:
         *[f"- {v}" for v in verdicts], ""]
 
 
-SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack)
+def export_speed(results: Path) -> list[str]:
+    data = _load("export_speed", results)
+    names = {"libcosim": "libcosim (libcosimpy), `simulate_until`", "ecos": "ecos (ecospy), `step`",
+             "fmpy": "fmpy, `simulate_ssp`"}
+    rows = [[names[master], f"**{r['real_time_factor']:g}×**", f"{r['wall_s']:.3f}", f"{r['cpu_s']:.3f}",
+             f"{r['us_per_step']:g}", f"{r['load_s']:.3f}" if master != "fmpy" else "in the run"]
+            for master, r in data["masters"].items()]
+    libcosim = data["masters"]["libcosim"]["real_time_factor"]
+    return [
+        "## 8. The exported demo in SSP masters", "", "Script: `benchmarks/export_speed.py`.", "",
+        f"`api.export(\"demo\")` (the Simple ego, FMI 2.0, step {data['step_s'] * 1000:g} ms: "
+        f"{data['steps']} steps to the stop time {data['stop_time_s']:g} s), the SSP run whole by each master in a "
+        "fresh process of its own, best of 3 by wall time of the simulation alone (loading the SSP, unzipping and "
+        "instantiating the FMUs are apart). The scenario FMU and the ego FMU are stepped by the master on its "
+        "fixed grid ([docs/export.md](docs/export.md)).", "",
+        *_table(["master", "real-time factor", "wall s", "CPU s", "µs / step", "load s"], rows), "",
+        _measured(data["measured"]), "",
+        f"- libcosim ≥ {EXPORT_LIBCOSIM_RTF:g}× real time at 10 ms: {_met(libcosim >= EXPORT_LIBCOSIM_RTF)}", ""]
+
+
+SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
+            export_speed)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -280,6 +302,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/criticality_overhead.py --repeat 25 --json benchmarks/results/criticality_overhead.json",
         "python benchmarks/vehicle_path_speed.py --reference CHECKOUT --json benchmarks/results/vehicle_path_speed.json",
         "python benchmarks/verify_pack.py --json benchmarks/results/verify_pack.json",
+        "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

@@ -14,11 +14,13 @@ file, line and field). Anything else is a bug.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
 import shutil
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -220,10 +222,10 @@ def _shipped_map(dynamics: Dynamics) -> Path:
 
 
 def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
-              vehicle: str | os.PathLike | None = None):
+              vehicle: str | os.PathLike | None = None, fmi_version: int = 2):
     """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
-    the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use).
-    Raises InputError naming the map file and key, or the FMU."""
+    the shipped map of `dynamics` (default simple) with `fmu` or the cached build of that FMI version (built on first
+    use). Raises InputError naming the map file and key, or the FMU."""
     from .vehicle import EgoModel, VehicleMapError
 
     if vehicle is not None and dynamics is not None:
@@ -246,7 +248,7 @@ def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
         raise InputError(option, text) from None
     from .fmu.cache import cached_fmu
 
-    path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
+    path = cached_fmu(dynamics, fmi_version, announce=lambda path: print(f"building {path.name} into the cache "
                                                             f"{path.parent.parent} (first use)", file=sys.stderr))
     return EgoModel.open(path, shipped_map)
 
@@ -600,3 +602,122 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
     return VerifyResult(identity, outcomes, pack.table(outcomes), folder)
+
+
+# --- the scenario as a co-simulation unit ------------------------------------------------------------------
+
+
+@dataclass
+class Export:
+    """What `export` wrote (docs/export.md): the export folder, the SSP, the FMUs beside it (by component), the
+    system's stop time and step (s), the parameter set's name and values (by component), and `reference`, the
+    `sdl-fmu run` of the same options whose end gives the stop time."""
+
+    folder: Path
+    ssp: Path
+    fmus: dict[str, Path]
+    stop_time: float
+    step: float
+    fmi_version: int
+    parameter_set: str
+    parameters: dict[str, dict[str, float | int | bool]]
+    reference: Result
+    warnings: list[str]
+
+
+DEFAULT_EXPORT_STEP = 0.01  # s, the exported system's communication step (the OSP annotation)
+
+
+def _stop_time(reference: Result, step: float, until_time: float | None) -> float:
+    """The exported system's stop time: `until_time` on the step grid, else the end of `sdl-fmu run` of the same
+    options, on the step grid, one step later (a master sees the end at the first communication point at or after
+    its instant, which may follow run's by less than a step: docs/export.md)."""
+    if until_time is not None:
+        return step * math.ceil(until_time / step - 1e-9)
+    end = float(reference.raw.final["time_s"]) if "time_s" in reference.raw.final else float(reference.time[-1])
+    return step * (math.ceil(end / step - 1e-9) + 1)
+
+
+@contextlib.contextmanager
+def _scenario_fmu(scenario: Scenario, model, **options):
+    """The scenario FMU of these options (docs/export.md), written into a temporary folder as <scenario>.fmu."""
+    from .export.scenario_fmu import write_scenario_fmu
+
+    with tempfile.TemporaryDirectory(prefix="sdl-fmu-export-") as folder:
+        yield write_scenario_fmu(scenario, Path(folder) / f"{Path(scenario.path).stem}.fmu", ego=model, **options)
+
+
+def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dynamics: Dynamics | None = None,
+           fmu: str | os.PathLike | None = None, vehicle: str | os.PathLike | None = None,
+           speed: float | None = None, seed: int = 1, until_distance: float | None = None,
+           until_time: float | None = None, step: float | None = None, fmi_version: int = 2,
+           skip_unsupported: bool = False) -> Export:
+    """Writes the scenario as a co-simulation unit into the export folder `out` (docs/export.md): `<scenario>.ssp`,
+    an SSP 1.0 system of the scenario FMU and the ego FMU connected through the vehicle map, and the FMUs beside it.
+
+    The options mean what `run`'s do (speed and until_distance in the scenario's units; until_distance and
+    until_time exclusive); step is the system's communication step (s, default 0.01); fmi_version (2 or 3) that of
+    the scenario FMU and of a shipped ego (a user's FMU goes in as it is). `out` is a new or empty folder or an
+    earlier export folder. Raises InputError or ScenarioError for user mistakes; nothing is written then."""
+    from .results_folder import ResultsFolderError
+    from .ssp.folder import check_export_folder, write_export
+    from .ssp.system import ExportError
+
+    seed = _seed(seed)
+    step = DEFAULT_EXPORT_STEP if step is None else _checked_option("step", step)
+    until_time = _checked_option("until_time", until_time, low_open=True)
+    if isinstance(fmi_version, bool) or fmi_version not in (2, 3):
+        raise _option_error("fmi_version", fmi_version, "must be 2 or 3")
+    if until_time is not None and until_distance is not None:
+        raise _option_error("until_time", f"{until_time:g}", "give until_distance or until_time, not both")
+    if not isinstance(scenario, Scenario):
+        scenario = load(scenario, skip_unsupported=skip_unsupported)
+    units = scenario.units
+    speed_si = _checked_option("speed", speed, units)
+    until_distance_si = _checked_option("until_distance", until_distance, units, low_open=True)
+    model = ego_model(dynamics, fmu, vehicle, fmi_version)
+    if model.surface_meaning == "attribute":
+        _whole_attributes(scenario)
+    tire_starts, _, tire_warnings = tire_slot_starts(None, model)
+    try:
+        check_export_folder(out)
+    except ResultsFolderError as error:
+        raise InputError("out", "", subject=str(error)) from None
+    warnings = []
+    if model.fmi_version != f"{fmi_version}.0":
+        warnings.append(f"the ego FMU {model.fmu_path.name} is FMI {model.fmi_version} and the scenario FMU FMI "
+                        f"{fmi_version}.0: " + ("libcosim and fmpy's simulate_ssp load FMI 2.0 FMUs only"
+                                                if model.fmi_version == "3.0" else "only ecos runs FMI 3.0"))
+    # the reference run: `sdl-fmu run` of the same options; its end is the system's stop time
+    reference = run(scenario, dynamics=dynamics, fmu=model.fmu_path, vehicle=vehicle, speed=speed, seed=seed,
+                    until_distance=until_distance, until_time=until_time, plot=False)
+    stop_time = _stop_time(reference, step, until_time)
+    model = model.with_parameters(tire_starts)
+    from .cosim.master import DEFAULT_SPEED
+
+    start = {"speed": DEFAULT_SPEED if speed_si is None else speed_si, "x": 0.0,
+             "y": -scenario.road.lane_center(1), "yaw": 0.0}
+    name = Path(scenario.path).stem
+    with _scenario_fmu(scenario, model, fmi_version=fmi_version, speed=speed_si, seed=seed,
+                       until_distance=until_distance_si, until_time=until_time, step=step) as unit:
+        from fmpy import read_model_description
+
+        from . import __version__
+        from .ssp.system import build_system
+
+        try:
+            system = build_system(name, unit.path, read_model_description(str(unit.path), validate=False), model,
+                                  start=start, scenario_parameters=unit.parameters, stop_time=stop_time, step=step,
+                                  description=f"the SDL scenario {Path(scenario.path).name} and the ego vehicle "
+                                              f"{model.name}, exported by sdl-fmu",
+                                  generation_tool=f"sdl-fmu {__version__}")
+        except ExportError as error:
+            raise InputError("vehicle" if vehicle is not None else "fmu", str(error)) from None
+        try:
+            folder = write_export(out, f"{name}.ssp", system)
+        except ResultsFolderError as error:
+            raise InputError("out", "", subject=str(error)) from None
+    fmus = {c.name: folder / c.source.split("/", 1)[1] for c in system.components}
+    parameters = {c.name: {p.name: p.value for p in c.parameters} for c in system.components}
+    return Export(folder, folder / f"{name}.ssp", fmus, stop_time, step, fmi_version, system.parameter_set,
+                  parameters, reference, [*scenario.warnings, *tire_warnings, *warnings])

@@ -13,6 +13,8 @@ import pytest
 
 import results_snapshot
 from sdl_fmu import api
+from sdl_fmu.cosim.locate import TIME_TOLERANCE
+from sdl_fmu.units import to_si
 from ssp_masters import MASTERS, run_master
 
 STEP = 0.01  # s, the exported systems' step (export's default)
@@ -32,57 +34,111 @@ END_REASONS = {"scenario": 1, "until_distance": 2, "until_time": 3, "runout": 4,
 
 # ---- the comparison with `sdl-fmu run` -------------------------------------------------------------------------------
 
+# Events the ego's distance travelled triggers (an A appears, an RSA is met, a BRK begins, the end by distance)
+DISTANCE_EVENTS = {("A", "spawn"), ("RSA", "set"), ("BRK", "on")}
+DISTANCE_ENDS = {"scenario", "until_distance", "runout"}
+# s: how exactly the scenario FMU locates an instant inside a step from its prediction of the ego (its documentation:
+# to 1e-6 s, as `sdl-fmu run` bisects)
+LOCATED = TIME_TOLERANCE
 
-def event_bound(step: float) -> float:
-    """The bound the scenario FMU's documentation states on an event's instant in a master against `run`'s."""
-    from sdl_fmu.export.scenario_fmu import event_bound as stated
 
-    return stated(step)
+def ego_lag(master_time, master_s, master_v, reference: api.Result, a_max: float) -> float:
+    """How far the master's ego runs behind run's (s): at each communication point up to run's end where it moves
+    (> 1 m/s), the time the master's ego takes to reach the distance run's ego had then; run's distance between its
+    samples is read linearly, within a_max dt^2 / 8 (dt its sample spacing), which is added."""
+    run_time = np.asarray(reference.raw.columns["time"], float)
+    run_s = np.asarray(reference.raw.columns["s"], float)
+    t = np.concatenate([[0.0], master_time])
+    s = np.concatenate([[0.0], master_s])
+    use = (master_v > 1.0) & (master_time <= run_time[-1])
+    if not use.any():
+        return 0.0
+    times = master_time[use]
+    reached = np.interp(np.interp(times, run_time, run_s), s, t)
+    spacing = np.diff(run_time)[np.clip(np.searchsorted(run_time, times) - 1, 0, len(run_time) - 2)]
+    return float(np.max(np.abs(reached - times) + a_max * spacing**2 / (8 * master_v[use])))
 
 
-def assert_conforms(result: dict[str, np.ndarray], reference: api.Result, step: float, label: str) -> None:
-    """The same events in the same order, each within the bound; the same collisions; the same end."""
+def assert_conforms(result: dict[str, np.ndarray], reference: api.Result, step: float, label: str, *, distance,
+                    speed, a_max: float) -> None:
+    """The same events in the same order, each shown at the first communication point at or after its located instant
+    (the scenario FMU's bound), and at run's instant moved by the master's ego lag: exactly (to how the instant is
+    located) for an event the ego's distance triggers, within that lag and a step for the others; the same
+    collisions; the same end. distance and speed: the master's ego's, at its communication points (m, m/s); a_max:
+    a bound on its acceleration (m/s2)."""
     time, count = result["time"], result["scenario.events"]
     assert np.all(np.diff(time) > 0) and abs(time[0] - step) < 1e-9, label
     assert np.all(np.diff(count) >= 0), label
     events = list(reference.events)
     assert count[-1] == len(events), (label, count[-1], len(events))
-    bound = event_bound(step)
+    lag = ego_lag(time, distance, speed, reference, a_max)
+    t = np.concatenate([[0.0], time])
+    s = np.concatenate([[0.0], distance])
     for i, event in enumerate(events, 1):
         k = int(np.argmax(count >= i))  # the first communication point that shows the i-th event
-        assert abs(time[k] - event["time_s"]) <= bound, (label, i, event, time[k])
-        if count[k] == i:  # it was the last to fire in its step: the outputs name it
-            shown = (result["scenario.last_event_code"][k], result["scenario.last_event_action"][k])
-            assert shown == (CODES[event["code"]], ACTIONS[event["action"]]), (label, i, event, shown)
-            if "vehicle" in event:
-                assert result["scenario.last_event_vehicle"][k] == event["vehicle"], (label, i, event)
-            if "line" in event:
-                assert result["scenario.last_event_line"][k] == event["line"], (label, i, event)
-            assert abs(result["scenario.last_event_time"][k] - event["time_s"]) <= bound, (label, i, event)
+        assert abs(time[k] - event["time_s"]) <= step + lag, (label, i, event, time[k], lag)
+        if count[k] != i:  # another event fired after it in the same step: the outputs name that one
+            continue
+        shown = (result["scenario.last_event_code"][k], result["scenario.last_event_action"][k])
+        assert shown == (CODES[event["code"]], ACTIONS[event["action"]]), (label, i, event, shown)
+        if "vehicle" in event:
+            assert result["scenario.last_event_vehicle"][k] == event["vehicle"], (label, i, event)
+        if "line" in event:
+            assert result["scenario.last_event_line"][k] == event["line"], (label, i, event)
+        located = result["scenario.last_event_time"][k]
+        assert time[k] - step - 1e-9 <= located <= time[k] + 1e-9, (label, i, event, located, time[k])
+        if (event["code"], event["action"]) in DISTANCE_EVENTS or event.get("reason") in DISTANCE_ENDS:
+            # where the master's ego reaches run's ego's distance at the event (linear between communication
+            # points: within a_max h^2 / 8 of the distance, divided by the speed there)
+            where = to_si(event["distance"], reference.scenario.units)
+            reached = float(np.interp(where, s, t))
+            v = float(np.interp(reached, t[1:], speed))
+            assert abs(located - reached) <= LOCATED + a_max * step**2 / (8 * v), (label, i, event, located, reached)
     assert result["scenario.collisions"][-1] == reference.collisions, label
     ended = result["scenario.ended"].astype(bool)
     assert ended[-1], label
     end = int(np.argmax(ended))
-    assert abs(time[end] - reference.final["time_s"]) <= bound, (label, time[end], reference.final)
+    assert abs(time[end] - reference.final["time_s"]) <= step + lag, (label, time[end], reference.final)
     assert result["scenario.end_reason"][end] == END_REASONS[events[-1]["reason"]], label
+
+
+def check(result: dict[str, np.ndarray], export: api.Export, label: str) -> None:
+    """assert_conforms for an export of a shipped ego (its distance and speed are the outputs s and v)."""
+    assert_conforms(result, export.reference, export.step, label, distance=result["ego.s"], speed=result["ego.v"],
+                    a_max=export.parameters["scenario"]["ego_max_acceleration"])
 
 
 # libcosim and ecos step the same FMUs from the same values; they differ only in how they form the communication
 # points (libcosim: whole nanoseconds, converted; ecos: a running sum of steps), which differ by a few ulps (1e-15
 # s relative). The FMUs step from the point they are given, so each step's result moves by ~|dx/dt| 1e-15 s; over
 # the runs here (at most 13 000 steps, |dx/dt| <= 40 m/s, the dynamics dissipative: no growth) that adds up to well
-# under 1e-9 in any output. An event or a step change of a pedal could only move if a trigger's margin fell within
-# that rounding of zero at a communication point.
+# under 1e-9 in any output. Measured: 2e-16 relative in the ego's distance after the demo's 130 s.
 ROUNDING = 1e-9
+# An event can only move between the two if its instant falls within that rounding of a communication point: a tie,
+# which round SDL numbers make common (approaching_vehicle: ES at 1100 ft at a constant 88 ft/s is 12.5 s, exactly a
+# communication point); the one master shows it at that point, the other one step later.
+TIE = 1e-9  # s
 
 
 def assert_agree_to_rounding(a: dict[str, np.ndarray], b: dict[str, np.ndarray], label: str) -> None:
+    time = a["time"]
+    assert np.array_equal(time, b["time"]), label
+    # the steps where the event counts differ: each a tie, the event's located instant on the communication point
+    # before, both counts equal again one step later
+    ties = np.nonzero(a["scenario.events"] != b["scenario.events"])[0]
+    for k in ties:
+        ahead = a if a["scenario.events"][k] > b["scenario.events"][k] else b
+        assert abs(ahead["scenario.last_event_time"][k] - time[k]) <= TIE, (label, "not a tie", time[k])
+        assert k + 1 < len(time) and a["scenario.events"][k + 1] == b["scenario.events"][k + 1], (label, time[k])
+    tied = np.zeros(len(time), bool)
+    tied[ties] = True
     for name, kind in SIGNALS.items():
         x, y = a[name], b[name]
         assert x.shape == y.shape, (label, name)
+        if name.startswith(("scenario.events", "scenario.last_event", "scenario.ended", "scenario.end_reason")):
+            x, y = x[~tied], y[~tied]  # what a tied event shows
         if kind == "Real":
-            scale = np.maximum(1.0, np.abs(x))
-            worst = float(np.max(np.abs(x - y) / scale))
+            worst = float(np.max(np.abs(x - y) / np.maximum(1.0, np.abs(x))))
             assert worst <= ROUNDING, (label, name, worst)
         else:
             assert np.array_equal(x.astype(int), y.astype(int)), (label, name)
@@ -115,8 +171,7 @@ def master_runs(exported):
 @pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
 def test_every_shipped_scenario_gives_runs_events_collisions_and_end_in_each_master(exported, master_runs, name,
                                                                                    dynamics, master):
-    export = exported[(name, dynamics)]
-    assert_conforms(master_runs[((name, dynamics), master)], export.reference, export.step, f"{name} {master}")
+    check(master_runs[((name, dynamics), master)], exported[(name, dynamics)], f"{name} {master}")
 
 
 @pytest.mark.slow
@@ -131,8 +186,7 @@ def test_the_fmi3_export_runs_in_ecos(tmp_path, simple_fmus):
     export = api.export("demo", fmi_version=3, out=tmp_path / "fmi3")
     for path in export.fmus.values():
         assert b'fmiVersion="3.0"' in _model_description(path)
-    assert_conforms(run_master("ecos", export.ssp, export.stop_time, STEP, SIGNALS), export.reference, export.step,
-                    "demo fmi3")
+    check(run_master("ecos", export.ssp, export.stop_time, STEP, SIGNALS), export, "demo fmi3")
 
 
 @pytest.mark.slow
@@ -145,7 +199,12 @@ def test_a_foreign_vehicle_fmu_exports_and_runs_through_its_map(tmp_path, foreig
     signals = {**SCENARIO_SIGNALS, "ego.veh_speed": "Real", "ego.earth_y": "Real", "scenario.ego_v": "Real",
                "scenario.ego_y": "Real"}
     result = run_master(master, export.ssp, export.stop_time, STEP, signals)
-    assert_conforms(result, export.reference, export.step, f"foreign car {master}")
+    # the car has no distance output: the scenario FMU takes the trapezoid rule on its speed, as run does
+    speed = result["ego.veh_speed"] / 3.6
+    before = np.concatenate([[export.reference.raw.columns["v"][0]], speed[:-1]])  # the start speed at t = 0
+    distance = np.cumsum(STEP * (before + speed) / 2)
+    assert_conforms(result, export.reference, export.step, f"foreign car {master}", distance=distance, speed=speed,
+                    a_max=export.parameters["scenario"]["ego_max_acceleration"])
     # the scenario FMU sees the car in SI and ISO axes: km/h -> m/s, y to the right -> y to the left (an input read
     # after step k: libcosim shows the value step k used, the car's output at k - 1; ecos the car's output at k)
     lag = {"libcosim": 1, "ecos": 0}[master]

@@ -677,14 +677,17 @@ STOP_MARGIN = (1.0, 0.01)  # s and a share of the end: how far past `run`'s end 
 
 
 def _stop_time(reference: Result, step: float, until_time: float | None) -> float:
-    """The exported system's stop time, on the step grid: `until_time`, else the end of `sdl-fmu run` of the same
-    options plus one second or one per cent of it, whichever is more. A master's ego runs a little behind run's
-    (it gets each command a step later: docs/export.md), so its end comes later than run's (measured: 0.04 s in
-    the demo); past the end nothing fires."""
+    """The exported system's stop time, on the step grid: `until_time` and one step (a master whose clock is a
+    running sum of steps arrives a hair before a time on the grid), else the end of `sdl-fmu run` of the same options
+    plus one second or one per cent of it, whichever is more: a master's ego runs a little behind run's (it gets each
+    command a step later: docs/export.md), so its end comes later than run's (0.04 s in the demo); past the end
+    nothing fires."""
     if until_time is not None:
-        return step * math.ceil(until_time / step - 1e-9)
-    end = float(reference.final["time_s"])
-    return step * math.ceil((end + max(STOP_MARGIN[0], STOP_MARGIN[1] * end)) / step - 1e-9)
+        steps = math.ceil(until_time / step - 1e-9) + 1
+    else:
+        end = float(reference.final["time_s"])
+        steps = math.ceil((end + max(STOP_MARGIN[0], STOP_MARGIN[1] * end)) / step - 1e-9)
+    return float(f"{steps * step:.15g}")  # 2.01, not 2.0100000000000002: the product's last bits are noise
 
 
 @contextlib.contextmanager
@@ -704,14 +707,17 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
            fmu: str | os.PathLike | None = None, vehicle: str | os.PathLike | None = None,
            speed: float | None = None, seed: int = 1, until_distance: float | None = None,
            until_time: float | None = None, step: float | None = None, fmi_version: int = 2,
-           skip_unsupported: bool = False) -> Export:
+           skip_unsupported: bool = False, controller: str | os.PathLike | None = None,
+           controller_map: str | os.PathLike | None = None) -> Export:
     """Writes the scenario as a co-simulation unit into the export folder `out` (docs/export.md): `<scenario>.ssp`,
     an SSP 1.0 system of the scenario FMU and the ego FMU connected through the vehicle map, and the FMUs beside it.
 
     The options mean what `run`'s do (speed and until_distance in the scenario's units; until_distance and
     until_time exclusive); step is the system's communication step (s, default 0.01); fmi_version (2 or 3) that of
-    the scenario FMU and of a shipped ego (a user's FMU goes in as it is). `out` is a new or empty folder or an
-    earlier export folder. Raises InputError or ScenarioError for user mistakes; nothing is written then."""
+    the scenario FMU and of a shipped ego (a user's FMU goes in as it is). controller and controller_map: a
+    controller between the scenario and the ego (docs/controllers.md), a third component of the system. `out` is a
+    new or empty folder or an earlier export folder. Raises InputError or ScenarioError for user mistakes; nothing is
+    written then."""
     from .results_folder import ResultsFolderError
     from .ssp.folder import check_export_folder, write_export
     from .ssp.system import ExportError
@@ -732,6 +738,7 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     if model.surface_meaning == "attribute":
         _whole_attributes(scenario)
     tire_starts, _, tire_warnings = tire_slot_starts(None, model)
+    in_the_loop = controller_model(controller, controller_map)
     try:
         check_export_folder(out)
     except ResultsFolderError as error:
@@ -741,31 +748,46 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
         warnings.append(f"the ego FMU {model.fmu_path.name} is FMI {model.fmi_version} and the scenario FMU FMI "
                         f"{fmi_version}.0: " + ("libcosim and fmpy's simulate_ssp load FMI 2.0 FMUs only"
                                                 if model.fmi_version == "3.0" else "only ecos runs FMI 3.0"))
-    # the reference run: `sdl-fmu run` of the same options; its end is the system's stop time
-    reference = run(scenario, dynamics=dynamics, fmu=model.fmu_path, vehicle=vehicle, speed=speed, seed=seed,
-                    until_distance=until_distance, until_time=until_time, plot=False)
-    stop_time = _stop_time(reference, step, until_time)
+    if in_the_loop is not None and abs(in_the_loop.period - step) > 1e-12 * step:
+        warnings.append(f"the controller {in_the_loop.name} is stepped at the system's step {step:g} s, not at its "
+                        f"map's period {in_the_loop.period:g} s: an SSP master steps every FMU on one grid")
     model = model.with_parameters(tire_starts)
+    from fmpy import read_model_description
+
+    from . import __version__
     from .cosim.master import DEFAULT_SPEED
+    from .ssp.system import build_system
 
     start = {"speed": DEFAULT_SPEED if speed_si is None else speed_si, "x": 0.0,
              "y": -scenario.road.lane_center(1), "yaw": 0.0}
     name = Path(scenario.path).stem
+    arbitration = None if in_the_loop is None else dict(in_the_loop.rules)
     with _scenario_fmu(scenario, model, fmi_version=fmi_version, speed=speed_si, seed=seed,
-                       until_distance=until_distance_si, until_time=until_time, step=step) as unit:
-        from fmpy import read_model_description
+                       until_distance=until_distance_si, until_time=until_time, step=step,
+                       arbitration=arbitration) as unit:
+        description = read_model_description(str(unit.path), validate=False)
 
-        from . import __version__
-        from .ssp.system import build_system
+        def system_until(stop_time: float):
+            try:
+                return build_system(name, unit.path, description, model, start=start,
+                                    scenario_parameters=unit.parameters, stop_time=stop_time, step=step,
+                                    description=f"the SDL scenario {Path(scenario.path).name} and the ego vehicle "
+                                                f"{model.name}, exported by sdl-fmu",
+                                    generation_tool=f"sdl-fmu {__version__}", controller=in_the_loop)
+            except ExportError as error:
+                text = str(error)
+                option = "controller_map" if in_the_loop is not None and text.startswith(
+                    (in_the_loop.map.label, "--controller")) else "vehicle" if vehicle is not None else "fmu"
+                raise InputError(option, text) from None
 
-        try:
-            system = build_system(name, unit.path, read_model_description(str(unit.path), validate=False), model,
-                                  start=start, scenario_parameters=unit.parameters, stop_time=stop_time, step=step,
-                                  description=f"the SDL scenario {Path(scenario.path).name} and the ego vehicle "
-                                              f"{model.name}, exported by sdl-fmu",
-                                  generation_tool=f"sdl-fmu {__version__}")
-        except ExportError as error:
-            raise InputError("vehicle" if vehicle is not None else "fmu", str(error)) from None
+        system_until(step)  # every connection checked before anything runs
+        # the reference run: `sdl-fmu run` of the same options; its end gives the system's stop time
+        reference = run(scenario, dynamics=dynamics, fmu=model.fmu_path, vehicle=vehicle, speed=speed, seed=seed,
+                        until_distance=until_distance, until_time=until_time, plot=False,
+                        controller=None if in_the_loop is None else in_the_loop.fmu_path,
+                        controller_map=controller_map)
+        stop_time = _stop_time(reference, step, until_time)
+        system = system_until(stop_time)
         try:
             folder = write_export(out, f"{name}.ssp", system)
         except ResultsFolderError as error:

@@ -161,13 +161,13 @@ def _export(args) -> int:
     result = api.export(args.scenario, out=args.out, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle,
                         speed=args.speed, seed=args.seed, until_distance=args.until_distance,
                         until_time=args.until_time, step=args.step, fmi_version=int(args.fmi_version),
-                        skip_unsupported=args.skip_unsupported)
+                        skip_unsupported=args.skip_unsupported, controller=args.controller,
+                        controller_map=args.controller_map)
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
-    fmus = ", ".join(path.name for path in result.fmus.values())
-    print(f"{result.ssp}: the scenario and the ego as an SSP (FMUs {fmus}, beside it too), FMI "
-          f"{result.fmi_version}.0, step {result.step:g} s, stop time {result.stop_time:g} s, parameter set "
-          f"'{result.parameter_set}'")
+    fmus = ", ".join(f"{component} {path.name}" for component, path in result.fmus.items())
+    print(f"{result.ssp}: {fmus} (also beside it); FMI {result.fmi_version}.0, step {result.step:g} s, stop time "
+          f"{result.stop_time:g} s, parameter set '{result.parameter_set}'")
     print("run it in libcosim, ecos or fmpy: docs/export.md")
     return 0
 
@@ -300,6 +300,8 @@ def parser() -> argparse.ArgumentParser:
                         "with --vehicle")
     export.add_argument("--fmu", help="ego FMU (default: the cached build of --dynamics)")
     export.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
+    export.add_argument("--controller", help="controller FMU between the scenario and the ego (docs/controllers.md)")
+    export.add_argument("--controller-map", help="its controller map (TOML)")
     export.add_argument("--speed", type=_float_argument,
                         help="driver's start and target speed, scenario units (default 88 ft/s)")
     export.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")

@@ -19,6 +19,8 @@ from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
 from sdl_fmu.results_folder import MANIFEST_NAME
 from sdl_fmu.ssp.document import OSP, SSC, SSD, SSV, schema_directory
 
+from helpers import FOREIGN_AEB_MAP, build_foreign_controller
+
 FOOT = 0.3048
 START_SPEED = 88 * FOOT  # m/s, the driver's default start speed
 LANE_1 = 6 * FOOT  # m, the centre of lane 1 on the default road (12 ft lanes): the ego starts at y = -LANE_1
@@ -181,9 +183,9 @@ def test_the_stop_time_is_runs_end_and_a_margin_on_the_step_grid(demo):
     assert (steps - 1) * demo.step < 1.01 * end <= steps * demo.step + 1e-9
 
 
-def test_with_until_time_the_stop_time_is_that_time(tmp_path, simple_fmu):
+def test_with_until_time_the_stop_time_is_that_time_on_the_grid_and_one_step(tmp_path, simple_fmu):
     export = api.export("demo", until_time=12.345, step=0.01, out=tmp_path / "t")
-    assert export.stop_time == pytest.approx(12.35, abs=1e-12)
+    assert export.stop_time == pytest.approx(12.36, abs=1e-12)
 
 
 # ---- the export folder -------------------------------------------------------------------------------------------
@@ -201,7 +203,7 @@ def test_new_empty_and_earlier_export_folders_are_written(tmp_path, simple_fmu):
     empty.mkdir()
     api.export("head_on", out=empty)
     again = api.export("head_on", out=empty, until_time=2.0)  # an earlier export folder: replaced
-    assert float(ssd_root(again.ssp).find(f"{{{SSD}}}DefaultExperiment").get("stopTime")) == 2.0
+    assert float(ssd_root(again.ssp).find(f"{{{SSD}}}DefaultExperiment").get("stopTime")) == 2.01
 
 
 @pytest.mark.parametrize("make, reason", [
@@ -224,7 +226,7 @@ def test_a_mistake_found_while_building_leaves_an_earlier_export_as_it_was(tmp_p
     api.export("head_on", out=folder)
     before = listing(folder)
     fmu, vehicle_map = foreign_vehicle(2)
-    broken = tmp_path / "no_start.toml"  # a map without [start]: export refuses it, after the reference run
+    broken = tmp_path / "no_start.toml"  # a map without [start]: export refuses it
     broken.write_text("\n".join(line for line in Path(vehicle_map).read_text().splitlines()
                                 if not line.startswith(("[start]", "speed =", "x     =", "y     =", "yaw   ="))))
     with pytest.raises(api.InputError, match=r"no_start\.toml: start\.speed: missing"):
@@ -275,3 +277,68 @@ def test_the_command_says_where_the_ssp_is(tmp_path, simple_fmu, capsys):
     assert main(["export", "head_on", "--out", str(tmp_path / "out")]) == 0
     out, err = capsys.readouterr()
     assert str(tmp_path / "out" / "head_on.ssp") in out and "docs/export.md" in out and err == ""
+
+
+# ---- a controller in the loop --------------------------------------------------------------------------------------
+
+CCRS = "Metric\n// a stationary compact car 60 m ahead in the ego's lane\n0, A, 0, 60, *0, 1\n200, ES\n"
+
+
+@pytest.fixture(scope="module")
+def aeb(tmp_path_factory):
+    """The foreign AEB controller (tests/controllers, PythonFMU, FMI 2.0) and a CCRs-like scenario."""
+    folder = tmp_path_factory.mktemp("aeb")
+    (folder / "ccrs.sdl").write_text(CCRS)
+    return build_foreign_controller(folder, 2), folder / "ccrs.sdl"
+
+
+def test_a_controller_is_a_third_component_connected_through_its_map(tmp_path, simple_fmu, aeb):
+    fmu, ccrs = aeb
+    export = api.export(ccrs, speed=50 / 3.6, until_time=8.0, controller=fmu, controller_map=FOREIGN_AEB_MAP,
+                        out=tmp_path / "aeb")
+    assert set(export.fmus) == {"scenario", "ego", "controller"} and export.fmus["controller"].name == fmu.name
+    found = connections(export.ssp)
+    expected = {  # end -> (start, factor): the controller map's conversions, composed with the vehicle map's for ego_v
+        ("controller", "v_host"): (("ego", "v"), 3.6),  # m/s -> km/h
+        ("controller", "obj_valid"): (("scenario", "lead_present"), 1.0),
+        ("controller", "obj_id"): (("scenario", "lead_id"), 1.0),
+        ("controller", "obj_distance"): (("scenario", "lead_gap"), 1.0),
+        ("controller", "v_rel"): (("scenario", "lead_relative_speed"), 3.6),
+        ("controller", "ttc_ms"): (("scenario", "lead_ttc"), 1000.0),  # s -> ms
+        ("controller", "crash_count"): (("scenario", "collisions"), 1.0),
+        ("scenario", "request_active"): (("controller", "aeb_active"), 1.0),
+        ("scenario", "request_brake"): (("controller", "brake_cmd_pct"), 0.01),  # % -> pedal
+    }
+    for end, (start, factor) in expected.items():
+        assert found[end][:2] == start and found[end][2] == pytest.approx(factor, rel=1e-15), end
+    assert parameter_set(export.ssp, "controller") == {"ttc_trigger": ("Real", "1.5"), "cycle_time": ("Real", "0.01")}
+    scenario = parameter_set(export.ssp, "scenario")  # the map's arbitration: brake max, throttle and steer driver
+    assert (scenario["arbitration_brake"], scenario["arbitration_throttle"], scenario["arbitration_steer"]) == (
+        ("Integer", "2"), ("Integer", "0"), ("Integer", "0"))
+    assert "request_active" not in scenario  # the map has `active`
+
+
+UNCONNECTABLE = {
+    # a brake pedal and a deceleration both feed request_brake: one connection feeds an input
+    "outputs.deceleration": ('brake  = { variable = "brake_cmd_pct", scale = 0.01 }',
+                             'brake  = { variable = "brake_cmd_pct", scale = 0.01 }\n'
+                             'deceleration = { variable = "brake_cmd_pct" }'),
+    # a Boolean signal into a Real variable (run sends 1 or 0): an SSP connection joins connectors of one type
+    "inputs.lead_present": ('lead_present        = { variable = "obj_valid" }\nlead_id             = { variable = '
+                            '"obj_id" }\nlead_gap            = { variable = "obj_distance", unit = "m" }',
+                            'lead_present        = { variable = "obj_distance" }'),
+}
+
+
+@pytest.mark.parametrize("key", UNCONNECTABLE)
+def test_a_controller_map_the_ssp_cannot_connect_is_one_line_naming_its_key(tmp_path, simple_fmu, aeb, key, capsys):
+    fmu, ccrs = aeb
+    old, new = UNCONNECTABLE[key]
+    assert old in FOREIGN_AEB_MAP.read_text()
+    changed = tmp_path / "changed.toml"
+    changed.write_text(FOREIGN_AEB_MAP.read_text().replace(old, new))
+    assert main(["export", str(ccrs), "--controller", str(fmu), "--controller-map", str(changed),
+                 "--out", str(tmp_path / "out")]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith(f"sdl-fmu: {changed}: {key}: ") and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "out").exists()

@@ -15,6 +15,7 @@ import results_snapshot
 from sdl_fmu import api
 from sdl_fmu.cosim.locate import TIME_TOLERANCE
 from sdl_fmu.units import to_si
+from helpers import FOREIGN_AEB_MAP, build_foreign_controller
 from ssp_masters import MASTERS, run_master
 
 STEP = 0.01  # s, the exported systems' step (export's default)
@@ -151,6 +152,15 @@ CASES = list(results_snapshot.cases())  # (name, dynamics, skip_unsupported), un
 
 
 @pytest.fixture(scope="module")
+def foreign_controller_and_ccrs(tmp_path_factory):
+    """The foreign AEB controller (tests/controllers, PythonFMU, FMI 2.0) and a CCRs-like scenario."""
+    folder = tmp_path_factory.mktemp("aeb")
+    (folder / "ccrs.sdl").write_text("Metric\n// a stationary compact car 60 m ahead in the ego's lane\n"
+                                     "0, A, 0, 60, *0, 1\n200, ES\n")
+    return build_foreign_controller(folder, 2), folder / "ccrs.sdl"
+
+
+@pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     """Every shipped scenario exported once (FMI 2.0, step 0.01 s), by (name, dynamics)."""
     folder = tmp_path_factory.mktemp("exports")
@@ -219,3 +229,23 @@ def _model_description(fmu: Path) -> bytes:
 
     with zipfile.ZipFile(fmu) as archive:
         return archive.read("modelDescription.xml")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("master", ["libcosim", "ecos"])
+def test_a_controller_brakes_the_ego_two_steps_after_its_sample(tmp_path, foreign_controller_and_ccrs, master):
+    # CCRs-like at 50 km/h toward a stationary car; the foreign AEB (PythonFMU, its own units: km/h, ms, %) latches a
+    # full brake at the first sample with TTC <= 1.5 s, as in run (tests/test_controller_runs.py). Run applies the
+    # request from that sample; in the SSP the request is the controller's output one step later and the scenario
+    # FMU's arbitrated command one step after that, so the ego brakes 2 h later, from the same constant speed V0, and
+    # then as in run: it stops 2 h V0 further (0.278 m), with the same events
+    fmu, ccrs = foreign_controller_and_ccrs
+    v0 = 50 / 3.6
+    export = api.export(ccrs, speed=v0, until_time=8.0, controller=fmu, controller_map=FOREIGN_AEB_MAP,
+                        out=tmp_path / "aeb")
+    result = run_master(master, export.ssp, export.stop_time, STEP, {**SIGNALS, "controller.aeb_active": "Boolean"})
+    check(result, export, f"aeb {master}")
+    assert export.reference.collisions == 0 and export.reference.final["speed"] == 0.0
+    stop = export.reference.final["distance"]  # m (Metric)
+    assert result["ego.v"][-1] == 0.0
+    assert abs(result["ego.s"][-1] - (stop + 2 * STEP * v0)) < 1e-9, (result["ego.s"][-1], stop)

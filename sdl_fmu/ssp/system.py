@@ -18,7 +18,8 @@ from pathlib import Path
 from ..vehicle.model import INTEGER_TYPES, REAL_TYPES, EgoModel
 from .document import BASE_UNITS, Component, Connection, Connector, Parameter, System, Unit, ValueType
 
-SCENARIO, EGO = "scenario", "ego"  # the components' names (libcosim's slave names, ecos' "ego::v" prefixes)
+SCENARIO, EGO, CONTROLLER = "scenario", "ego", "controller"  # the components' names (libcosim's slave names, ecos'
+#                                                                "ego::v" prefixes)
 
 # the vehicle map's output quantities -> the scenario FMU's inputs they feed
 EGO_SIGNALS = {"x": "ego_x", "y": "ego_y", "yaw": "ego_psi", "speed": "ego_v", "distance": "ego_s", "vx": "ego_vx",
@@ -32,6 +33,11 @@ FRICTION_SOURCES = {("mu", 4): ("mu_fl", "mu_fr", "mu_rl", "mu_rr"), ("mu", 2): 
                     ("mu", 1): ("mu_mean",),
                     ("attribute", 4): ("surface_fl", "surface_fr", "surface_rl", "surface_rr"),
                     ("attribute", 2): ("surface_fl", "surface_rl"), ("attribute", 1): ("surface_fl",)}
+
+
+# a controller's requests -> the scenario FMU's inputs they feed (a deceleration becomes brake pedal)
+REQUEST_INPUTS = {"active": "request_active", "throttle": "request_throttle", "brake": "request_brake",
+                  "deceleration": "request_brake", "steer": "request_steer"}
 
 
 class ExportError(ValueError):
@@ -132,9 +138,9 @@ def ego_parameters(model: EgoModel, start: dict[str, float]) -> tuple[Parameter,
 
 
 def _scenario_parameters(side: _Side, values: dict, connected: set[str]) -> tuple[Parameter, ...]:
-    """The scenario FMU's parameter set: every parameter's start value as its writer chose it, and for each optional
-    ego input the flag `<input>_connected` saying whether the SSP connects it (else the FMU derives it as `sdl-fmu
-    run` derives what a vehicle map lacks)."""
+    """The scenario FMU's parameter set: every parameter's start value as its writer chose it (and start values of
+    inputs given in `values`), and for each optional ego input the flag `<input>_connected` saying whether the SSP
+    connects it (else the FMU derives it as `sdl-fmu run` derives what a vehicle map lacks)."""
     values = dict(values)
     for name, variable in side.variables.items():
         if name.endswith("_connected") and variable.causality == "parameter":
@@ -143,19 +149,33 @@ def _scenario_parameters(side: _Side, values: dict, connected: set[str]) -> tupl
     for name, value in values.items():
         variable = side.variables.get(name)
         kind = None if variable is None else ssp_type(variable)
-        if kind is None or variable.causality != "parameter":
+        if kind is None or variable.causality not in ("parameter", "input"):
             raise ExportError(f"{side.label}: has no parameter {name!r} of a type an SSP parameter set can hold")
         parameters.append(Parameter(name, kind, float(value) if kind == "Real" else
                                     bool(value) if kind == "Boolean" else int(value)))
     return tuple(parameters)
 
 
+def _typed(variables: dict, name: str, value, label: str) -> Parameter:
+    variable = variables[name]
+    kind = ssp_type(variable)
+    if kind == "Boolean" or isinstance(value, bool):
+        return Parameter(name, "Boolean", bool(value))
+    if kind == "Integer" and float(value) == int(value):
+        return Parameter(name, "Integer", int(value))
+    if kind == "Real":
+        return Parameter(name, "Real", float(value))
+    raise ExportError(f"{label}: parameters.{name}: {name!r} is {variable.type}; its value {value!r} cannot be set "
+                      "through an SSP parameter set")
+
+
 def build_system(name: str, scenario_fmu: Path, scenario_description, model: EgoModel, *, start: dict[str, float],
                  scenario_parameters: dict[str, float | int | bool], stop_time: float,
                  step: float, description: str | None = None, generation_tool: str | None = None,
-                 ego_signals: dict[str, str] = EGO_SIGNALS) -> System:
-    """The scenario FMU and the ego FMU, connected through the ego's vehicle map. Raises ExportError for a vehicle
-    that cannot be connected (naming the map file and key)."""
+                 ego_signals: dict[str, str] = EGO_SIGNALS, controller=None) -> System:
+    """The scenario FMU and the ego FMU, connected through the ego's vehicle map, and with `controller` (a
+    ControllerModel) the controller between them, connected through its controller map. Raises ExportError for a
+    vehicle or controller that cannot be connected (naming the map file and key)."""
     units = _Units()
     scenario = _Side(SCENARIO, scenario_description, units, f"the scenario FMU {scenario_fmu.name}")
     ego = _Side(EGO, model.description, units, f"--fmu {model.fmu_path}")
@@ -200,11 +220,68 @@ def build_system(name: str, scenario_fmu: Path, scenario_description, model: Ego
     for variable in scenario_description.modelVariables:
         if variable.causality == "output" and ssp_type(variable) is not None:
             scenario.connector(variable.name, "output")
-    ego_file = model.fmu_path.name if model.fmu_path.name != scenario_fmu.name else f"{EGO}_{model.fmu_path.name}"
+    scenario_starts = dict(scenario_parameters)
+    extra: list[Component] = []
+    if controller is not None:
+        part, always_active = _controller(controller, model, scenario, ego, units, connect)
+        extra.append(part)
+        if always_active:  # a map without `active`: the controller's requests always count
+            scenario_starts["request_active"] = True
     connected = {c.end[1] for c in connections if c.end[0] == SCENARIO}
-    components = (Component(SCENARIO, scenario_fmu, tuple(scenario.connectors.values()),
-                            _scenario_parameters(scenario, scenario_parameters, connected)),
-                  Component(EGO, model.fmu_path, tuple(ego.connectors.values()), ego_parameters(model, start),
-                            file_name=ego_file))
-    return System(name, components, tuple(connections), stop_time, step, units=tuple(units.units.values()),
+    files = {scenario_fmu.name}
+    components = [Component(SCENARIO, scenario_fmu, tuple(scenario.connectors.values()),
+                            _scenario_parameters(scenario, scenario_starts, connected))]
+    for component in (Component(EGO, model.fmu_path, tuple(ego.connectors.values()), ego_parameters(model, start)),
+                      *extra):  # each FMU under its own file name, prefixed with the component's where two clash
+        file_name = component.fmu.name if component.fmu.name not in files else f"{component.name}_{component.fmu.name}"
+        files.add(file_name)
+        components.append(Component(component.name, component.fmu, component.connectors, component.parameters,
+                                    file_name=file_name))
+    return System(name, tuple(components), tuple(connections), stop_time, step, units=tuple(units.units.values()),
                   description=description, generation_tool=generation_tool)
+
+
+def _controller(controller, model: EgoModel, scenario: _Side, ego: _Side, units: _Units, connect):
+    """The controller as a component: its signals from the scenario FMU's outputs, or for the ego's state straight
+    from the ego's outputs (the vehicle map's conversion and the controller map's, composed), its requests into the
+    scenario FMU's request_* inputs. Returns (the component, whether its map lacks `active`)."""
+    side = _Side(CONTROLLER, controller.description, units, f"--controller {controller.fmu_path}")
+    label = controller.map.label
+    by_signal = {signal: quantity for quantity, signal in EGO_SIGNALS.items()}
+    for port in controller.inputs:
+        key = f"inputs.{port.name}"
+        if port.name in by_signal:  # the ego's state: the scenario FMU reads it, and the controller too
+            conversion = model.outputs.get(by_signal[port.name])
+            if conversion is None:
+                raise ExportError(f"{label}: {key}: the vehicle map of {model.name} has no "
+                                  f"outputs.{by_signal[port.name]} to connect (`sdl-fmu run` derives it; an SSP "
+                                  "connection cannot)")
+            _connect_checked(connect, label, key, ego, conversion.variable, side, port.variable,
+                             port.factor * conversion.factor, port.factor * conversion.offset + port.offset)
+        elif scenario.has(port.name, "output"):
+            _connect_checked(connect, label, key, scenario, port.name, side, port.variable, port.factor, port.offset)
+        else:
+            raise ExportError(f"{label}: {key}: the scenario FMU has no output {port.name!r}")
+    requested = {port.name for port in controller.outputs}
+    if {"brake", "deceleration"} <= requested:
+        raise ExportError(f"{label}: outputs.deceleration: an SSP connection feeds request_brake from one output; "
+                          "this map requests both brake and deceleration (`sdl-fmu run` takes the larger)")
+    for port in controller.outputs:
+        factor, offset = port.factor, port.offset
+        if port.name == "deceleration":  # brake pedal = deceleration / brake_decel_max (docs/controllers.md)
+            factor, offset = factor / model.brake_decel_max, offset / model.brake_decel_max
+        _connect_checked(connect, label, f"outputs.{port.name}", side, port.variable, scenario,
+                         REQUEST_INPUTS[port.name], factor, offset)
+    parameters = tuple(_typed(side.variables, name, value, label) for name, value in controller.parameters.items())
+    component = Component(CONTROLLER, controller.fmu_path, tuple(side.connectors.values()), parameters)
+    return component, "active" not in requested
+
+
+def _connect_checked(connect, label: str, key: str, start: _Side, output: str, end: _Side, input_: str,
+                     factor: float, offset: float) -> None:
+    """connect(), a refusal naming the controller map's file and key."""
+    try:
+        connect(start, output, end, input_, factor, offset)
+    except ExportError as error:
+        reason = str(error).split(": ", 2)[-1]
+        raise ExportError(f"{label}: {key}: {reason}") from None

@@ -162,7 +162,7 @@ def _export(args) -> int:
                         speed=args.speed, seed=args.seed, until_distance=args.until_distance,
                         until_time=args.until_time, step=args.step, fmi_version=int(args.fmi_version),
                         skip_unsupported=args.skip_unsupported, controller=args.controller,
-                        controller_map=args.controller_map)
+                        controller_map=args.controller_map, driver=args.driver)
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     fmus = ", ".join(f"{component} {path.name}" for component, path in result.fmus.items())
@@ -300,8 +300,13 @@ def parser() -> argparse.ArgumentParser:
                         "with --vehicle")
     export.add_argument("--fmu", help="ego FMU (default: the cached build of --dynamics)")
     export.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
-    export.add_argument("--controller", help="controller FMU between the scenario and the ego (docs/controllers.md)")
-    export.add_argument("--controller-map", help="its controller map (TOML)")
+    export.add_argument("--controller", metavar="FMU", help="controller FMU between the scenario and the ego, a third "
+                        "component of the SSP (default: the controller map's fmu)")
+    export.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests and "
+                        "arbitration (docs/controllers.md)")
+    export.add_argument("--driver", choices=("lane", "follow"), default="lane",
+                        help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
+                             "(also follows the vehicle ahead: Gipps' car-following law)")
     export.add_argument("--speed", type=_float_argument,
                         help="driver's start and target speed, scenario units (default 88 ft/s)")
     export.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")

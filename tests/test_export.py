@@ -319,10 +319,8 @@ def test_a_controller_is_a_third_component_connected_through_its_map(tmp_path, s
 
 
 UNCONNECTABLE = {
-    # a brake pedal and a deceleration both feed request_brake: one connection feeds an input
-    "outputs.deceleration": ('brake  = { variable = "brake_cmd_pct", scale = 0.01 }',
-                             'brake  = { variable = "brake_cmd_pct", scale = 0.01 }\n'
-                             'deceleration = { variable = "brake_cmd_pct" }'),
+    # an Integer signal into a Real variable
+    "inputs.events": ('lead_ttc            = { variable = "ttc_ms", unit = "ms" }', 'events = { variable = "ttc_ms" }'),
     # a Boolean signal into a Real variable (run sends 1 or 0): an SSP connection joins connectors of one type
     "inputs.lead_present": ('lead_present        = { variable = "obj_valid" }\nlead_id             = { variable = '
                             '"obj_id" }\nlead_gap            = { variable = "obj_distance", unit = "m" }',
@@ -342,3 +340,9 @@ def test_a_controller_map_the_ssp_cannot_connect_is_one_line_naming_its_key(tmp_
     out, err = capsys.readouterr()
     assert out == "" and err.startswith(f"sdl-fmu: {changed}: {key}: ") and len(err.splitlines()) == 1, err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_follow_driver_is_the_scenario_fmus_option(tmp_path, simple_fmu):
+    export = api.export("head_on", driver="follow", out=tmp_path / "follow")
+    assert parameter_set(export.ssp, "scenario")["driver"] == ("Integer", "2")  # 1 lane, 2 follow
+    assert parameter_set(api.export("head_on", out=tmp_path / "lane").ssp, "scenario")["driver"] == ("Integer", "1")

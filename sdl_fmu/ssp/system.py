@@ -35,9 +35,9 @@ FRICTION_SOURCES = {("mu", 4): ("mu_fl", "mu_fr", "mu_rl", "mu_rr"), ("mu", 2): 
                     ("attribute", 2): ("surface_fl", "surface_rl"), ("attribute", 1): ("surface_fl",)}
 
 
-# a controller's requests -> the scenario FMU's inputs they feed (a deceleration becomes brake pedal)
+# a controller's requests -> the scenario FMU's inputs they feed (it turns a deceleration into brake pedal)
 REQUEST_INPUTS = {"active": "request_active", "throttle": "request_throttle", "brake": "request_brake",
-                  "deceleration": "request_brake", "steer": "request_steer"}
+                  "deceleration": "request_deceleration", "steer": "request_steer"}
 
 
 class ExportError(ValueError):
@@ -263,15 +263,12 @@ def _controller(controller, model: EgoModel, scenario: _Side, ego: _Side, units:
         else:
             raise ExportError(f"{label}: {key}: the scenario FMU has no output {port.name!r}")
     requested = {port.name for port in controller.outputs}
-    if {"brake", "deceleration"} <= requested:
-        raise ExportError(f"{label}: outputs.deceleration: an SSP connection feeds request_brake from one output; "
-                          "this map requests both brake and deceleration (`sdl-fmu run` takes the larger)")
     for port in controller.outputs:
-        factor, offset = port.factor, port.offset
-        if port.name == "deceleration":  # brake pedal = deceleration / brake_decel_max (docs/controllers.md)
-            factor, offset = factor / model.brake_decel_max, offset / model.brake_decel_max
+        if not scenario.has(REQUEST_INPUTS[port.name], "input"):
+            raise ExportError(f"{label}: outputs.{port.name}: the scenario FMU has no input "
+                              f"{REQUEST_INPUTS[port.name]!r}")
         _connect_checked(connect, label, f"outputs.{port.name}", side, port.variable, scenario,
-                         REQUEST_INPUTS[port.name], factor, offset)
+                         REQUEST_INPUTS[port.name], port.factor, port.offset)
     parameters = tuple(_typed(side.variables, name, value, label) for name, value in controller.parameters.items())
     component = Component(CONTROLLER, controller.fmu_path, tuple(side.connectors.values()), parameters)
     return component, "active" not in requested

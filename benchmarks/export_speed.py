@@ -78,7 +78,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as folder:
         export = api.export("demo", out=Path(folder) / "demo", step=0.01)
         steps = round(export.stop_time / export.step)
-        report.update({"scenario": "demo", "dynamics": "simple", "fmi_version": 2, "step_s": export.step,
+        report.update({"repeat": args.repeat, "scenario": "demo", "dynamics": "simple", "fmi_version": 2,
+                       "step_s": export.step,
                        "stop_time_s": export.stop_time, "steps": steps, "masters": {}})
         for master in SCRIPTS:
             runs = [timed(master, export.ssp, export.stop_time, export.step) for _ in range(args.repeat)]

@@ -346,3 +346,39 @@ def test_the_follow_driver_is_the_scenario_fmus_option(tmp_path, simple_fmu):
     export = api.export("head_on", driver="follow", out=tmp_path / "follow")
     assert parameter_set(export.ssp, "scenario")["driver"] == ("Integer", "2")  # 1 lane, 2 follow
     assert parameter_set(api.export("head_on", out=tmp_path / "lane").ssp, "scenario")["driver"] == ("Integer", "1")
+
+
+def test_ctrl_c_during_an_export_exits_130_and_writes_nothing(tmp_path, simple_fmu):
+    # the export's reference run is held at its first step (the api's test hook, tests/test_cli_mistakes.py), so
+    # the signal arrives mid-export however fast the machine is
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from sdl_fmu.api import HOLD_VARIABLE
+
+    work, hold = tmp_path / "work", tmp_path / "hold"
+    work.mkdir()
+    hold.touch()
+    process = subprocess.Popen([sys.executable, "-m", "sdl_fmu.cli", "export", "demo", "--out", str(work / "demo")],
+                               cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, HOLD_VARIABLE: str(hold)},
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        running = tmp_path / "hold.running"
+        deadline = time.monotonic() + 300  # only against a hang: the loop ends when the run is held
+        while not (running.exists() and running.read_text() == f"{process.pid}\n"):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "the export's run was never held"
+            time.sleep(0.05)
+        process.send_signal(signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 130
+    assert stderr.splitlines() == ["sdl-fmu: interrupted (Ctrl-C); nothing was written"] and stdout == ""
+    assert list(work.iterdir()) == []

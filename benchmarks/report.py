@@ -23,6 +23,7 @@ VEHICLES_TIME_RATIO = 12.0  # 10 000 vehicles take at most 12x the time of 1 000
 SWEEP_SPEEDUP = 1.8  # 2 workers against 1
 CRITICALITY_OVERHEAD = 0.15  # on the demo
 VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
+AEB_CCR_CPU_S = 60.0  # the whole CCR grid, Simple vehicle, example AEB, one core
 EXPORT_LIBCOSIM_RTF = 100.0  # the exported demo (Simple ego, step 10 ms) in libcosim
 
 
@@ -258,6 +259,25 @@ def verify_pack(results: Path) -> list[str]:
         *[f"- {v}" for v in verdicts], ""]
 
 
+def aeb_ccr(results: Path) -> list[str]:
+    data = _load("aeb_ccr", results)
+    best = data["best_cpu_s"]
+    points = ", ".join(f"{group} {value:g}" for group, value in data["points"].items())
+    return [
+        "## 8. The AEB car-to-car pack", "", "Script: `benchmarks/aeb_ccr.py`.", "",
+        f"`api.verify(pack=\"aeb-ccr\", controller=\"example-aeb\", workers=0)`: the whole grid ({data['tests']} "
+        "tests: CCRs, CCRm, CCRb at every overlap) on the Simple vehicle with the shipped example AEB in the loop, the "
+        "tests one after the other in one process (one core, no Dask), results folder with report.html written; "
+        "best of the repeats by CPU time (`time.process_time`).", "",
+        *_table(["tests", "CPU s (best)", "CPU s (each)", "wall s (each)", "median test, wall ms", "runs failed",
+                 "points"],
+                [[str(data["tests"]), f"**{best:.1f}**", ", ".join(f"{x:.1f}" for x in data["cpu_s"]),
+                  ", ".join(f"{x:.1f}" for x in data["wall_s"]), f"{data['median_test_wall_s'] * 1000:.0f}",
+                  str(data["errors"]), points]]), "",
+        _measured(data["measured"]), "",
+        f"- The whole CCR grid in < {AEB_CCR_CPU_S:g} s of CPU on one core: {_met(best < AEB_CCR_CPU_S)}", ""]
+
+
 def export_speed(results: Path) -> list[str]:
     data = _load("export_speed", results)
     names = {"libcosim": "libcosim (libcosimpy), `simulate_until`", "ecos": "ecos (ecospy), `step`",
@@ -267,7 +287,7 @@ def export_speed(results: Path) -> list[str]:
             for master, r in data["masters"].items()]
     libcosim = data["masters"]["libcosim"]["real_time_factor"]
     return [
-        "## 8. The exported demo in SSP masters", "", "Script: `benchmarks/export_speed.py`.", "",
+        "## 10. The exported demo in SSP masters", "", "Script: `benchmarks/export_speed.py`.", "",
         f"`api.export(\"demo\")` (the Simple ego, FMI 2.0, step {data['step_s'] * 1000:g} ms: "
         f"{data['steps']} steps to the stop time {data['stop_time_s']:g} s), the SSP run whole by each master in a "
         f"fresh process of its own, best of {data['repeat']} by wall time of the simulation alone (loading the SSP, "
@@ -280,7 +300,7 @@ def export_speed(results: Path) -> list[str]:
 
 
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            export_speed)
+            aeb_ccr, export_speed)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -303,6 +323,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/criticality_overhead.py --repeat 25 --json benchmarks/results/criticality_overhead.json",
         "python benchmarks/vehicle_path_speed.py --reference CHECKOUT --json benchmarks/results/vehicle_path_speed.json",
         "python benchmarks/verify_pack.py --json benchmarks/results/verify_pack.json",
+        "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
         "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",

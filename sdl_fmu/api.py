@@ -258,15 +258,18 @@ def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
 
 def controller_model(controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None):
     """The run's ControllerModel (docs/controllers.md): `controller` (or the map's own `fmu`) driven through the
-    controller map `controller_map`; None when neither is given. Raises InputError naming the map file and key, or
-    the FMU."""
+    controller map `controller_map`; `controller="example-aeb"` without a map: the shipped example AEB (its cached
+    FMU, built on first use, and its shipped map); None when neither is given. Raises InputError naming the map file
+    and key, or the FMU."""
     from .vehicle.controller import ControllerMapError, ControllerModel
 
     if controller is None and controller_map is None:
         return None
+    if controller_map is None and os.fspath(controller) == EXAMPLE_CONTROLLER:  # the shipped example AEB
+        controller, controller_map = example_controller()
     if controller_map is None:
         raise _option_error("controller", controller, "needs a controller map (controller_map, a TOML file: "
-                                                      "docs/controllers.md)")
+                                                      "docs/controllers.md), or is example-aeb")
     try:
         return ControllerModel.open(None if controller is None else _regular_file("controller", controller),
                                     _regular_file("controller_map", controller_map))
@@ -529,7 +532,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
         out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None,
         controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
-        driver: str = "lane", on_collision: str = "continue") -> Result:
+        driver: str = "lane", on_collision: str = "continue", until_not_closing: int | None = None) -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
@@ -542,9 +545,13 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
     controller, controller_map: a controller FMU in the loop and its controller map (TOML, docs/controllers.md; the
-    map's own `fmu` when controller is None). driver: the built-in driver, "lane" (holds its lane and speed,
-    ignores traffic) or "follow" (also follows the vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
+    map's own `fmu` when controller is None; controller "example-aeb" without a map: the shipped example AEB).
+    driver: the built-in driver, "lane" (holds its lane and speed, ignores traffic) or "follow" (also follows the
+    vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
     (the run ends at the first contact).
+    until_not_closing: a vehicle id: the run ends (ES reason not_closing) once the ego, having closed on that vehicle,
+    no longer does (its speed along the road has fallen to the vehicle's or below: a stop behind a stopped one), as a
+    test of the AEB car-to-car pack ends.
     Raises InputError or ScenarioError for user mistakes."""
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
@@ -580,7 +587,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
                          until_distance=until_distance,
                          until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
                          known_attributes=None if known_attributes is None else set(known_attributes),
-                         driver=driver, controller=in_the_loop, on_collision=on_collision)
+                         driver=driver, controller=in_the_loop, on_collision=on_collision,
+                         until_not_closing=until_not_closing)
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
@@ -599,36 +607,78 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     return result
 
 
-# --- the vehicle test pack ---------------------------------------------------------------------------------
+# --- the test packs ---------------------------------------------------------------------------------------------
+
+PACKS = ("vehicle", "aeb-ccr")  # verify's packs (docs/verification.md); vehicle is the default
+EXAMPLE_CONTROLLER = "example-aeb"  # --controller's name of the shipped example AEB (its cached FMU and shipped map)
 
 
 @dataclass
 class VerifyResult:
-    """The vehicle test pack's outcome: `outcomes` (verify.Outcome, one per manoeuvre), the vehicle's identity,
-    the printed pass/fail `table`, and the results folder (None without `out`)."""
+    """A test pack's outcome: `outcomes` (verify.Outcome per manoeuvre, or verify.aeb.TestOutcome per test), the
+    vehicle's identity, the printed `table`, the results folder (None without `out`), `passed` (no criterion failed:
+    --strict's test) and the pack's name."""
 
     vehicle: dict
     outcomes: list
     table: str
     folder: Path | None
+    passed: bool = True
+    pack: str = "vehicle"
+
+
+def example_controller() -> tuple[Path, Path]:
+    """(FMU, controller map) of the shipped example AEB: its cached build (built on first use) and its map."""
+    from .fmu.cache import cached_fmu
+    from .paths import CONTROLLER_MAP_DIRECTORY
+
+    fmu = cached_fmu(EXAMPLE_CONTROLLER, announce=lambda path: print(f"building {path.name} into the cache "
+                                                                      f"{path.parent.parent} (first use)",
+                                                                      file=sys.stderr))
+    return fmu, CONTROLLER_MAP_DIRECTORY / f"{EXAMPLE_CONTROLLER}.toml"
 
 
 def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
            vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
-           out: str | os.PathLike | None = None) -> VerifyResult:
-    """Runs the vehicle test pack (docs/verification.md) against one vehicle: a shipped model (`dynamics`), or `fmu`
-    driven through the vehicle map `vehicle`. A manoeuvre the vehicle cannot be driven through fails with its
-    reason; only user mistakes (options, FMU, map, results folder) raise InputError."""
-    from . import verify as pack
+           out: str | os.PathLike | None = None, pack: str = "vehicle", params: dict[str, float] | None = None,
+           controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
+           workers: int | None = None, scheduler: str | None = None) -> VerifyResult:
+    """Runs a test pack (docs/verification.md) against one vehicle: a shipped model (`dynamics`), or `fmu` driven
+    through the vehicle map `vehicle`, with FMU start values `params` (SI, as run's). pack "vehicle": the standard
+    manoeuvres (`only`: some of them); a manoeuvre the vehicle cannot be driven through fails with its reason.
+    pack "aeb-ccr": the Euro NCAP car-to-car rear grid (`only`: some of CCRs, CCRm, CCRb) with the controller
+    `controller` and its map `controller_map` in the loop (`controller="example-aeb"`: the shipped example AEB;
+    none: the vehicle alone), run on Dask as a sweep runs (`workers` processes, default one per core, or
+    `scheduler`'s cluster; workers=0: in this process). Only user mistakes (options, FMU, map, results folder) raise
+    InputError; a test or manoeuvre that fails is a result."""
+    from . import verify as vehicle_pack
     from .results_folder import ResultsFolderError, check_results_folder
+    from .shipping import ClusterError
+    from .verify.datasheet import datasheet, provenance
 
-    names = list(pack.MANOEUVRES) if only is None else list(only)
-    unknown = [name for name in names if name not in pack.MANOEUVRES]
+    if pack not in PACKS:
+        raise _option_error("pack", pack, f"must be one of {', '.join(PACKS)}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 0):
+        raise _option_error("workers", workers, "must be a whole number >= 0")
+    if pack == "vehicle":
+        known = list(vehicle_pack.MANOEUVRES)
+        if controller is not None or controller_map is not None:
+            raise _option_error("controller", controller or controller_map,
+                                "applies to the aeb-ccr pack (the vehicle pack drives the vehicle alone)")
+    else:
+        from .verify import aeb
+
+        known = list(aeb.GROUPS)
+    names = known if only is None else list(only)
+    unknown = [name for name in names if name not in known]
     if unknown or not names:
-        raise _option_error("only", ",".join(names), f"must name manoeuvres among {', '.join(pack.MANOEUVRES)}")
+        what = "manoeuvres" if pack == "vehicle" else "test groups"
+        raise _option_error("only", ",".join(names), f"must name {what} among {', '.join(known)}")
     model = ego_model(dynamics, fmu, vehicle)
+    params = _parameters(params, model)
     try:  # an FMU that cannot even be instantiated is a bad --fmu, not a manoeuvre's result
-        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, parameters=params,
+                          instance_name="probe").close()
     except Exception as error:  # noqa: BLE001 - fmpy reports a binary that cannot be loaded as a plain Exception
         raise InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {_first_line(error)}") from None
     if out is not None:
@@ -639,14 +689,41 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
     identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,
                 "map": None if model.map_path is None else str(model.map_path),
                 "friction": None if model.friction is None else model.friction.meaning}
-    outcomes = pack.run_pack(model, names)
-    folder = None
-    if out is not None:
+    sheet, tool = datasheet(model, params), provenance()
+    try:
+        if pack == "vehicle":
+            outcomes = vehicle_pack.run_pack(model.with_parameters(params) if params else model, names)
+            folder = None if out is None else vehicle_pack.write(out, identity, outcomes, sheet, tool)
+            return VerifyResult(identity, outcomes, vehicle_pack.table(outcomes), folder,
+                                vehicle_pack.passed(outcomes), pack)
+        controller = controller_model(controller, controller_map)  # checked before anything runs
+        options = {"dynamics": dynamics if vehicle is None else None, "fmu": str(model.fmu_path),
+                   "vehicle": None if vehicle is None else str(Path(vehicle).absolute()), "params": params,
+                   "controller": None if controller is None else str(controller.fmu_path.absolute()),
+                   "controller_map": None if controller is None else str(Path(controller.map_path).absolute())}
+        options = {key: value for key, value in options.items() if value}
+        footprint = (model.with_parameters(params) if params else model)
         try:
-            folder = pack.write(out, identity, outcomes)
-        except ResultsFolderError as error:
-            raise InputError("out", "", subject=str(error)) from None
-    return VerifyResult(identity, outcomes, pack.table(outcomes), folder)
+            outcomes = aeb.run_grid(aeb.grid(names), options, run, (footprint.length, footprint.width),
+                                    workers=workers, scheduler=scheduler)
+        except ClusterError as error:
+            raise InputError("workers" if scheduler is None else "scheduler", str(error)) from None
+        folder = None if out is None else aeb.write(out, outcomes, identity, sheet, _controller_identity(controller),
+                                                    tool)
+        return VerifyResult(identity, outcomes, aeb.table(outcomes), folder, aeb.passed(outcomes), pack)
+    except ResultsFolderError as error:
+        raise InputError("out", "", subject=str(error)) from None
+
+
+def _controller_identity(controller) -> dict | None:
+    """What the AEB report says of the controller (a ControllerModel): its FMU's identity, its map, period and
+    parameters."""
+    if controller is None:
+        return None
+    from .verify.datasheet import fmu_identity
+
+    return {**fmu_identity(controller.fmu_path, controller.description, controller.map_path, controller.name),
+            "period_s": controller.period, "parameters": dict(controller.parameters)}
 
 
 # --- the scenario as a co-simulation unit ------------------------------------------------------------------

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
+EXIT_CRITERION_FAILED = 1  # verify --strict: a test pack's criterion failed
 DYNAMICS = ("simple", "advanced")
 FMI_VERSIONS = ("2", "3")
 
@@ -31,7 +32,7 @@ def _build(args) -> int:
     from .api import InputError
     from .fmu.package import MODELS, build_fmus
 
-    names = list(MODELS) if args.dynamics == "all" else [args.dynamics]
+    names = [name for name in MODELS if name in DYNAMICS] if args.dynamics == "all" else [args.dynamics]
     versions = tuple(map(int, FMI_VERSIONS)) if args.fmi_version == "all" else (int(args.fmi_version),)
     try:
         Path(args.out).mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
@@ -148,10 +149,15 @@ def _verify(args) -> int:
 
     only = None if args.only is None else [name.strip() for name in args.only.split(",") if name.strip()]
     out = Path(args.out) if args.out is not None else Path("verify") / _verify_folder_name(args)
-    result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out)
+    result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out,
+                        pack=args.pack, params=_parse_parameters(args.param), controller=args.controller,
+                        controller_map=args.controller_map, workers=args.workers, scheduler=args.scheduler)
     print(f"{result.vehicle['name']} ({Path(result.vehicle['fmu']).name}, GUID {result.vehicle['guid']})")
     print(result.table)
     print(f"results: {result.folder / 'verify.json'}, {result.folder / 'report.html'}")
+    if args.strict and not result.passed:
+        print(f"sdl-fmu: verify --strict: a criterion failed (see {result.folder / 'verify.json'})", file=sys.stderr)
+        return EXIT_CRITERION_FAILED
     return 0
 
 
@@ -174,10 +180,12 @@ def _export(args) -> int:
 
 def _verify_folder_name(args) -> str:
     if args.fmu is not None:
-        return Path(args.fmu).stem
-    if args.vehicle is not None:
-        return Path(args.vehicle).stem
-    return args.dynamics or "simple"
+        name = Path(args.fmu).stem
+    elif args.vehicle is not None:
+        name = Path(args.vehicle).stem
+    else:
+        name = args.dynamics or "simple"
+    return name if args.pack == "vehicle" else f"{name}-{args.pack}"
 
 
 def _float_argument(text: str) -> float:
@@ -191,14 +199,14 @@ def _float_argument(text: str) -> float:
 DESCRIPTION = "Vehicle-dynamics FMUs (FMI 2.0 and 3.0) co-simulated with STISIM-style SDL traffic scenarios."
 EPILOG = """\
 'sdl-fmu command --help' shows a command's options. Try: sdl-fmu run demo
-exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 130 Ctrl-C,
-            141 the output pipe was closed early (e.g. by head)"""
+exit codes: 0 done, 1 the scenario file is wrong (verify --strict: a criterion failed), 2 another user mistake,
+            130 Ctrl-C, 141 the output pipe was closed early (e.g. by head)"""
 
 
 def _loop_arguments(command, every: str = "") -> None:
     """run's and sweep's options of what drives the ego: a controller in the loop, the built-in driver, collisions."""
     command.add_argument("--controller", metavar="FMU", help=f"controller FMU in the loop{every} (AEB, ACC, ...; "
-                         "default: the controller map's fmu)")
+                         "default: the controller map's fmu), or example-aeb (the shipped example AEB and its map)")
     command.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests, "
                          "period and arbitration (docs/controllers.md)")
     command.add_argument("--driver", choices=("lane", "follow"), default="lane",
@@ -284,14 +292,28 @@ def parser() -> argparse.ArgumentParser:
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)
 
-    verify = commands.add_parser("verify", help="the vehicle test pack: standard manoeuvres, pass/fail, report")
+    verify = commands.add_parser("verify", help="a test pack: vehicle manoeuvres or AEB car-to-car, report")
+    verify.add_argument("--pack", choices=("vehicle", "aeb-ccr"), default="vehicle",
+                        help="vehicle (default): the vehicle test pack; aeb-ccr: the AEB car-to-car rear grid")
     verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
     verify.add_argument("--fmu", help="vehicle FMU (default: the cached build of --dynamics)")
     verify.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu")
+    verify.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="vehicle FMU start value, SI, within its declared min/max (repeatable)")
+    verify.add_argument("--controller", help="aeb-ccr: controller FMU in the loop, or example-aeb (the shipped "
+                        "example AEB); default: none (the vehicle alone)")
+    verify.add_argument("--controller-map", help="aeb-ccr: controller map (TOML) of --controller")
     verify.add_argument("--only", metavar="NAME,...", help="run only these manoeuvres (braking, "
-                        "steady_state_circular, step_steer, sine_with_dwell, split_mu_braking, double_lane_change)")
+                        "steady_state_circular, step_steer, sine_with_dwell, split_mu_braking, double_lane_change) "
+                        "or, with --pack aeb-ccr, test groups (CCRs, CCRm, CCRb)")
+    where = verify.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="aeb-ccr: worker processes of a local Dask cluster (default: one "
+                       "per core; 0: in this process)")
+    where.add_argument("--scheduler", help="aeb-ccr: address of an existing Dask scheduler (tcp://host:port)")
+    verify.add_argument("--strict", action="store_true", help="exit 1 when a criterion fails (a manoeuvre fails; "
+                        "aeb-ccr: a test scores less than its full points)")
     verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
-                                      "(default: verify/<vehicle>)")
+                                      "(default: verify/<vehicle>, verify/<vehicle>-aeb-ccr)")
     verify.set_defaults(handler=_verify)
 
     export = commands.add_parser("export", help="the scenario as an FMU and an SSP that FMI masters run")

@@ -9,8 +9,8 @@ RSA event on that line of the scenario) / `rsa.LINE.LANE` (one lane). VALUES is 
 `--sample-seed`. The runs are every combination of the varied values. Each run goes through sdl_fmu.api.
 
 Every file a run reads (the scenario, the FMU, the Tire Attribute File and the tire files it names: the
-options in SHIPPED) goes to the workers as bytes, through Dask: a future per file bundle, which Dask keeps
-and recomputes if the worker holding it dies. A worker writes each bundle once into its own FMU cache,
+options in SHIPPED) goes to the workers as bytes, through Dask (shipping.py): a future per file bundle, which Dask
+keeps and recomputes if the worker holding it dies. A worker writes each bundle once into its own FMU cache,
 under shipped/<hash of the contents>/, so a worker needs no shared folder and no FMU of its own.
 
 The table (DIR/sweep.parquet and DIR/sweep.csv, one row per run) holds the varied values, the status
@@ -26,8 +26,6 @@ own deadline, and the sweep stops waiting for it after twice that, so the sweep 
 from __future__ import annotations
 
 import dataclasses
-import functools
-import hashlib
 import itertools
 import json
 import math
@@ -35,13 +33,14 @@ import os
 import random
 import re
 import time
-import tempfile
 import traceback
 from pathlib import Path
 from typing import Callable, Literal
 
 import numpy as np
 
+from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
+from .shipping import one_file as _one_file, passed_on as _passed_on
 from .units import Units
 
 Status = Literal["ok", "failed", "timeout"]
@@ -54,8 +53,8 @@ DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
 GRACE = 2.0  # x timeout without any run coming back: the runs still processing are given up
 
 
-class SweepError(ValueError):
-    """A mistake in the sweep's arguments or output folder (one line)."""
+class SweepError(ClusterError):
+    """A mistake in the sweep's arguments or output folder, or a cluster it cannot use (one line)."""
 
 
 # ---- what varies ----------------------------------------------------------------------------------
@@ -139,25 +138,6 @@ def _with_rsa(scenario, name: str, value: float):
 
 # ---- the files a run reads, shipped to the workers as bytes -------------------------------------
 
-@dataclasses.dataclass(frozen=True)
-class Bundle:
-    """A file a run reads and the files it names, as bytes: (relative path, content) pairs, the file itself
-    first. The relative paths are the bundle's own layout (the packer rewrites references to match)."""
-
-    files: tuple[tuple[str, bytes], ...]
-
-    @functools.cached_property
-    def digest(self) -> str:
-        hashed = hashlib.sha256()
-        for name, content in self.files:
-            hashed.update(name.encode() + b"\0" + hashlib.sha256(content).digest())
-        return hashed.hexdigest()
-
-
-def _one_file(path: Path) -> Bundle:
-    return Bundle(((path.name, path.read_bytes()),))
-
-
 def _tire_files(path: Path) -> Bundle:
     """The Tire Attribute File and every tire file it names; the shipped attribute file names them by their
     place in the bundle, each on its original line (so line numbers in messages stay the same)."""
@@ -180,7 +160,6 @@ def _tire_files(path: Path) -> Bundle:
 # option is one entry here. (The scenario itself always goes, as the bundle "scenario".)
 SHIPPED: dict[str, Callable[[Path], Bundle]] = {"fmu": _one_file, "tires": _tire_files, "vehicle": _one_file,
                                                 "controller": _one_file, "controller_map": _one_file}
-SHIPPED_FOLDER = "shipped"
 
 
 def _pack(scenario_path: str, fixed: dict) -> dict[str, Bundle]:
@@ -189,39 +168,6 @@ def _pack(scenario_path: str, fixed: dict) -> dict[str, Bundle]:
         if fixed.get(option) is not None:
             bundles[option] = pack(Path(fixed[option]))
     return bundles
-
-
-def _passed_on(bundle: Bundle) -> Bundle:
-    """The task whose result is a bundle: Dask holds the bundle in its graph and recomputes it on loss."""
-    return bundle
-
-
-def materialize(bundle: Bundle) -> Path:
-    """The bundle as files in this machine's FMU cache, shipped/<digest>/, written once (atomically: into a
-    temporary folder renamed into place; a concurrent writer's copy is discarded); the first file's path."""
-    from .fmu.cache import _remove_abandoned_builds, cache_directory
-
-    root = cache_directory() / SHIPPED_FOLDER
-    folder = root / bundle.digest[:32]
-    if not (folder / bundle.files[0][0]).is_file():
-        root.mkdir(parents=True, exist_ok=True)
-        _remove_abandoned_builds(root)  # the temporary folders of killed workers
-        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
-        try:
-            for name, content in bundle.files:
-                (work / name).parent.mkdir(parents=True, exist_ok=True)
-                (work / name).write_bytes(content)
-            try:
-                os.rename(work, folder)
-            except OSError:
-                if not (folder / bundle.files[0][0]).is_file():
-                    raise
-        finally:
-            if work.exists():
-                import shutil
-
-                shutil.rmtree(work, ignore_errors=True)
-    return folder / bundle.files[0][0]
 
 
 # ---- one run (on a worker) ------------------------------------------------------------------------
@@ -470,7 +416,7 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     controller = api.controller_model(fixed.get("controller"), fixed.get("controller_map"))  # a bad map fails now
     if controller is not None:  # the map's own `fmu` resolved here: the map travels alone
         fixed["controller"] = str(controller.fmu_path.absolute())
-        fixed["controller_map"] = str(Path(fixed["controller_map"]).absolute())
+        fixed["controller_map"] = str(Path(controller.map_path).absolute())  # example-aeb: the shipped map
     bundles = _pack(scenario_path, fixed)
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
@@ -506,22 +452,11 @@ def _keep_only(journal: Path, rows: list[dict]) -> None:
 
 def _client(workers: int | None, scheduler: str | None):
     """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes; and what to
-    close afterwards."""
-    from distributed import Client, LocalCluster
-
-    if scheduler:
-        try:
-            client = Client(scheduler, timeout=10)
-        except (OSError, ValueError, TypeError) as error:
-            raise SweepError(f"--scheduler {scheduler}: cannot connect: {str(error).splitlines()[0]}") from None
-        return client, [client]
+    close afterwards (shipping.client, its errors as SweepError)."""
     try:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
-    except (OSError, RuntimeError) as error:
-        raise SweepError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
-    client = Client(cluster)
-    return client, [client, cluster]
+        return _cluster_client(workers, scheduler)
+    except ClusterError as error:
+        raise SweepError(str(error)) from None
 
 
 def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> list[dict]:

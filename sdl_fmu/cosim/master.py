@@ -41,6 +41,7 @@ from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from ..vehicle.controller import ControllerModel
 from .brake import BrakeHold
+from .closing import ClosingEnd
 from .clocks import SampleClocks
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
@@ -63,7 +64,7 @@ MAX_TIME = 3600.0  # s, a run never goes beyond
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
 # summary.json's ES reason
-EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision"]
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision", "not_closing"]
 DriverName = Literal["lane", "follow"]  # the built-in driver (docs/controllers.md)
 OnCollision = Literal["continue", "stop"]  # what the first contact does
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
@@ -82,6 +83,7 @@ class RunOptions:
     parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
     tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
+    until_not_closing: int | None = None  # end once the ego, having closed on this vehicle (id), no longer does
     progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
     driver: DriverName = "lane"  # lane: holds its lane and speed; follow: also follows the vehicle ahead
     controller: ControllerModel | None = None  # a controller in the loop (docs/controllers.md)
@@ -118,8 +120,10 @@ class Cosimulation:
         self.controller = None
         self.clocks, self.inputs = self._sampled(options, make_driver(speed, start_lateral, model), geometry)
         self.end_distance, self.end_reason = self._end_distance()
+        closing = None if options.until_not_closing is None else ClosingEnd(options.until_not_closing, self.traffic,
+                                                                             self.bounds)
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
-                                        self.bounds, self.traffic, self.inputs)
+                                        self.bounds, self.traffic, self.inputs, closing)
         self.recorder = Recorder(model.wheel_columns, () if self.controller is None else CONTROLLER_COLUMNS)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
@@ -290,6 +294,8 @@ class Cosimulation:
                 self.release_brakes(state, reason)
         if len(self.traffic.active):
             self.fire_traffic(state)
+        if schedule.closing is not None and not self.finished and schedule.closing.fire(state):
+            self.finish(state, "not_closing")
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
@@ -362,8 +368,8 @@ class Cosimulation:
         self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: EndReason) -> None:
-        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit or collision
-        (--on-collision stop)."""
+        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit, collision
+        (--on-collision stop) or not_closing."""
         if self.finished:
             return
         if self.inputs.brake_hold is not None:

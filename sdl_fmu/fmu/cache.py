@@ -47,23 +47,28 @@ def _compiler_identity(compiler: str) -> str:
         return f"unavailable: {error}"  # build_fmu reports the missing compiler itself
 
 
-def build_inputs() -> dict[str, Path]:
-    """Everything a build reads, by its place in the checkout (the same in any install): the model and build
-    code, the interface data, the tire files the Advanced FMU's start values come from, the C runtime."""
+def build_inputs(dynamics: Dynamics = "simple") -> dict[str, Path]:
+    """Everything a build of `dynamics` reads, by its place in the checkout (the same in any install): the model and
+    build code, the interface data, the tire files the Advanced FMU's start values come from, the C runtime; for a
+    controller (sdl_fmu/controllers/) its module too."""
     package = paths.PACKAGE_DIRECTORY
-    return {"sdl_fmu/interface.py": package / "interface.py", "sdl_fmu/units.py": package / "units.py",
-            "sdl_fmu/dynamics": package / "dynamics", "sdl_fmu/fmu": package / "fmu",
-            "modelDescription": paths.MODEL_DESCRIPTION_DIRECTORY, "scenarios/tires": paths.TIRE_DIRECTORY}
+    inputs = {"sdl_fmu/interface.py": package / "interface.py", "sdl_fmu/units.py": package / "units.py",
+              "sdl_fmu/dynamics": package / "dynamics", "sdl_fmu/fmu": package / "fmu",
+              "modelDescription": paths.MODEL_DESCRIPTION_DIRECTORY, "scenarios/tires": paths.TIRE_DIRECTORY}
+    if MODELS[dynamics][1].startswith("sdl_fmu.controllers."):
+        inputs["sdl_fmu/controllers"] = package / "controllers"
+    return inputs
 
 
-def _input_files() -> list[tuple[str, Path]]:
-    """(name in the key, file) of every build input."""
+def _input_files(dynamics: Dynamics = "simple") -> list[tuple[str, Path]]:
+    """(name in the key, file) of every build input; another model's interface data is not one."""
+    others = {f"modelDescription/{model}.json" for name, (model, _) in MODELS.items() if name != dynamics}
     files = []
-    for name, path in build_inputs().items():
+    for name, path in build_inputs(dynamics).items():
         candidates = sorted(path.rglob("*")) if path.is_dir() else [path]
         files += [(f"{name}/{f.relative_to(path).as_posix()}" if path.is_dir() else name, f) for f in candidates
                   if f.is_file() and f.suffix in BUILD_SUFFIXES and "__pycache__" not in f.parts]
-    return files
+    return [(name, f) for name, f in files if name not in others]
 
 
 def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
@@ -79,7 +84,7 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
                  _compiler_identity(compiler), f"mingw {cross_compiler}",
                  _compiler_identity(cross_compiler) if cross_compiler else ""):
         digest.update(part.encode() + b"\0")
-    for name, path in _input_files():
+    for name, path in _input_files(dynamics):
         digest.update(name.encode() + b"\0")
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()

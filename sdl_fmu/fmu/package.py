@@ -29,6 +29,7 @@ FmiVersion = Literal[2, 3]  # the FMI standard's major version an FMU is built f
 MODELS = {
     "simple": ("EgoVehicleSimple", "sdl_fmu.dynamics.simple"),
     "advanced": ("EgoVehicleAdvanced", "sdl_fmu.dynamics.advanced"),
+    "example-aeb": ("ExampleAeb", "sdl_fmu.controllers.example_aeb"),  # the shipped example controller
 }
 WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
 # only the fmi* functions are exported: CasADi's generated functions stay internal to the library

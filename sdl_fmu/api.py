@@ -785,15 +785,16 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
            speed: float | None = None, seed: int = 1, until_distance: float | None = None,
            until_time: float | None = None, step: float | None = None, fmi_version: int = 2,
            skip_unsupported: bool = False, controller: str | os.PathLike | None = None,
-           controller_map: str | os.PathLike | None = None, driver: str = "lane") -> Export:
+           controller_map: str | os.PathLike | None = None, driver: str = "lane",
+           on_collision: str = "continue") -> Export:
     """Writes the scenario as a co-simulation unit into the export folder `out` (docs/export.md): `<scenario>.ssp`,
     an SSP 1.0 system of the scenario FMU and the ego FMU connected through the vehicle map, and the FMUs beside it.
 
     The options mean what `run`'s do (speed and until_distance in the scenario's units; until_distance and
     until_time exclusive); step is the system's communication step (s, default 0.01); fmi_version (2 or 3) that of
     the scenario FMU and of a shipped ego (a user's FMU goes in as it is). controller and controller_map: a
-    controller between the scenario and the ego (docs/controllers.md), a third component of the system; driver:
-    the built-in driver, "lane" or "follow", as run's. `out` is a
+    controller between the scenario and the ego (docs/controllers.md), a third component of the system; driver
+    ("lane" or "follow") and on_collision ("continue" or "stop") as run's. `out` is a
     new or empty folder or an earlier export folder. Raises InputError or ScenarioError for user mistakes; nothing is
     written then."""
     from .results_folder import ResultsFolderError
@@ -808,6 +809,7 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     if until_time is not None and until_distance is not None:
         raise _option_error("until_time", f"{until_time:g}", "give until_distance or until_time, not both")
     driver = _choice("driver", driver, DRIVERS)
+    on_collision = _choice("on_collision", on_collision, ON_COLLISION)
     if not isinstance(scenario, Scenario):
         scenario = load(scenario, skip_unsupported=skip_unsupported)
     units = scenario.units
@@ -843,7 +845,7 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     arbitration = None if in_the_loop is None else dict(in_the_loop.rules)
     with _scenario_fmu(scenario, model, fmi_version=fmi_version, speed=speed_si, seed=seed,
                        until_distance=until_distance_si, until_time=until_time, step=step,
-                       arbitration=arbitration, driver=driver) as unit:
+                       arbitration=arbitration, driver=driver, on_collision=on_collision) as unit:
         description = read_model_description(str(unit.path), validate=False)
 
         def system_until(stop_time: float):
@@ -864,7 +866,7 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
         reference = run(scenario, dynamics=dynamics, fmu=model.fmu_path, vehicle=vehicle, speed=speed, seed=seed,
                         until_distance=until_distance, until_time=until_time, plot=False,
                         controller=None if in_the_loop is None else in_the_loop.fmu_path,
-                        controller_map=controller_map, driver=driver)
+                        controller_map=controller_map, driver=driver, on_collision=on_collision)
         stop_time = _stop_time(reference, step, until_time)
         system = system_until(stop_time)
         try:

@@ -168,7 +168,7 @@ def _export(args) -> int:
                         speed=args.speed, seed=args.seed, until_distance=args.until_distance,
                         until_time=args.until_time, step=args.step, fmi_version=int(args.fmi_version),
                         skip_unsupported=args.skip_unsupported, controller=args.controller,
-                        controller_map=args.controller_map, driver=args.driver)
+                        controller_map=args.controller_map, driver=args.driver, on_collision=args.on_collision)
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     fmus = ", ".join(f"{component} {path.name}" for component, path in result.fmus.items())
@@ -329,6 +329,8 @@ def parser() -> argparse.ArgumentParser:
     export.add_argument("--driver", choices=("lane", "follow"), default="lane",
                         help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
                              "(also follows the vehicle ahead: Gipps' car-following law)")
+    export.add_argument("--on-collision", choices=("continue", "stop"), default="continue",
+                        help="continue (default) or stop: the scenario ends at the first contact")
     export.add_argument("--speed", type=_float_argument,
                         help="driver's start and target speed, scenario units (default 88 ft/s)")
     export.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")

@@ -342,10 +342,15 @@ def test_a_controller_map_the_ssp_cannot_connect_is_one_line_naming_its_key(tmp_
     assert not (tmp_path / "out").exists()
 
 
-def test_the_follow_driver_is_the_scenario_fmus_option(tmp_path, simple_fmu):
-    export = api.export("head_on", driver="follow", out=tmp_path / "follow")
-    assert parameter_set(export.ssp, "scenario")["driver"] == ("Integer", "2")  # 1 lane, 2 follow
-    assert parameter_set(api.export("head_on", out=tmp_path / "lane").ssp, "scenario")["driver"] == ("Integer", "1")
+def test_the_driver_and_the_end_at_a_collision_are_the_scenario_fmus_options(tmp_path, simple_fmu):
+    follow = api.export("head_on", driver="follow", out=tmp_path / "follow")
+    assert parameter_set(follow.ssp, "scenario")["driver"] == ("Integer", "2")  # 1 lane, 2 follow
+    stop = api.export("head_on", on_collision="stop", out=tmp_path / "stop")
+    assert parameter_set(stop.ssp, "scenario")["on_collision_stop"] == ("Boolean", "true")
+    contact = next(e for e in stop.reference.events if e["action"] == "collision")
+    assert stop.reference.final["time_s"] == contact["time_s"]  # run's end, the stop time's base: the contact
+    default = parameter_set(api.export("head_on", out=tmp_path / "lane").ssp, "scenario")
+    assert default["driver"] == ("Integer", "1") and default["on_collision_stop"] == ("Boolean", "false")
 
 
 def test_ctrl_c_during_an_export_exits_130_and_writes_nothing(tmp_path, simple_fmu):

@@ -30,7 +30,7 @@ SCENARIO_SIGNALS = {"scenario.events": "Integer", "scenario.collisions": "Intege
 SIGNALS = {**SCENARIO_SIGNALS, "ego.x": "Real", "ego.y": "Real", "ego.s": "Real", "ego.v": "Real"}  # shipped egos
 CODES = {"A": 1, "BRK": 2, "RSA": 3, "ES": 4}
 ACTIONS = {"spawn": 1, "maneuver": 2, "collision": 3, "despawn": 4, "on": 5, "off": 6, "set": 7, "end": 8}
-END_REASONS = {"scenario": 1, "until_distance": 2, "until_time": 3, "runout": 4, "time_limit": 5}
+END_REASONS = {"scenario": 1, "until_distance": 2, "until_time": 3, "runout": 4, "time_limit": 5, "collision": 6}
 
 
 # ---- the comparison with `sdl-fmu run` -------------------------------------------------------------------------------
@@ -249,3 +249,12 @@ def test_a_controller_brakes_the_ego_two_steps_after_its_sample(tmp_path, foreig
     stop = export.reference.final["distance"]  # m (Metric)
     assert result["ego.v"][-1] == 0.0
     assert abs(result["ego.s"][-1] - (stop + 2 * STEP * v0)) < 1e-9, (result["ego.s"][-1], stop)
+
+
+@pytest.mark.slow
+def test_the_end_at_the_first_contact_and_the_follow_driver_in_a_master(tmp_path, simple_fmus):
+    # head_on with --on-collision stop: the scenario ends at the contact (end reason collision); and with the follow
+    # driver (Gipps' law), whose decisions every 2/3 s the scenario FMU takes on its predicted ego
+    for options in ({"on_collision": "stop"}, {"driver": "follow"}):
+        export = api.export("head_on", out=tmp_path / "-".join(options.values()), **options)
+        check(run_master("libcosim", export.ssp, export.stop_time, STEP, SIGNALS), export, f"head_on {options}")

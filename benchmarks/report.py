@@ -278,6 +278,26 @@ def aeb_ccr(results: Path) -> list[str]:
         f"- The whole CCR grid in < {AEB_CCR_CPU_S:g} s of CPU on one core: {_met(best < AEB_CCR_CPU_S)}", ""]
 
 
+def scenario_step(results: Path) -> list[str]:
+    data = _load("scenario_step", results)
+    ego, scenario = data["ego_simple"], data["scenario"]
+    rows = [["Simple ego FMU", f"{ego['cpu_us_per_step']:.2f}", f"**{ego['do_step_us']:.2f}**"],
+            ["scenario FMU (demo)", f"{scenario['cpu_us_per_step']:.2f}", f"**{scenario['do_step_us']:.2f}**"]]
+    ratio = scenario["do_step_us"] / ego["do_step_us"]
+    return [
+        "## 9. The scenario FMU's step", "", "Script: `benchmarks/scenario_step.py`.", "",
+        f"The demo run as a fixed-step master runs it (the scenario FMU and the Simple ego FMU stepped together at "
+        f"10 ms, each given the other's outputs at the step's start; {data['steps']} steps, "
+        f"{data['simulated_s']:.1f} s), each FMU's inputs recorded; then each FMU replays its own inputs alone "
+        "through fmpy's FMU2Slave calls: set its inputs, doStep(10 ms), get the outputs the other FMU reads (from "
+        "the ego its 10 pose and motion outputs, from the scenario its 7 commands and surfaces). CPU time per step, "
+        "and the time inside doStep alone. Best of the rounds, the two FMUs alternating.", "",
+        *_table(["FMU", "µs CPU per step (set + doStep + get)", "µs in doStep"], rows), "",
+        _measured(data["measured"]), "",
+        f"- The scenario FMU's doStep costs at most the Simple ego FMU's per 10 ms step: {ratio:.2f}× "
+        f"{_met(ratio <= 1.0)}", ""]
+
+
 def export_speed(results: Path) -> list[str]:
     data = _load("export_speed", results)
     names = {"libcosim": "libcosim (libcosimpy), `simulate_until`", "ecos": "ecos (ecospy), `step`",
@@ -300,7 +320,7 @@ def export_speed(results: Path) -> list[str]:
 
 
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, export_speed)
+            aeb_ccr, scenario_step, export_speed)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -324,6 +344,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/vehicle_path_speed.py --reference CHECKOUT --json benchmarks/results/vehicle_path_speed.json",
         "python benchmarks/verify_pack.py --json benchmarks/results/verify_pack.json",
         "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
+        "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
         "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",

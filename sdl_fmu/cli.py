@@ -1,5 +1,5 @@
-"""The `sdl-fmu` command line: build, check, run, sweep, verify, export. It only parses arguments, calls sdl_fmu.api and
-prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
+"""The `sdl-fmu` command line: build, check, run, sweep, verify, export. It only parses arguments, calls sdl_fmu.api
+and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
 line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
@@ -8,12 +8,19 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 from pathlib import Path
 
+from . import __version__, api
+from . import sweep as sweeping
+from .names import SHIPPED
+from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
+from .sdl import ScenarioError, describe
+from .units import length_label, speed_label
+
 EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
 EXIT_CRITERION_FAILED = 1  # verify --strict: a test pack's criterion failed
-DYNAMICS = ("simple", "advanced")
 FMI_VERSIONS = ("2", "3")
 
 
@@ -29,35 +36,39 @@ class _ArgumentError(Exception):
 
 
 def _build(args) -> int:
-    from .api import InputError
-    from .fmu.package import MODELS, build_fmus
+    """Builds the FMUs into the per-user cache that `run` and `verify` use (what is there already is kept: the cache
+    is keyed by every build input) and copies them to --out."""
+    from .fmu.cache import cached_fmus  # the build side: CasADi and the compilers
+    from .fmu.package import fmu_path
 
-    names = [name for name in MODELS if name in DYNAMICS] if args.dynamics == "all" else [args.dynamics]
+    names = list(SHIPPED) if args.dynamics == "all" else [args.dynamics]
     versions = tuple(map(int, FMI_VERSIONS)) if args.fmi_version == "all" else (int(args.fmi_version),)
+    out = Path(args.out)
     try:
-        Path(args.out).mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
+        out.mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
         for dynamics in names:
-            for path in build_fmus(dynamics, Path(args.out), versions):
-                print(path)
+            for version, cached in zip(versions, cached_fmus(dynamics, versions)):
+                target = fmu_path(out, dynamics, version)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                partial = target.with_suffix(".fmu.partial")
+                shutil.copyfile(cached, partial)
+                partial.replace(target)  # atomic: never a half-copied FMU
+                print(target)
     except OSError as error:
         raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
     return 0
 
 
 def _check(args) -> int:
-    from . import api
-    from .sdl import describe
-
-    scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics)
-    print(describe(scenario))
-    for warning in scenario.warnings:
+    checked = api.check(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics,
+                        vehicle=args.vehicle, tires=args.tires)
+    print(describe(checked.scenario))
+    for warning in checked.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 
 def _parse_parameters(assignments: list[str]) -> dict[str, float]:
-    from .api import InputError
-
     parameters = {}
     for assignment in assignments:
         name, separator, value = assignment.partition("=")
@@ -66,23 +77,20 @@ def _parse_parameters(assignments: list[str]) -> dict[str, float]:
                 raise ValueError
             parameters[name.strip()] = float(value)
         except ValueError:
-            raise InputError("param", f"--param {assignment}: expected NAME=VALUE with a number (SI units)") from None
+            raise InputError("params", "", subject=f"{assignment}: expected NAME=VALUE with a number (SI "
+                                                   "units)") from None
     return parameters
 
 
 def _run(args) -> int:
-    from . import api
-    from .units import length_label, speed_label
-
-    scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported)
-    out = Path(args.out) if args.out is not None else Path("runs") / Path(scenario.path).stem
-    result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
-                     seed=args.seed,
-                     step=args.step, driver_period=args.driver_period,
+    out = Path(args.out) if args.out is not None else Path("runs") / api.resolve_scenario(args.scenario).stem
+    result = api.run(args.scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
+                     seed=args.seed, step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
-                     params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out,
-                     controller=args.controller, controller_map=args.controller_map, driver=args.driver,
-                     on_collision=args.on_collision)
+                     params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,
+                     progress=None, out=out, controller=args.controller, controller_map=args.controller_map,
+                     driver=args.driver, on_collision=args.on_collision)
+    scenario = result.scenario
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
           f"ended at {final['time_s']:.2f} s, distance {final['distance']:.1f} {length_label(units)}, "
@@ -95,9 +103,6 @@ def _run(args) -> int:
 
 
 def _sweep(args) -> int:
-    from . import api
-    from . import sweep as sweeping
-
     varied = sweeping.parse_vary(args.vary, args.sample_seed)
     fixed = {"dynamics": args.dynamics} if args.dynamics else {}
     if args.fmu:
@@ -108,6 +113,9 @@ def _sweep(args) -> int:
         fixed["params"] = _parse_parameters(args.param)
     if args.tires:
         fixed["tires"] = args.tires
+    for option in ("until_time", "until_distance"):
+        if getattr(args, option) is not None:
+            fixed[option] = getattr(args, option)
     for option in ("controller", "controller_map"):
         if getattr(args, option):
             fixed[option] = getattr(args, option)
@@ -145,8 +153,6 @@ def _sweep(args) -> int:
 
 
 def _verify(args) -> int:
-    from . import api
-
     only = None if args.only is None else [name.strip() for name in args.only.split(",") if name.strip()]
     out = Path(args.out) if args.out is not None else Path("verify") / _verify_folder_name(args)
     result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out,
@@ -209,24 +215,22 @@ def _loop_arguments(command, every: str = "") -> None:
                          "default: the controller map's fmu), or example-aeb (the shipped example AEB and its map)")
     command.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests, "
                          "period and arbitration (docs/controllers.md)")
-    command.add_argument("--driver", choices=("lane", "follow"), default="lane",
+    command.add_argument("--driver", choices=DRIVERS, default="lane",
                          help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
                               "(also follows the vehicle ahead: Gipps' car-following law)")
-    command.add_argument("--on-collision", choices=("continue", "stop"), default="continue",
+    command.add_argument("--on-collision", choices=ON_COLLISION, default="continue",
                          help="continue (default) or stop: end the run at the first contact")
 
 
 def parser() -> argparse.ArgumentParser:
-    from . import __version__
-
     main = _Parser(prog="sdl-fmu", description=DESCRIPTION, epilog=EPILOG,
                    formatter_class=argparse.RawDescriptionHelpFormatter)
     main.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = main.add_subparsers(dest="command", required=True, parser_class=_Parser, title="commands",
                                    metavar="command")
 
-    build = commands.add_parser("build", help="build the ego-vehicle FMUs (export them to a folder)")
-    build.add_argument("--dynamics", choices=[*DYNAMICS, "all"], default="all",
+    build = commands.add_parser("build", help="build the ego-vehicle FMUs (into the cache run uses; exported)")
+    build.add_argument("--dynamics", choices=[*SHIPPED, "all"], default="all",
                        help="which model's FMUs: simple, advanced or all (default: all)")
     build.add_argument("--fmi-version", choices=[*FMI_VERSIONS, "all"], default="all",
                        help="FMI version of the FMUs: 2, 3 or all (default: all, into OUT/fmi2/ and OUT/fmi3/)")
@@ -235,26 +239,28 @@ def parser() -> argparse.ArgumentParser:
 
     check = commands.add_parser("check", help="parse a scenario and report, run nothing")
     check.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    check.add_argument("--dynamics", choices=DYNAMICS, default="simple",
-                       help="apply this model's rules, as run --dynamics does (advanced: RSA values are whole "
-                            "surface attribute numbers)")
+    check.add_argument("--dynamics", choices=SHIPPED,
+                       help="check for this shipped model, as run --dynamics does (default simple; advanced: RSA "
+                            "values are whole surface attribute numbers, BRK is ignored); not with --vehicle")
+    check.add_argument("--vehicle", help="check for this vehicle map (TOML), as run --vehicle does")
+    check.add_argument("--tires", help="Tire Attribute File, as run --tires (advanced dynamics)")
     check.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
     check.set_defaults(handler=_check)
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
     run.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    run.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default; friction "
+    run.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default; friction "
                      "coefficients) or advanced (Magic Formula tires); not with --vehicle")
     run.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics, built on first use)")
     run.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     run.add_argument("--speed", type=_float_argument,
                      help="driver's start and target speed, scenario units (default 88 ft/s)")
     run.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
-    run.add_argument("--step", type=_float_argument, help="longest communication step, s (default 1); triggers are "
-                     "located exactly at any step; driver samples and triggers cut steps shorter")
+    run.add_argument("--step", type=_float_argument, help=f"longest communication step, s (default {DEFAULT_STEP:g}); "
+                     "triggers are located exactly at any step; driver samples and triggers cut steps shorter")
     run.add_argument("--driver-period", type=_float_argument,
-                     help="the driver model's sampling period, s (default 0.05)")
+                     help=f"the driver model's sampling period, s (default {DEFAULT_DRIVER_PERIOD:g})")
     run.add_argument("--until-distance", type=_float_argument, help="end at this distance, scenario units")
     run.add_argument("--until-time", type=_float_argument, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -275,13 +281,16 @@ def parser() -> argparse.ArgumentParser:
     where = sweep.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
-    sweep.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model for every run: simple (default) or "
+    sweep.add_argument("--dynamics", choices=SHIPPED, help="a shipped model for every run: simple (default) or "
                        "advanced; not with --vehicle")
     sweep.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics)")
     sweep.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     sweep.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="FMU start value for every run, SI (repeatable)")
     sweep.add_argument("--tires", help="Tire Attribute File for every run (advanced dynamics)")
+    sweep.add_argument("--until-distance", type=_float_argument,
+                       help="end every run at this distance, scenario units (or vary until_distance)")
+    sweep.add_argument("--until-time", type=_float_argument, help="end every run at this time, s (or vary until_time)")
     sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
     sweep.add_argument("--timeout", type=_float_argument, default=600.0,
                        help="wall-clock limit per run, s (default 600)")
@@ -293,9 +302,9 @@ def parser() -> argparse.ArgumentParser:
     sweep.set_defaults(handler=_sweep)
 
     verify = commands.add_parser("verify", help="a test pack: vehicle manoeuvres or AEB car-to-car, report")
-    verify.add_argument("--pack", choices=("vehicle", "aeb-ccr"), default="vehicle",
+    verify.add_argument("--pack", choices=api.PACKS, default="vehicle",
                         help="vehicle (default): the vehicle test pack; aeb-ccr: the AEB car-to-car rear grid")
-    verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
+    verify.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default) or advanced")
     verify.add_argument("--fmu", help="vehicle FMU (default: the cached build of --dynamics)")
     verify.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu")
     verify.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -348,15 +357,17 @@ def parser() -> argparse.ArgumentParser:
     return main
 
 
+def _is_build_error(error: Exception) -> bool:
+    """Whether an FMU could not be built (fmu.package.BuildError: no compiler, a failing compile). The build side
+    (CasADi) is imported only by a command that builds: if it was never imported, nothing was built."""
+    package = sys.modules.get("sdl_fmu.fmu.package")
+    return package is not None and isinstance(error, package.BuildError)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 3 a sweep with failed
     runs, 130 Ctrl-C, 141 closed output pipe)."""
     try:
-        from .api import InputError
-        from .fmu.package import BuildError
-        from .sdl import ScenarioError
-        from .sweep import SweepError
-
         try:
             args = parser().parse_args(argv)
         except _ArgumentError as error:
@@ -373,7 +384,12 @@ def main(argv: list[str] | None = None) -> int:
         except InputError as error:
             print(f"sdl-fmu: {error.command_line()}", file=sys.stderr)
             return EXIT_USAGE
-        except (BuildError, SweepError) as error:
+        except sweeping.SweepError as error:
+            print(f"sdl-fmu: {error}", file=sys.stderr)
+            return EXIT_USAGE
+        except Exception as error:
+            if not _is_build_error(error):
+                raise
             print(f"sdl-fmu: {error}", file=sys.stderr)
             return EXIT_USAGE
         sys.stdout.flush()  # here, so that a closed pipe is caught below rather than at interpreter exit

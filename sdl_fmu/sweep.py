@@ -141,7 +141,7 @@ def _with_rsa(scenario, name: str, value: float):
 def _tire_files(path: Path) -> Bundle:
     """The Tire Attribute File and every tire file it names; the shipped attribute file names them by their
     place in the bundle, each on its original line (so line numbers in messages stay the same)."""
-    from .dynamics.tires import read_attribute_file
+    from .tire_files import read_attribute_file
 
     entries = read_attribute_file(path)
     lines = [""] * max((entry.line for entry in entries), default=0)
@@ -402,14 +402,18 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     from . import api
 
     scenario_path = str(api.resolve_scenario(scenario).absolute())
-    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))  # a bad file fails now
+    # the scenario checked for the runs' vehicle (a bad file fails now, before any FMU is built or loaded)
+    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False),
+                      dynamics=fixed.get("dynamics"), vehicle=fixed.get("vehicle"))
     if not timeout > 0:
         raise SweepError(f"--timeout {timeout}: must be > 0")
     fixed = dict(fixed)
+    api.run_options(loaded, **{key: fixed[key] for key in api.RUN_OPTIONS if key in fixed})  # bad options fail now
     model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
+    model.with_parameters(fixed.get("params"))  # and bad FMU start values
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
-        api.tire_slot_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
+        model.with_tires(fixed["tires"])  # a bad tire file fails now, naming the local file
         fixed["tires"] = str(Path(fixed["tires"]).absolute())
     if fixed.get("vehicle") is not None:
         fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())

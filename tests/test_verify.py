@@ -174,7 +174,7 @@ def test_weak_vehicle_fails_what_it_cannot_reach_and_the_pack_goes_on(tmp_path, 
 
 def test_an_fmu_error_fails_the_manoeuvre_with_one_line(simple_fmu):
     """The real FMU refuses a steer outside its declared range (fmi2Error): the manoeuvre fails with one line."""
-    from sdl_fmu.vehicle import shipped_model
+    from sdl_fmu.shipped import shipped_model
     from sdl_fmu.verify.drive import ManoeuvreFailed, drive
 
     with pytest.raises(ManoeuvreFailed) as failure:

@@ -24,8 +24,9 @@ import casadi as ca
 
 from ..dynamics.equations import Equations, make_symbols
 from ..interface import DISCRETE, load_interface
+from ..names import EXAMPLE_CONTROLLER, SHIPPED_CONTROLLERS
 
-MODEL_NAME = "ExampleAeb"
+MODEL_NAME = SHIPPED_CONTROLLERS[EXAMPLE_CONTROLLER]
 
 
 def _stage(on: ca.SX, ttc: ca.SX, threshold: ca.SX, factor: ca.SX) -> ca.SX:

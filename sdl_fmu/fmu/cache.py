@@ -17,13 +17,10 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from .. import __version__, paths
-from .package import MODELS, FmiVersion, build_fmus, fmu_path, mingw_compiler
-
-if TYPE_CHECKING:
-    from ..vehicle.vehicle_map import Dynamics
+from ..names import BUILT, SHIPPED_CONTROLLERS, Dynamics
+from .package import FmiVersion, build_fmus, fmu_path, mingw_compiler
 
 CACHE_VARIABLE = "SDL_FMU_CACHE"
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
@@ -53,16 +50,17 @@ def build_inputs(dynamics: Dynamics = "simple") -> dict[str, Path]:
     controller (sdl_fmu/controllers/) its module too."""
     package = paths.PACKAGE_DIRECTORY
     inputs = {"sdl_fmu/interface.py": package / "interface.py", "sdl_fmu/units.py": package / "units.py",
+              "sdl_fmu/names.py": package / "names.py", "sdl_fmu/tire_files.py": package / "tire_files.py",
               "sdl_fmu/dynamics": package / "dynamics", "sdl_fmu/fmu": package / "fmu",
               "modelDescription": paths.MODEL_DESCRIPTION_DIRECTORY, "scenarios/tires": paths.TIRE_DIRECTORY}
-    if MODELS[dynamics][1].startswith("sdl_fmu.controllers."):
+    if dynamics in SHIPPED_CONTROLLERS:
         inputs["sdl_fmu/controllers"] = package / "controllers"
     return inputs
 
 
 def _input_files(dynamics: Dynamics = "simple") -> list[tuple[str, Path]]:
     """(name in the key, file) of every build input; another model's interface data is not one."""
-    others = {f"modelDescription/{model}.json" for name, (model, _) in MODELS.items() if name != dynamics}
+    others = {f"modelDescription/{model}.json" for name, model in BUILT.items() if name != dynamics}
     files = []
     for name, path in build_inputs(dynamics).items():
         candidates = sorted(path.rglob("*")) if path.is_dir() else [path]
@@ -79,7 +77,7 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     digest = hashlib.sha256()
     compiler = os.environ.get("CC", "gcc")
     cross_compiler = mingw_compiler()  # None: the FMU gets no Windows binary, a different FMU
-    for part in (f"sdl-fmu {__version__}", f"model {MODELS[dynamics][0]}", f"fmi {fmi_version}",
+    for part in (f"sdl-fmu {__version__}", f"model {BUILT[dynamics]}", f"fmi {fmi_version}",
                  f"casadi {casadi.__version__}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
                  _compiler_identity(compiler), f"mingw {cross_compiler}",
                  _compiler_identity(cross_compiler) if cross_compiler else ""):
@@ -105,7 +103,8 @@ def _remove_abandoned_builds(root: Path) -> None:
 
 
 def _cache_folder(dynamics: Dynamics, fmi_version: FmiVersion) -> Path:
-    return cache_directory() / f"{MODELS[dynamics][0]}-fmi{fmi_version}-{build_key(dynamics, fmi_version)[:24]}"
+    key = build_key(dynamics, fmi_version)
+    return cache_directory() / f"{BUILT[dynamics]}-fmi{fmi_version}-{key[:24]}"
 
 
 def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, ...] = (2,),

@@ -168,8 +168,6 @@ def _verify(args) -> int:
 
 
 def _export(args) -> int:
-    from . import api
-
     result = api.export(args.scenario, out=args.out, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle,
                         speed=args.speed, seed=args.seed, until_distance=args.until_distance,
                         until_time=args.until_time, step=args.step, fmi_version=int(args.fmi_version),
@@ -327,7 +325,7 @@ def parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser("export", help="the scenario as an FMU and an SSP that FMI masters run")
     export.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    export.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced; not "
+    export.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default) or advanced; not "
                         "with --vehicle")
     export.add_argument("--fmu", help="ego FMU (default: the cached build of --dynamics)")
     export.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
@@ -335,10 +333,10 @@ def parser() -> argparse.ArgumentParser:
                         "component of the SSP (default: the controller map's fmu)")
     export.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests and "
                         "arbitration (docs/controllers.md)")
-    export.add_argument("--driver", choices=("lane", "follow"), default="lane",
+    export.add_argument("--driver", choices=DRIVERS, default="lane",
                         help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
                              "(also follows the vehicle ahead: Gipps' car-following law)")
-    export.add_argument("--on-collision", choices=("continue", "stop"), default="continue",
+    export.add_argument("--on-collision", choices=ON_COLLISION, default="continue",
                         help="continue (default) or stop: the scenario ends at the first contact")
     export.add_argument("--speed", type=_float_argument,
                         help="driver's start and target speed, scenario units (default 88 ft/s)")

@@ -15,7 +15,7 @@ from lxml import etree
 
 from sdl_fmu import api
 from sdl_fmu.cli import main
-from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
+from sdl_fmu.tire_files import SLOT_KEYS, default_attribute_file, slot_parameter, slot_values
 from sdl_fmu.results_folder import MANIFEST_NAME
 from sdl_fmu.ssp.document import OSP, SSC, SSD, SSV, schema_directory
 
@@ -134,8 +134,12 @@ def test_the_shipped_simple_ego_starts_where_run_starts_it_and_every_signal_is_c
 def test_the_advanced_ego_gets_its_tire_slots_and_integer_surfaces(tmp_path, advanced_fmu):
     export = api.export("demo_advanced", dynamics="advanced", out=tmp_path / "advanced")
     ego = parameter_set(export.ssp, "ego")
-    slots, _, _ = slot_parameters(default_attribute_file())
-    assert slots and all(ego[name] == ("Real", repr(float(value))) for name, value in slots.items())
+    # the tire slots as run fills them: the shipped Tire Attribute File, slot k named tire<k>_<KEY> (the map's prefix)
+    count = sum(1 for name in ego if name.endswith(f"_{SLOT_KEYS[0]}"))
+    slots, _, _ = slot_values(default_attribute_file(), count)
+    expected = {slot_parameter("tire{slot}_", k, key): value for k, values in enumerate(slots)
+                for key, value in values.items()}
+    assert count >= 2 and expected and all(ego[name] == ("Real", repr(float(value))) for name, value in expected.items())
     found = connections(export.ssp)
     for wheel in ("fl", "fr", "rl", "rr"):
         assert found[("ego", f"surface_{wheel}")] == ("scenario", f"surface_{wheel}", 1.0, 0.0, False)

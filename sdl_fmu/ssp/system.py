@@ -221,6 +221,13 @@ def build_system(name: str, scenario_fmu: Path, scenario_description, model: Ego
         if variable.causality == "output" and ssp_type(variable) is not None:
             scenario.connector(variable.name, "output")
     scenario_starts = dict(scenario_parameters)
+    # the ego's start state as the start values of the scenario FMU's inputs it feeds: a master passes a transformed
+    # connection's value only when it transfers at a communication point (libcosim through a function, ecos through
+    # a modifier), not before the FMUs leave initialization, where the scenario FMU takes its first driver sample
+    initial = {"ego_x": start["x"], "ego_y": start["y"], "ego_psi": start["yaw"], "ego_v": start["speed"],
+               "ego_s": 0.0, "ego_vx": start["speed"], "ego_vy": 0.0, "ego_yaw_rate": 0.0}
+    scenario_starts.update({name: value for name, value in initial.items()
+                            if any(c.end == (SCENARIO, name) for c in connections)})
     extra: list[Component] = []
     if controller is not None:
         part, always_active = _controller(controller, model, scenario, ego, units, connect)

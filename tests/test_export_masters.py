@@ -38,9 +38,14 @@ END_REASONS = {"scenario": 1, "until_distance": 2, "until_time": 3, "runout": 4,
 # Events the ego's distance travelled triggers (an A appears, an RSA is met, a BRK begins, the end by distance)
 DISTANCE_EVENTS = {("A", "spawn"), ("RSA", "set"), ("BRK", "on")}
 DISTANCE_ENDS = {"scenario", "until_distance", "runout"}
-# s: how exactly the scenario FMU locates an instant inside a step from its prediction of the ego (its documentation:
-# to 1e-6 s, as `sdl-fmu run` bisects)
+# s: how exactly `sdl-fmu run` locates its instants (its bisection; more for an ego that cannot roll back: the
+# event's own time_uncertainty_s is added)
 LOCATED = TIME_TOLERANCE
+# The scenario FMU's bound (docs/scenario-fmu.md, Stepping): over step k its belief of the ego's distance is within
+# e_k = (D_{k-1} + D_k) h^2 / 2 of the ego's, D the stray of the path acceleration from the one the inputs gave,
+# at most 2 a_max: e_k <= 2 a_max h^2. Reading the master's distance linearly between communication points adds
+# a_max h^2 / 8. In time, divided by the speed there.
+DISTANCE_BOUND = 2.0 + 1.0 / 8.0  # x a_max h^2
 
 
 def ego_lag(master_time, master_s, master_v, reference: api.Result, a_max: float) -> float:
@@ -89,13 +94,11 @@ def assert_conforms(result: dict[str, np.ndarray], reference: api.Result, step: 
         located = result["scenario.last_event_time"][k]
         assert time[k] - step - 1e-9 <= located <= time[k] + 1e-9, (label, i, event, located, time[k])
         if (event["code"], event["action"]) in DISTANCE_EVENTS or event.get("reason") in DISTANCE_ENDS:
-            # where the master's ego reaches run's ego's distance at the event (linear between communication
-            # points: within a_max h^2 / 8 of the distance, divided by the speed there)
+            # where the master's ego reaches run's ego's distance at the event
             where = to_si(event["distance"], reference.scenario.units)
             reached = float(np.interp(where, s, t))
             v = float(np.interp(reached, t[1:], speed))
-            # run's own instant is within its time_uncertainty_s (an ego that cannot roll back: docs/vehicle-maps.md)
-            bound = LOCATED + event.get("time_uncertainty_s", 0.0) + a_max * step**2 / (8 * v)
+            bound = LOCATED + event.get("time_uncertainty_s", 0.0) + DISTANCE_BOUND * a_max * step**2 / v
             assert abs(located - reached) <= bound, (label, i, event, located, reached)
     assert result["scenario.collisions"][-1] == reference.collisions, label
     ended = result["scenario.ended"].astype(bool)

@@ -91,7 +91,10 @@ def main() -> int:
                   f"({export.stop_time / wall:.0f}x real time, {wall / steps * 1e6:.0f} us per step); "
                   f"load {load:.3f} s")
     if args.json:
-        Path(args.json).write_text(json.dumps({"measured": stamp(), **report}, indent=2) + "\n")
+        from importlib import metadata
+
+        masters = ", ".join(f"{name} {metadata.version(name)}" for name in ("libcosimpy", "ecospy"))
+        Path(args.json).write_text(json.dumps({"measured": stamp(masters), **report}, indent=2) + "\n")
     return 0
 
 

@@ -20,13 +20,16 @@ import math
 import os
 import shutil
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
+from fmpy import read_model_description
 
+from . import __version__
 from .cosim import master
 from .cosim.ego import FmuError
 from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
@@ -40,6 +43,8 @@ from .sdl import Scenario, ScenarioError, SdlError, default_vehicle_table_path, 
 from .sdl.checks import check_scenario, vehicle_warnings
 from .shipped import shipped_controller, shipped_fmu
 from .shipping import ClusterError
+from .ssp.folder import check_export_folder, write_export
+from .ssp.system import ExportError, build_system
 from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
 from .units import from_si, length_label, speed_label
 from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
@@ -638,9 +643,7 @@ def _stop_time(reference: Result, step: float, until_time: float | None) -> floa
 @contextlib.contextmanager
 def _scenario_fmu(scenario: Scenario, model, **options):
     """The scenario FMU of these options (docs/export.md), written into a temporary folder as <scenario>.fmu."""
-    import tempfile
-
-    from .export.scenario_fmu import ScenarioFmuError, write_scenario_fmu
+    from .export.scenario_fmu import ScenarioFmuError, write_scenario_fmu  # the build side: its writer and runtime
 
     with tempfile.TemporaryDirectory(prefix="sdl-fmu-export-") as folder:
         try:
@@ -667,9 +670,6 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     ("lane" or "follow") and on_collision ("continue" or "stop") as run's. `out` is a
     new or empty folder or an earlier export folder. Raises InputError or ScenarioError for user mistakes; nothing is
     written then."""
-    from .ssp.folder import check_export_folder, write_export
-    from .ssp.system import ExportError
-
     step = DEFAULT_EXPORT_STEP if step is None else checked_option("step", step)
     if isinstance(fmi_version, bool) or fmi_version not in (2, 3):
         raise option_error("fmi_version", fmi_version, "must be 2 or 3")
@@ -693,11 +693,6 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     if in_the_loop is not None and abs(in_the_loop.period - step) > 1e-12 * step:
         warnings.append(f"the controller {in_the_loop.name} is stepped at the system's step {step:g} s, not at its "
                         f"map's period {in_the_loop.period:g} s: an SSP master steps every FMU on one grid")
-    from fmpy import read_model_description
-
-    from . import __version__
-    from .ssp.system import build_system
-
     start = {"speed": DEFAULT_SPEED if options.speed is None else options.speed, "x": 0.0,
              "y": -scenario.road.lane_center(1), "yaw": 0.0}  # where run starts the ego (cosim/master.py)
     name = Path(scenario.path).stem

@@ -685,7 +685,9 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     except ResultsFolderError as error:
         raise InputError("out", "", subject=str(error)) from None
     model = ego_model(dynamics, fmu, vehicle_map if vehicle is not None else None, fmi_version).with_tires(None)
-    warnings = [*scenario.warnings, *model.warnings]
+    # what a run of this scenario with this vehicle warns of (`sdl-fmu check`'s warnings): the scenario FMU does the same
+    warnings = [*scenario.warnings, *model.warnings,
+                *vehicle_warnings(scenario, model.name, model.surface_meaning, model.brk_acts, model.known_attributes)]
     if model.fmi_version != f"{fmi_version}.0":
         warnings.append(f"the ego FMU {model.fmu_path.name} is FMI {model.fmi_version} and the scenario FMU FMI "
                         f"{fmi_version}.0: " + ("libcosim and fmpy's simulate_ssp load FMI 2.0 FMUs only"

@@ -391,3 +391,15 @@ def test_ctrl_c_during_an_export_exits_130_and_writes_nothing(tmp_path, simple_f
     assert process.returncode == 130
     assert stderr.splitlines() == ["sdl-fmu: interrupted (Ctrl-C); nothing was written"] and stdout == ""
     assert list(work.iterdir()) == []
+
+
+def test_the_warnings_are_those_check_gives_and_the_mixed_fmi_versions(tmp_path, simple_fmus, capsys):
+    # demo's BRK events with the Advanced ego: ignored, as run and check say, and the scenario FMU does the same
+    advanced = api.export("demo", dynamics="advanced", until_time=1.0, out=tmp_path / "advanced")
+    assert advanced.warnings == api.check("demo", dynamics="advanced").warnings and advanced.warnings
+    # an FMI 3.0 ego in an FMI 2.0 system: written, with a warning that libcosim and fmpy cannot load it
+    assert main(["export", "head_on", "--fmu", str(simple_fmus[3]), "--until-time", "1",
+                 "--out", str(tmp_path / "mixed")]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("warning: the ego FMU EgoVehicleSimple.fmu is FMI 3.0 and the scenario FMU FMI 2.0") \
+        and len(err.splitlines()) == 1, err

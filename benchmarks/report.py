@@ -24,6 +24,7 @@ SWEEP_SPEEDUP = 1.8  # 2 workers against 1
 CRITICALITY_OVERHEAD = 0.15  # on the demo
 VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
 AEB_CCR_CPU_S = 60.0  # the whole CCR grid, Simple vehicle, example AEB, one core
+EXPORT_LIBCOSIM_RTF = 100.0  # the exported demo (Simple ego, step 10 ms) in libcosim
 
 
 def _load(name: str, results: Path) -> dict:
@@ -303,8 +304,29 @@ def scenario_step(results: Path) -> list[str]:
         f"{_met(ratio <= 1.0)}", ""]
 
 
+def export_speed(results: Path) -> list[str]:
+    data = _load("export_speed", results)
+    names = {"libcosim": "libcosim (libcosimpy), `simulate_until`", "ecos": "ecos (ecospy), `step`",
+             "fmpy": "fmpy, `simulate_ssp`"}
+    rows = [[names[master], f"**{r['real_time_factor']:.0f}×**", f"{r['wall_s']:.3f}", f"{r['cpu_s']:.3f}",
+             f"{r['us_per_step']:g}", f"{r['load_s']:.3f}" if master != "fmpy" else "in the run"]
+            for master, r in data["masters"].items()]
+    libcosim = data["masters"]["libcosim"]["real_time_factor"]
+    return [
+        "## 10. The exported demo in SSP masters", "", "Script: `benchmarks/export_speed.py`.", "",
+        f"`api.export(\"demo\")` (the Simple ego, FMI 2.0, step {data['step_s'] * 1000:g} ms: "
+        f"{data['steps']} steps to the stop time {data['stop_time_s']:g} s), the SSP run whole by each master in a "
+        f"fresh process of its own, best of {data['repeat']} by wall time of the simulation alone (loading the SSP, "
+        "unzipping and instantiating the FMUs are apart; fmpy's `simulate_ssp` does all in one call). The scenario "
+        "FMU and the ego FMU are stepped by the master on its "
+        "fixed grid ([docs/export.md](docs/export.md)).", "",
+        *_table(["master", "real-time factor", "wall s", "CPU s", "µs / step", "load s"], rows), "",
+        _measured(data["measured"]), "",
+        f"- libcosim ≥ {EXPORT_LIBCOSIM_RTF:g}× real time at 10 ms: {_met(libcosim >= EXPORT_LIBCOSIM_RTF)}", ""]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, scenario_step)
+            aeb_ccr, scenario_step, export_speed)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -329,6 +351,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/verify_pack.py --reference CHECKOUT --json benchmarks/results/verify_pack.json",
         "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
         "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
+        "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import functools
 import math
-import shutil
 from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_uint32, c_void_p, pointer
 from typing import NamedTuple
 
@@ -52,9 +51,7 @@ class EgoInstance:
         self.time = 0.0
         self.warnings: list[str] = []
         self.fmi3 = model.fmi_version == "3.0"
-        from fmpy import extract
-
-        self._unzipped = extract(str(model.fmu_path))
+        self._unzipped = model.unzipped()  # shared by the model's instances (unzipping is most of a start's cost)
         try:
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Slave as Slave
@@ -63,7 +60,6 @@ class EgoInstance:
             self.slave = Slave(guid=model.guid, unzipDirectory=self._unzipped,
                                modelIdentifier=model.model_identifier, instanceName=instance_name)
         except Exception as error:  # fmpy reports a binary that cannot be loaded as a plain Exception
-            shutil.rmtree(self._unzipped, ignore_errors=True)
             raise FmuError(f"{model.fmu_path}: the FMU's binary cannot be loaded: {error}") from None
         try:
             self.slave.instantiate()
@@ -359,7 +355,6 @@ class EgoInstance:
             self.slave.freeInstance()
         except Exception:
             pass
-        shutil.rmtree(self._unzipped, ignore_errors=True)
 
     def __enter__(self) -> EgoInstance:
         return self

@@ -170,6 +170,7 @@ class EgoModel:
         self.known_attributes = known_attributes
         self.warnings = warnings
         self._resolve_vehicle()
+        self._unzipped: str | None = None
 
     # ---- construction -------------------------------------------------------------------------------------
 
@@ -468,6 +469,22 @@ class EgoModel:
         return {"name": self.name, "fmu": str(self.fmu_path.name), "fmi_version": self.fmi_version,
                 "map": None if self.map_path is None else str(self.map_path), "can_roll_back": self.can_roll_back,
                 "friction": self.surface_meaning, "brk_acts": self.brk_acts}
+
+    def unzipped(self) -> str:
+        """The FMU unzipped once for all of this model's instances, removed with the model (or at exit): what an
+        instance on this platform loads, without the FMU's sources, documentation and other platforms' binaries (the
+        Advanced FMU: 4 of 14 MB; unzipping it whole took 0.13 s of CPU, most of a manoeuvre run's start)."""
+        if self._unzipped is None:
+            import shutil
+            import weakref
+
+            from fmpy import extract
+
+            binaries = f"binaries/{_platform(self.fmi_version)}/"
+            self._unzipped = str(extract(str(self.fmu_path), include=lambda name: not name.startswith(
+                ("sources/", "documentation/")) and (not name.startswith("binaries/") or name.startswith(binaries))))
+            weakref.finalize(self, shutil.rmtree, self._unzipped, ignore_errors=True)
+        return self._unzipped
 
     def instantiate(self, start: dict[str, float] | None = None, parameters: dict[str, float] | None = None,
                     instance_name: str = "ego"):

@@ -74,16 +74,18 @@ def test_in_the_advanced_demo_the_car_brakes_for_the_suv_ahead_and_follows_it(ad
     assert (lead["index"][after] == spawn["vehicle"] - 1).all()
 
 
-def test_the_lead_vehicle_example_keeps_behind_the_car_and_passes_it(simple_fmu):
-    # The car going our way at 60 ft/s, 500 ft ahead: the ego closes at 28 ft/s, brakes (BRK) to below 50 ft/s,
-    # catches up again, and passes it once it has moved into the opposite lane (closure time 5 s): no collision,
-    # and while it is the lead vehicle its speed is +60 ft/s our way (signals.py: the speed along the road)
+def test_the_lead_vehicle_example_follows_the_car_and_passes_it(simple_fmu):
+    # The car going our way at 60 ft/s, 500 ft ahead: the ego closes at 28 ft/s, and passes it once it has moved
+    # into the opposite lane (closure time 5 s: a gap of 140 ft, 360 ft / 28 ft/s = 12.857 s after its spawn): no
+    # collision, and while it is the lead vehicle its speed is +60 ft/s our way (signals.py: along the road)
     result = api.run("lead_vehicle", dynamics="simple", fmu=simple_fmu)
     assert result.collisions == 0 and [e["action"] for e in result.events if e["code"] == "A"] == [
         "spawn", "maneuver", "despawn"]
+    spawn, maneuver = (e["time_s"] for e in result.events if e["action"] in ("spawn", "maneuver"))
+    assert maneuver - spawn == pytest.approx(360 / 28, abs=1e-5)
     lead = result.raw.lead_series()
     assert lead["present"].any()
-    assert np.allclose(lead["speed"][lead["present"] & (result.time < 18.0)], 60 * 0.3048)
+    assert np.allclose(lead["speed"][lead["present"] & (result.time <= maneuver)], 60 * 0.3048)
     # timeseries.csv's A1 columns (docs/results.md): its speed +60 ft/s (our way) while it drives straight; at its
     # spawn 500 ft ahead (centres) the bumper gap is 500 ft less the ego's half length and the car's (4.2 m / 2),
     # the ego at yaw 0 (lane keeping on a straight road: |psi| < 1e-9, its extent ahead L/2 to 1e-9 m)
@@ -91,7 +93,7 @@ def test_the_lead_vehicle_example_keeps_behind_the_car_and_passes_it(simple_fmu)
     on_road = ~np.isnan(arrays["A1_speed_ft/s"])
     spawn = int(np.flatnonzero(on_road)[0])
     assert np.abs(arrays["psi_rad"]).max() < 1e-9
-    assert np.allclose(arrays["A1_speed_ft/s"][on_road & (result.time < 18.0)], 60.0)
+    assert np.allclose(arrays["A1_speed_ft/s"][on_road & (result.time <= maneuver)], 60.0)
     assert arrays["A1_gap_ft"][spawn] == pytest.approx(500.0, abs=1e-9)
     ego_length = api.ego_model("simple", fmu=simple_fmu).length
     assert arrays["A1_bumper_gap_ft"][spawn] == pytest.approx(500.0 - (ego_length / 2 + 2.1) / 0.3048, abs=1e-6)

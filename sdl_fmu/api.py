@@ -419,6 +419,7 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
         return None
     from tqdm import tqdm
 
+    from .text import unescaped  # the bar's own carriage returns, not escaped
     from .units import from_si, length_label
 
     state_of = {}
@@ -433,7 +434,7 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
             # the terminal's size, 80 x 24 where it reports none (a fresh pseudo-terminal says 0 x 0, which
             # makes tqdm print nothing)
             size = shutil.get_terminal_size()
-            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=sys.stderr, leave=False,
+            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=unescaped(sys.stderr), leave=False,
                                          ncols=size.columns, nrows=size.lines,
                                          bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} {unit}")
             state_of["key"] = key
@@ -541,8 +542,14 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         options.progress = _with_deadline(options.progress, timeout)
     if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
         options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
+    from .vehicle.isolated import FmuTimeout, deadline
+
     try:
-        raw = run_scenario(scenario, model, options, _vehicle_table())
+        with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
+            raw = run_scenario(scenario, model, options, _vehicle_table())
+    except FmuTimeout as error:
+        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU {fmu_path.name} "
+                         f"{_first_line(error)}") from None  # "did not answer in fmi2DoStep from t = ..."
     except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
     raw.warnings[:0] = [*scenario.warnings, *tire_warnings]

@@ -12,6 +12,21 @@ import sys
 from pathlib import Path
 
 EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
+EXIT_TERMINATED = 143  # SIGTERM (`timeout`, `kill`): 128 + 15, as the shell reports it
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled as Ctrl-C is (everything sdl-fmu started is ended, nothing half-written is left)."""
+
+
+def _stop(signum, frame):
+    """Ctrl-C or SIGTERM: raised once; a repeat while sdl-fmu cleans up is ignored (`timeout` signals the command and
+    then its whole process group, so the command gets the signal twice), so the clean-up is never cut short."""
+    import signal
+
+    for repeated in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(repeated, signal.SIG_IGN)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 DYNAMICS = ("simple", "advanced")
 FMI_VERSIONS = ("2", "3")
 
@@ -114,10 +129,11 @@ def _sweep(args) -> int:
     try:
         rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
                               timeout=args.timeout, progress=None, **fixed)
-    except KeyboardInterrupt:
-        print(f"sdl-fmu: sweep interrupted (Ctrl-C); the finished runs are in {out / sweeping.JOURNAL_NAME}: "
+    except KeyboardInterrupt as stop:
+        how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
+        print(f"sdl-fmu: sweep {how}; the finished runs are in {out / sweeping.JOURNAL_NAME}: "
               "the same command resumes the sweep", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if isinstance(stop, Terminated) else EXIT_INTERRUPTED
     table = out / sweeping.CSV_NAME
     failures = sweeping.failure_line(rows, table)
     if failures is not None and all(row.get("status") != "ok" for row in rows):
@@ -165,8 +181,8 @@ def _float_argument(text: str) -> float:
 DESCRIPTION = "Vehicle-dynamics FMUs (FMI 2.0 and 3.0) co-simulated with STISIM-style SDL traffic scenarios."
 EPILOG = """\
 'sdl-fmu command --help' shows a command's options. Try: sdl-fmu run demo
-exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 130 Ctrl-C,
-            141 the output pipe was closed early (e.g. by head)"""
+exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 3 a sweep with failed runs,
+            130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
 
 
 def parser() -> argparse.ArgumentParser:
@@ -257,7 +273,31 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 3 a sweep with failed
-    runs, 130 Ctrl-C, 141 closed output pipe)."""
+    runs, 130 Ctrl-C, 141 closed output pipe, 143 SIGTERM). Everything it prints has its terminal control
+    characters escaped (names come from files and FMUs)."""
+    import signal
+
+    from .text import EscapingStream
+
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = EscapingStream(sys.stdout), EscapingStream(sys.stderr)
+    previous = {}
+    try:
+        for number in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(number) is not signal.SIG_IGN:  # ignored by the caller: stays so
+                previous[number] = signal.signal(number, _stop)
+    except ValueError:  # not the main thread: the signals keep their actions
+        pass
+    try:
+        return _main(argv)
+    finally:
+        sys.stdout, sys.stderr = streams
+        for number, action in previous.items():
+            if signal.getsignal(number) is _stop:  # after a stop they stay ignored, through the exit's clean-up
+                signal.signal(number, action)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         from .api import InputError
         from .fmu.package import BuildError
@@ -285,6 +325,9 @@ def main(argv: list[str] | None = None) -> int:
             return EXIT_USAGE
         sys.stdout.flush()  # here, so that a closed pipe is caught below rather than at interpreter exit
         return code
+    except Terminated:
+        print("sdl-fmu: terminated (SIGTERM); nothing was written", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("sdl-fmu: interrupted (Ctrl-C); nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -460,6 +460,11 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
         raise SweepError(f"--timeout {timeout}: must be > 0")
     fixed = dict(fixed)
     model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
+    try:  # an FMU that cannot even be instantiated is a bad --fmu, not a table of failed runs
+        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+    except Exception as error:  # noqa: BLE001 - whatever the FMU's start raised
+        raise api.InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: "
+                                    f"{str(error).strip().splitlines()[0] if str(error).strip() else error!r}") from None
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
         api.tire_slot_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
@@ -527,8 +532,12 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
 
     rows = []
     patience = GRACE * timeout + 10.0
-    bar = tqdm(total=len(todo), unit="run", disable=progress is False or (progress is None
-                                                                          and not _stderr_is_terminal()))
+    import sys
+
+    from .text import unescaped  # the bar's own carriage returns, not escaped
+
+    bar = tqdm(total=len(todo), unit="run", file=unescaped(sys.stderr),
+               disable=progress is False or (progress is None and not _stderr_is_terminal()))
     shipped = {option: client.submit(_passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
                for option, bundle in bundles.items()}
     try:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import functools
 import math
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -351,9 +350,10 @@ class EgoModel:
         """An initialized co-simulation instance. start: sdl-fmu's initial state (speed, x, y, yaw; SI);
         parameters: FMU start values as given (over the map's [parameters] and this model's overrides)."""
         from .instance import EgoInstance
+        from .isolated import IsolatedInstance, runs_in_process
 
-        return EgoInstance(self, start or {}, {**self.map.parameters, **self.overrides, **(parameters or {})},
-                           instance_name)
+        kind = EgoInstance if runs_in_process(self.fmu_path) else IsolatedInstance  # a foreign FMU: out of process
+        return kind(self, start or {}, {**self.map.parameters, **self.overrides, **(parameters or {})}, instance_name)
 
     def __repr__(self) -> str:
         return f"EgoModel({self.name!r}, {self.fmu_path}, FMI {self.fmi_version})"
@@ -364,8 +364,14 @@ def read_description(fmu: Path):
     platform; VehicleMapError naming the FMU otherwise."""
     import fmpy
 
+    from .unpack import UnpackError, check_archive, check_identifier
+
     if not fmu.is_file():
         raise VehicleMapError(f"--fmu {fmu}: no such file" if not fmu.exists() else f"--fmu {fmu}: not a file")
+    try:  # member names and sizes, before anything is read from it
+        names = [member.filename for member in check_archive(fmu)]
+    except UnpackError as error:
+        raise VehicleMapError(f"--fmu {error}") from None
     try:
         description = _read_description(str(fmu.resolve()), fmu.stat().st_mtime_ns, fmu.stat().st_size)
     except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
@@ -375,11 +381,14 @@ def read_description(fmu: Path):
         raise VehicleMapError(f"--fmu {fmu}: FMI {description.fmiVersion}; sdl-fmu drives FMI 2.0 and 3.0 FMUs")
     if description.coSimulation is None:
         raise VehicleMapError(f"--fmu {fmu}: has no co-simulation interface (sdl-fmu co-simulates the vehicle)")
+    try:  # it names the binary's file
+        check_identifier(fmu, description.coSimulation.modelIdentifier)
+    except UnpackError as error:
+        raise VehicleMapError(f"--fmu {error}") from None
     binary = f"binaries/{_platform(description.fmiVersion)}/{description.coSimulation.modelIdentifier}" \
              f"{fmpy.sharedLibraryExtension}"
-    with zipfile.ZipFile(fmu) as archive:
-        if binary not in archive.namelist():
-            raise VehicleMapError(f"--fmu {fmu}: has no binary for this platform ({binary})")
+    if binary not in names:
+        raise VehicleMapError(f"--fmu {fmu}: has no binary for this platform ({binary})")
     return description
 
 

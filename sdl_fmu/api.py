@@ -281,6 +281,14 @@ def _parameters(params: dict | None, model) -> dict[str, float]:
         if high is not None and value > high:
             raise _option_error("params", shown, f"above the declared maximum {high:g}{unit} of {name}")
         checked[name] = value
+    if checked:  # the vehicle's properties that follow from the parameters, each within its range
+        from .vehicle import VehicleMapError
+
+        try:
+            model.with_parameters(checked)
+        except VehicleMapError as error:
+            name = next((n for n in checked if f"parameter {n!r}" in str(error)), next(iter(checked)))
+            raise _option_error("params", f"{name}={checked[name]:g}", str(error)) from None
     return checked
 
 

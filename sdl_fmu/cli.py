@@ -124,15 +124,18 @@ def _sweep(args) -> int:
         fixed["skip_unsupported"] = True
     scenario = api.resolve_scenario(args.scenario)
     out = Path(args.out) if args.out is not None else Path("sweeps") / scenario.stem
-    if args.workers is not None and args.workers < 1:
-        raise sweeping.SweepError(f"--workers {args.workers}: must be >= 1")
+    sweeping.check_workers(args.workers)
+    sweeping.check_scheduler(args.scheduler)
     try:
         rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
                               timeout=args.timeout, progress=None, **fixed)
     except KeyboardInterrupt as stop:
         how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
-        print(f"sdl-fmu: sweep {how}; the finished runs are in {out / sweeping.JOURNAL_NAME}: "
-              "the same command resumes the sweep", file=sys.stderr)
+        if (out / sweeping.JOURNAL_NAME).exists():
+            print(f"sdl-fmu: sweep {how}; the finished runs are in {out / sweeping.JOURNAL_NAME}: "
+                  "the same command resumes the sweep", file=sys.stderr)
+        else:
+            print(f"sdl-fmu: sweep {how}; nothing was written", file=sys.stderr)
         return EXIT_TERMINATED if isinstance(stop, Terminated) else EXIT_INTERRUPTED
     table = out / sweeping.CSV_NAME
     failures = sweeping.failure_line(rows, table)

@@ -34,6 +34,7 @@ import math
 import os
 import random
 import re
+import struct
 import time
 import tempfile
 import traceback
@@ -51,6 +52,13 @@ TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
 OWN_FILES = {TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME}
 RUN_OPTIONS = {"speed", "seed", "until_distance", "until_time"}
 DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
+# Limits checked before anything is generated, allocated or started (docs/sweeps.md): the runs of one sweep (the
+# product of the varied values' counts), the worker processes of a local cluster per core (a run is CPU-bound: more
+# workers than cores only cost memory, some 100 MB each), the characters of one --vary
+MAX_RUNS = 100_000
+WORKERS_PER_CORE = 4
+MAX_VALUES_TEXT = 1_000_000
+SCHEDULER_PROBE = 10.0  # s for a Dask scheduler to answer a connection with its handshake
 GRACE = 2.0  # x timeout without any run coming back: the runs still processing are given up
 
 
@@ -60,33 +68,75 @@ class SweepError(ValueError):
 
 # ---- what varies ----------------------------------------------------------------------------------
 
-def parse_values(name: str, text: str, rng: random.Random) -> list:
-    """`a,b,c`, `start:stop:step` (stop included) or `uniform(lo,hi,n)` / `integers(lo,hi,n)`."""
-    text = text.strip()
+def value_count(name: str, text: str) -> int:
+    """How many values `text` gives, found without generating them (a,b,c: commas; a range: its arithmetic; samples:
+    n); SweepError for a form that cannot be read, a non-finite bound, or more than MAX_RUNS."""
+    shown = _shown(name, text)
+    if len(text) > MAX_VALUES_TEXT:
+        raise SweepError(f"--vary {shown}: longer than {MAX_VALUES_TEXT} characters")
     sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
     try:
         if sample:
-            kind, low, high, count = sample.group(1), float(sample.group(2)), float(sample.group(3)), \
-                int(sample.group(4))
+            low, high = _finite(sample.group(2)), _finite(sample.group(3))
+            count = int(sample.group(4)) if re.fullmatch(r"\+?\d{1,20}", sample.group(4).strip()) else -1
             if count < 1 or high < low:
                 raise ValueError
-            if kind == "integers":
-                return [rng.randint(int(low), int(high)) for _ in range(count)]
-            return [rng.uniform(low, high) for _ in range(count)]
-        if ":" in text:
-            start, stop, step = (float(part) for part in text.split(":"))
+        elif ":" in text:
+            start, stop, step = (_finite(part) for part in text.split(":"))
             if step <= 0 or stop < start:
                 raise ValueError
-            count = int(math.floor((stop - start) / step + 1e-9)) + 1
+            count = math.floor((stop - start) / step + 1e-9) + 1  # finite operands: a finite float
+        else:
+            count = text.count(",") + 1
+    except (ValueError, OverflowError):
+        raise SweepError(f"--vary {shown}: expected a,b,c or start:stop:step (finite numbers, step > 0, stop >= start) "
+                         "or uniform(lo,hi,n) / integers(lo,hi,n) (finite lo <= hi, whole n >= 1)") from None
+    if count > MAX_RUNS:
+        raise SweepError(f"--vary {shown}: {count:.6g} values, more than the {MAX_RUNS} runs a sweep may have")
+    return int(count)
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError
+    return value
+
+
+def _shown(name: str, text: str) -> str:
+    assignment = f"{name}={text}"
+    return assignment if len(assignment) <= 60 else f"{assignment[:45]}...{assignment[-10:]}"
+
+
+def parse_values(name: str, text: str, rng: random.Random) -> list:
+    """`a,b,c`, `start:stop:step` (stop included) or `uniform(lo,hi,n)` / `integers(lo,hi,n)`: finite values, at most
+    MAX_RUNS (counted before any is made); seeds are whole numbers in 0 .. 2^63 - 1."""
+    text = text.strip()
+    shown = _shown(name, text)
+    count = value_count(name, text)
+    sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
+    try:
+        if sample:
+            kind, low, high = sample.group(1), float(sample.group(2)), float(sample.group(3))
+            if kind == "integers":
+                if low != int(low) or high != int(high):
+                    raise SweepError(f"--vary {shown}: integers() takes whole bounds")
+                values = [rng.randint(int(low), int(high)) for _ in range(count)]
+            else:
+                values = [rng.uniform(low, high) for _ in range(count)]
+        elif ":" in text:
+            start, stop, step = (float(part) for part in text.split(":"))
             values = [start + k * step for k in range(count)]
         else:
-            values = [float(part) for part in text.split(",")]
+            values = [_finite(part) for part in text.split(",")]
     except ValueError:
-        raise SweepError(f"--vary {name}={text}: expected a,b,c or start:stop:step (step > 0, stop >= start) "
-                         "or uniform(lo,hi,n) / integers(lo,hi,n)") from None
-    if name == "seed" or not values:
-        if any(v != int(v) for v in values) or not values:
-            raise SweepError(f"--vary {name}={text}: seeds are whole numbers")
+        raise SweepError(f"--vary {shown}: every value must be a finite number") from None
+    if name == "seed":
+        from .api import LIMITS
+
+        low, high = LIMITS["seed"]
+        if any(v != int(v) or not low <= v <= high for v in values):
+            raise SweepError(f"--vary {shown}: seeds are whole numbers from {low} to {high}")
         return [int(v) for v in values]
     return values
 
@@ -102,9 +152,31 @@ def parse_vary(assignments: list[str], sample_seed: int = 0) -> dict[str, list]:
         if name in varied:
             raise SweepError(f"--vary {name} is given twice")
         varied[name] = parse_values(name, text, rng)
+        runs = math.prod(len(values) for values in varied.values())
+        if runs > MAX_RUNS:  # checked before the next name's values are made, and before any combination
+            raise SweepError(f"--vary: {' x '.join(str(len(v)) for v in varied.values())} = {runs} runs, more than "
+                             f"the {MAX_RUNS} a sweep may have")
     if not varied:
         raise SweepError("give at least one --vary NAME=VALUES")
     return varied
+
+
+def check_values(varied: dict[str, list]) -> None:
+    """What the table could not hold, before any run starts: every value a finite number, every seed a whole number
+    in 0 .. 2^63 - 1 (a 64-bit column). A value a run refuses (outside an option's range or an FMU parameter's
+    declared min/max) is that run's failed row, as any run's failure (docs/sweeps.md)."""
+    from . import api
+
+    for name, values in varied.items():
+        for value in values:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise SweepError(f"--vary {name}={value!r}: every value must be a finite number")
+            if name == "seed":
+                try:
+                    api._seed(value)
+                except api.InputError:
+                    low, high = api.LIMITS["seed"]
+                    raise SweepError(f"--vary seed={value!r}: seeds are whole numbers from {low} to {high}") from None
 
 
 def combinations(varied: dict[str, list]) -> list[dict]:
@@ -324,8 +396,10 @@ def criticality_columns(criticality: dict | None, units: Units) -> dict:
 
 # ---- the table ------------------------------------------------------------------------------------
 
-def _key(values: dict) -> str:
-    return json.dumps({name: values[name] for name in sorted(values)}, sort_keys=True)
+def _key(index: int, values: dict) -> str:
+    """A run's identity: its place in the grid and its values (repeated values, e.g. integers(1,3,8), are several
+    runs, each kept)."""
+    return json.dumps({"run": index, "values": {name: values[name] for name in sorted(values)}}, sort_keys=True)
 
 
 def _check_folder(out: Path, spec: dict) -> list[dict]:
@@ -342,7 +416,12 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
                          "choose a new or empty folder")
     if not (out / SPEC_NAME).exists():
         return []
-    earlier = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
+    try:
+        earlier = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise SweepError(f"--out {out}: its {SPEC_NAME} cannot be read ({error}); choose another folder") from None
+    if not isinstance(earlier, dict):
+        raise SweepError(f"--out {out}: its {SPEC_NAME} is not a sweep's description; choose another folder")
     if earlier != spec:
         differ = [part for part in ("scenario", "vary", "fixed", "files") if earlier.get(part) != spec.get(part)]
         raise SweepError(f"--out {out}: holds a different sweep ({earlier.get('scenario')}, varying "
@@ -353,9 +432,10 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
         for line in (out / JOURNAL_NAME).read_text(encoding="utf-8").splitlines():
             try:
                 row = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a line cut short by the interruption: that run is simply run again
-            if row.get("status") == "ok" and "key" in row:
+            except ValueError:
+                continue  # a line cut short by the interruption (or damaged): that run is simply run again
+            if (isinstance(row, dict) and row.get("status") == "ok" and isinstance(row.get("key"), str)
+                    and type(row.get("run")) is int):
                 rows[row["key"]] = row
     return list(rows.values())
 
@@ -454,6 +534,12 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     Returns the rows, in run order."""
     from . import api
 
+    check_workers(workers if client is None and not scheduler else None)
+    check_scheduler(scheduler)
+    runs = math.prod(len(values) for values in varied.values())
+    if runs > MAX_RUNS:
+        raise SweepError(f"--vary: {runs} runs, more than the {MAX_RUNS} a sweep may have")
+    check_values(varied)
     scenario_path = str(api.resolve_scenario(scenario).absolute())
     loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))  # a bad file fails now
     if not timeout > 0:
@@ -479,12 +565,12 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     columns = column_names(list(varied), loaded.units, model)
     runs = combinations(varied)
     finished = {row["key"]: row for row in done}
-    todo = [(index, values) for index, values in enumerate(runs) if _key(values) not in finished]
+    todo = [(index, values) for index, values in enumerate(runs) if _key(index, values) not in finished]
     rows = list(finished.values())
     owned = []
     try:
         if todo and client is None:  # connect before anything is written
-            client, owned = _client(workers, scheduler)
+            client, owned = _client(workers, scheduler, len(todo))
         out.mkdir(parents=True, exist_ok=True)
         (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
         _keep_only(out / JOURNAL_NAME, rows)
@@ -504,20 +590,73 @@ def _keep_only(journal: Path, rows: list[dict]) -> None:
     os.replace(partial, journal)
 
 
-def _client(workers: int | None, scheduler: str | None):
-    """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes; and what to
-    close afterwards."""
+def max_workers() -> int:
+    return WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
+def check_workers(workers: int | None) -> None:
+    if workers is not None and not 1 <= workers <= max_workers():
+        raise SweepError(f"--workers {workers}: must be from 1 to {max_workers()} ({WORKERS_PER_CORE} per core)")
+
+
+def check_scheduler(scheduler: str | None) -> None:
+    """An address a Dask client can be given: [protocol://]host:port."""
+    if scheduler is None:
+        return
+    host_port = r"(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):\d{1,5}"
+    if not (re.fullmatch(rf"(?:tcp://)?{host_port}", scheduler)
+            or re.fullmatch(r"(?!tcp://)[a-z][a-z0-9+.-]*://\S+", scheduler)):  # tls://, inproc://, ucx://, ...
+        raise SweepError(f"--scheduler {scheduler!r}: expected an address such as tcp://host:8786")
+
+
+def _probe_scheduler(scheduler: str) -> None:
+    """A TCP address must answer as a Dask scheduler does: on connection it sends its handshake first, a message
+    whose 8-byte length comes first. An HTTP server (the dashboard, port 8787) sends nothing until asked; another
+    server sends something else. Either is one line, within SCHEDULER_PROBE s (a Dask client would wait for ever)."""
+    import socket
+
+    address = scheduler.split("://", 1)[1] if "://" in scheduler else scheduler
+    if "://" in scheduler and not scheduler.startswith("tcp://"):
+        return  # tls, ucx, ...: only the client itself can speak them
+    host, _, port = address.rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=SCHEDULER_PROBE) as connection:
+            connection.settimeout(SCHEDULER_PROBE)
+            header = b""
+            while len(header) < 8:
+                chunk = connection.recv(8 - len(header))
+                if not chunk:
+                    break
+                header += chunk
+    except socket.timeout:
+        raise SweepError(f"--scheduler {scheduler}: no Dask scheduler there (it sent nothing in {SCHEDULER_PROBE:g} s: "
+                         "a web server? The dashboard is usually on 8787, the scheduler on 8786)") from None
+    except (OSError, ValueError) as error:
+        raise SweepError(f"--scheduler {scheduler}: cannot connect: {getattr(error, 'strerror', None) or error}") \
+            from None
+    length = struct.unpack("<Q", header)[0] if len(header) == 8 else 0
+    if not 0 < length < 2**20:
+        raise SweepError(f"--scheduler {scheduler}: not a Dask scheduler (what it sent is not Dask's handshake)")
+
+
+def _client(workers: int | None, scheduler: str | None, runs: int):
+    """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes (never more than
+    `runs`); and what to close afterwards."""
     from distributed import Client, LocalCluster
 
-    if scheduler:
+    if scheduler is not None:
+        check_scheduler(scheduler)
+        _probe_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=10)
-        except (OSError, ValueError, TypeError) as error:
-            raise SweepError(f"--scheduler {scheduler}: cannot connect: {str(error).splitlines()[0]}") from None
+        except Exception as error:  # noqa: BLE001 - OSError, TimeoutError, CommClosedError, a protocol mismatch, ...
+            text = (str(error).strip() or type(error).__name__).splitlines()[0]
+            raise SweepError(f"--scheduler {scheduler}: cannot connect: {text}") from None
         return client, [client]
+    check_workers(workers)
     try:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        cluster = LocalCluster(n_workers=min(workers or os.cpu_count() or 1, runs), threads_per_worker=1,
+                               processes=True, dashboard_address=None)
     except (OSError, RuntimeError) as error:
         raise SweepError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
     client = Client(cluster)
@@ -579,7 +718,8 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
 
 
 def _record(journal, row: dict, index: int, values: dict, columns: dict[str, str]) -> dict:
-    row = {"run": index, **{columns[name]: value for name, value in values.items()}, **row, "key": _key(values)}
+    row = {"run": index, **{columns[name]: value for name, value in values.items()}, **row,
+           "key": _key(index, values)}
     journal.write(json.dumps(row, default=_plain) + "\n")
     journal.flush()
     return row

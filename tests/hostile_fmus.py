@@ -43,17 +43,23 @@ def library(folder: Path) -> Path:
 
 
 def description(*, model_name: str = "Hostile car", guid: str = GUID, identifier: str = IDENTIFIER,
-                can_get_set: bool = True, speed_unit: str | None = None, extra_variables: str = "") -> str:
-    units = f' unit="{speed_unit}"' if speed_unit is not None else ""
+                can_get_set: bool = True, speed_unit: str | None = None, extra_variables: str = "",
+                ranges: dict[str, tuple[float, float]] | None = None) -> str:
+    """The model description; `ranges` declares min/max of variables by name."""
+    from xml.sax.saxutils import quoteattr
+
+    units = f" unit={quoteattr(speed_unit)}" if speed_unit is not None else ""
     variables = []
     for name, causality, variability, start in VARIABLES:
         attributes = f' start="{start!r}"' if start is not None else ""
+        if ranges and name in ranges:
+            attributes += f' min="{ranges[name][0]!r}" max="{ranges[name][1]!r}"'
         unit = units if name == "speed" else ""
         variables.append(f'    <ScalarVariable name="{name}" valueReference="{len(variables)}" causality="{causality}" '
                          f'variability="{variability}"><Real{unit}{attributes}/></ScalarVariable>')
     outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(VARIABLES) if v[1] == "output")
     return f"""<?xml version="1.0" encoding="UTF-8"?>
-<fmiModelDescription fmiVersion="2.0" modelName="{model_name}" guid="{guid}" generationTool="tests/hostile_fmus.py"
+<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(model_name)} guid="{guid}" generationTool="tests/hostile_fmus.py"
   numberOfEventIndicators="0">
   <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUstate="{str(can_get_set).lower()}"
     canHandleVariableCommunicationStepSize="true"/>

@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
 from ..interface import WHEELS
-from .vehicle_map import (Channel, Dynamics, FrictionMeaning, VehicleMap, VehicleMapError, load_vehicle_map,
-                          shipped_map_path)
+from .vehicle_map import (Channel, Dynamics, FrictionMeaning, VehicleMap, VehicleMapError, declared_range_problem,
+                          load_vehicle_map, shipped_map_path, vehicle_value_problem)
 
 if TYPE_CHECKING:
     from ..fmu.package import FmiVersion
@@ -66,27 +66,22 @@ class FrictionInput:
 BoundsSource = Literal["vehicle map", "vehicle properties"]
 
 
-@functools.lru_cache(maxsize=None)
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
-
-
 def _pint_conversion(unit: str, si: str) -> tuple[float, float] | None:
     """(factor, offset) from `unit` to `si` through pint; None if pint does not know the unit or it is of
-    another dimension."""
-    import re
+    another dimension. The unit string is read by a small grammar first (vehicle/unit_text.py): pint alone would
+    evaluate `10**10**10*m` as arithmetic."""
+    from .unit_text import conversion
 
-    registry = _registry()
-    # FMI writes m/s2 and kg.m2: exponents as digits after a name, products with dots
-    spelled = re.sub(r"(?<=[A-Za-z])(-?\d+)", r"**\1", unit.replace(".", "*"))
-    try:
-        zero = registry.Quantity(0.0, spelled).to(si).magnitude
-        one = registry.Quantity(1.0, spelled).to(si).magnitude
-    except Exception:  # pint's UndefinedUnitError, DimensionalityError, a syntax it cannot parse
-        return None
-    return float(one - zero), float(zero)
+    return conversion(unit, si)
+
+
+def _shown_unit(unit: str) -> str:
+    """A unit string in a message: quoted, shortened, and why the grammar refused it (if it did)."""
+    from .unit_text import refusal
+
+    shown = repr(unit if len(unit) <= 40 else unit[:32] + "...")
+    reason = refusal(unit)
+    return shown if reason is None else f"{shown} (not a unit string sdl-fmu reads: {reason})"
 
 
 def _agree(a: tuple[float, float], b: tuple[float, float]) -> bool:
@@ -122,8 +117,10 @@ class EgoModel:
         self.outputs = {name: self._output(channel) for name, channel in vehicle_map.outputs.items()}
         self.start_inputs = {name: self._input(channel, start=True) for name, channel in vehicle_map.start.items()}
         self.friction = self._friction()
-        for name in vehicle_map.parameters:
-            self._variable(f"parameters.{name}", name, ("parameter", "input"))
+        for name, value in vehicle_map.parameters.items():
+            problem = declared_range_problem(self._variable(f"parameters.{name}", name, ("parameter", "input")), value)
+            if problem:
+                self._fail(f"parameters.{name}", problem)
         self.overrides = dict(overrides or {})
         self.parameters = {**parameter_defaults(description), **vehicle_map.parameters, **self.overrides}
         self._resolve_vehicle()
@@ -177,13 +174,13 @@ class EgoModel:
             else:
                 fmu_conversion = _pint_conversion(declared, si)
                 if fmu_conversion is None:
-                    self._fail(key, f"the FMU declares {variable.name!r} in {declared!r}, an unknown unit or not "
-                                    f"one of {si}")
+                    self._fail(key, f"the FMU declares {variable.name!r} in {_shown_unit(declared)}, an unknown unit "
+                                    f"or not one of {si}")
         map_conversion = None
         if map_unit is not None:
             map_conversion = _pint_conversion(map_unit, si)
             if map_conversion is None:
-                self._fail(f"{key}.unit", f"{map_unit!r} is an unknown unit or not a unit of {si}")
+                self._fail(f"{key}.unit", f"{_shown_unit(map_unit)} is an unknown unit or not a unit of {si}")
         if fmu_conversion is not None and map_conversion is not None and not _agree(fmu_conversion, map_conversion):
             self._fail(f"{key}.unit", f"{map_unit!r} disagrees with the FMU's unit {declared!r} of {variable.name!r}")
         return fmu_conversion or map_conversion or (1.0, 0.0)
@@ -235,6 +232,9 @@ class EgoModel:
                 self._variable(f"vehicle.{key}", value, ("parameter",))
                 if value not in self.parameters:
                     self._fail(f"vehicle.{key}", f"the FMU parameter {value!r} has no Real start value")
+                problem = vehicle_value_problem(key, float(self.parameters[value]))
+                if problem:
+                    self._fail(f"vehicle.{key}", f"the FMU parameter {value!r}: {problem}")
                 value = self.parameters[value]
             values[key] = float(value)
         self.length, self.width = values["length"], values["width"]

@@ -1,4 +1,4 @@
-"""Per-call CPU cost of the criticality measures (criticality.py), in plain floats and in arrays, to budget
+"""Per-call CPU cost of the criticality measures (measures.py, extremes.py), in plain floats and in arrays, to budget
 their integration in the master (the demo spends about 38 µs per communication step in all, Simple).
 
     python benchmarks/criticality_cost.py
@@ -10,8 +10,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sdl_fmu.cosim.criticality import (Extremes, Footprint, approach_horizon, distance, distance_rate, distances,
-                                       headway, ttc, ttc_rate, ttcs)
+from sdl_fmu.cosim.extremes import Extremes
+from sdl_fmu.cosim.geometry import Footprint
+from sdl_fmu.cosim.measures import approach_horizon, distance, distance_rate, distances, headway, ttc, ttc_rate, ttcs
 from sdl_fmu.cosim.traffic import Traffic
 
 

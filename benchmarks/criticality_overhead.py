@@ -1,5 +1,5 @@
 """What the criticality measures add to a run's simulation time: the master as shipped (it measures them)
-against the same master with the measures switched off (a subclass whose criticality hooks do nothing), side by
+against the same master with the measures switched off (a follower that measures nothing), side by
 side in one process, alternating, by CPU time (time.process_time: the machine is shared), on the demo and on
 roads with 1 ... N oncoming vehicles (linear in the number of vehicles?).
 
@@ -22,6 +22,7 @@ from pathlib import Path
 
 from provenance import stamp
 
+from sdl_fmu.cosim.follower import CriticalityFollower
 from sdl_fmu.cosim.master import Cosimulation, RunOptions
 from sdl_fmu.fmu.cache import cached_fmus
 from sdl_fmu.paths import SCENARIO_DIRECTORY
@@ -30,21 +31,35 @@ from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_
 RESULT = Path(__file__).parent / "results" / "criticality_overhead.json"
 
 
-class WithoutCriticality(Cosimulation):
-    """The master with its criticality hooks doing nothing: no looks, no snapshots, no located instants (the
-    TTC series for the plot is computed only when asked for, not in a run)."""
+class Blind(CriticalityFollower):
+    """A criticality follower that measures nothing: no looks, no snapshots, no located instants."""
 
-    def criticality_due(self, t, limit):
+    def start(self, state):
+        self.touched.clear()
+
+    def wants_snapshot(self, state, limit):
         return False
 
-    def follow_criticality(self, base, t0, state, everyone):
+    def stepped(self, base, t0, state, fired):
         pass
 
-    def look(self, state, everyone=False, ahead=None, only=None):
+    def changing(self, i, state):
         pass
 
-    def look_before_change(self, i, state):
+    def lane_leave_instant(self, i, state):
         pass
+
+    fired = finish = start
+
+
+class WithoutCriticality(Cosimulation):
+    """The master with a follower that measures nothing (the TTC series for the plot is computed only when asked
+    for, not in a run)."""
+
+    def __init__(self, *args):
+        super().__init__(*args)
+        follower = self.follower
+        self.follower = Blind(self.ego, self.traffic, self.bounds, self.road, follower.exact)
 
 
 def traffic_scenario(vehicles: int):

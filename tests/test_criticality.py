@@ -1,4 +1,4 @@
-"""Criticality measures (criticality.py) against hand computations, their plain-float forms against the array
+"""Criticality measures (measures.py) against hand computations, their plain-float forms against the array
 forms bit for bit (the master picks one or the other by the number of vehicles: the located instants must
 not depend on that), and the horizons against motions that respect the bounds they assume."""
 
@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from sdl_fmu.cosim.criticality import (Footprint, approach_horizon, approach_horizons, band_times, conflict_station,
-                                       course_horizon,
-                                       distance, distance_horizon, distance_horizons, distance_rate, distance_rates,
-                                       distances, drac, drac_rate, dracs, heading_horizon, headway, headway_rate,
-                                       headways, passage_known, post_encroachment_time, signed_distance,
-                                       signed_distances, ttc, ttc_rate, ttcs)
+from sdl_fmu.cosim.geometry import Footprint
+from sdl_fmu.cosim.measures import (approach_horizon, approach_horizons, band_times, conflict_station, course_horizon,
+                                    distance, distance_horizon, distance_horizons, distance_rate, distance_rates,
+                                    distances, drac, drac_rate, dracs, heading_horizon, headway, headway_rate,
+                                    headways, passage_known, post_encroachment_time, signed_distance,
+                                    signed_distances, ttc, ttc_rate, ttcs)
 
 EGO_LENGTH, EGO_WIDTH = 4.6, 1.8  # m
 CAR_LENGTH, CAR_WIDTH = 4.5, 1.8
@@ -398,7 +398,8 @@ def test_plain_float_forms_equal_the_array_forms_bit_for_bit(psi):
 
 from typing import NamedTuple  # noqa: E402
 
-from sdl_fmu.cosim.criticality import RANGE, Extremes, relative_motion  # noqa: E402
+from sdl_fmu.cosim.extremes import RANGE, Extremes  # noqa: E402
+from sdl_fmu.cosim.measures import relative_motion  # noqa: E402
 from sdl_fmu.cosim.traffic import Traffic  # noqa: E402
 from sdl_fmu.units import FOOT, from_si  # noqa: E402
 

@@ -28,7 +28,8 @@ from commonroad_crime.data_structure.configuration import CriMeConfiguration
 from commonroad_crime.measure.time.thw import THW
 from commonroad_crime.measure.time.ttc import TTC
 
-from sdl_fmu.cosim.criticality import Footprint, headway, ttc
+from sdl_fmu.cosim.geometry import Footprint
+from sdl_fmu.cosim.measures import headway, ttc
 
 DT = 0.1  # s, CriMe's time step
 STEPS = 200

@@ -6,7 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from sdl_fmu.cosim.criticality import RANGE, Footprint, distances, drac
+from sdl_fmu.cosim.extremes import RANGE
+from sdl_fmu.cosim.geometry import Footprint
+from sdl_fmu.cosim.measures import distances, drac
 from sdl_fmu.cosim.master import CRITICALITY_TOLERANCE, Cosimulation, RunOptions
 from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
@@ -421,7 +423,7 @@ def counted_run(scenario, fmu) -> tuple[dict, object]:
                 source[0] = previous
         return wrapped
 
-    follower = cosim.follower  # the looks happen there (the master's hooks hand them on)
+    follower = cosim.follower  # the looks happen there (the master's loop asks and notifies it)
     look = follower.extremes.look
 
     def count(*args, **kwargs):

@@ -7,9 +7,10 @@ import math
 
 import numpy as np
 
+from sdl_fmu.cosim.geometry import reach_time, reach_time_scalar
 from sdl_fmu.cosim.traffic import Traffic
-from sdl_fmu.cosim.triggers import (EgoBounds, EgoKinematics, reach_time, reach_time_scalar, vehicle_condition,
-                                   vehicle_conditions, vehicle_horizon, vehicle_horizons)
+from sdl_fmu.cosim.triggers import (EgoBounds, EgoKinematics, vehicle_condition, vehicle_conditions, vehicle_horizon,
+                                   vehicle_horizons)
 
 
 TIES = (-1.0, 0.0, 2.0)  # stations shared by vehicles and the ego

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from ..sdl.events import Brake
 from .ego import EgoState
-from .triggers import reach_time_scalar
+from .geometry import reach_time_scalar
 
 
 @dataclass(frozen=True)

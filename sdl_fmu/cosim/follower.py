@@ -1,7 +1,8 @@
-"""The criticality record kept during a run (criticality.py's Extremes): which traffic vehicles need a look at
+"""The criticality record kept during a run (extremes.py's Extremes): which traffic vehicles need a look at
 a communication point, when a step needs an FMU snapshot to locate an extreme inside it, locating those
-extremes (locate.py), and the PET's conflict areas. The master calls it through its hooks `look`,
-`look_before_change`, `criticality_due` and `follow_criticality`."""
+extremes (locate.py), and the PET's conflict areas. The master's loop asks it one question before a step
+(`wants_snapshot`) and gives it one notice after it (`stepped`); the firing handlers beside the loop tell it what
+fires (`touch`, `changing`, `lane_leave_instant`, then `fired`)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,12 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoInstance, EgoState
-from .criticality import Extremes, band_times, conflict_far_end, passage_known
+from .extremes import Extremes
+from .geometry import reach_time_scalar
+from .measures import band_times, conflict_far_end, passage_known
 from .locate import CRITICALITY_TOLERANCE, first_instant, root_instant
 from .traffic import Traffic
-from .triggers import EgoBounds, reach_time_scalar
+from .triggers import EgoBounds
 
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
 
@@ -54,6 +57,54 @@ class CriticalityFollower:
         if not self.exact:
             summary["time_uncertainty_s"] = self.criticality_uncertainty
         return summary
+
+    # ---- what the master's loop and its firing handlers tell and ask ---------------------------------------
+
+    def start(self, state: EgoState) -> None:
+        """The run's first instant (after what fires there): every vehicle looked at."""
+        self.look(state, everyone=True)
+        self.touched.clear()
+
+    def wants_snapshot(self, state: EgoState, limit: float) -> bool:
+        """The loop's question before a step from state.time to at most `limit`: whether to save the FMU's state
+        at the step's start, from which an extreme inside the step is located (only for an FMU that can roll
+        back). The vehicles whose bound on their next located instant ends inside the step are looked at now
+        first (a look moves that bound on: the step may then need no snapshot)."""
+        if self.pet_pending and self.pet_due <= limit:
+            self.pet_due = self.pet_horizon(state)
+        if not self.exact:
+            return False
+        if self.earliest_quiet <= limit:
+            self.look(state, ahead=limit)
+        return bool(self.earliest_quiet <= limit or self.pet_pending or self.leaves_lane) \
+            and self.criticality_due(state.time, limit)
+
+    def stepped(self, base, t0: float, state: EgoState, fired: bool) -> None:
+        """The loop's notice after a step from t0 to state.time (`base`: the snapshot at t0, or None; `fired`:
+        something fires at its end): the extremes inside the step located, the vehicles due looked at."""
+        if base is not None or fired or state.time >= self.earliest_look or not self.exact:
+            self.follow_criticality(base, t0, state, everyone=False)
+
+    def touch(self, vehicles) -> None:
+        """Something fires for these vehicles at this instant (a spawn, a contact beginning or ending): they are
+        looked at after the fire (`fired`)."""
+        self.touched.update(vehicles)
+
+    def changing(self, i: int, state: EgoState) -> None:
+        """Vehicle i's motion changes at this instant (an action starts) or it leaves the road: looked at with the
+        motion it had until now, and again after the fire."""
+        self.look_before_change(i, state)
+
+    def fired(self, state: EgoState) -> None:
+        """After a fire: the vehicles it touched looked at with their motions from this instant on."""
+        self.look(state, only=self.touched)
+        self.touched.clear()
+
+    def finish(self, state: EgoState) -> None:
+        """The run's end: every vehicle looked at (an extreme at the end of its interval)."""
+        self.look(state, everyone=True)
+
+    # ---- inside
 
     def criticality_due(self, t: float, limit: float) -> bool:
         """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU
@@ -243,7 +294,7 @@ class CriticalityFollower:
 
     def _transitions_ending(self, t0: float, t1: float) -> list[tuple[int, float]]:
         """(vehicle, instant) of the lateral or speed transitions ending inside (t0, t1], for the vehicles
-        followed at every communication point (within criticality.RANGE)."""
+        followed at every communication point (within extremes.RANGE)."""
         traffic = self.traffic
         ending = []
         for i in self.traffic.active.tolist():
@@ -254,7 +305,7 @@ class CriticalityFollower:
         return ending
 
     def _front(self, state: EgoState) -> float:
-        """Station of the front of the ego's footprint (criticality.Extremes.reach's)."""
+        """Station of the front of the ego's footprint (extremes.Extremes.reach's)."""
         return state.x + self.bounds.length / 2 * abs(math.cos(state.psi)) \
             + self.bounds.width / 2 * abs(math.sin(state.psi))
 
@@ -265,7 +316,7 @@ class CriticalityFollower:
 
     def lane_leave_instant(self, i: int, state: EgoState) -> None:
         """When an action starts vehicle i's lateral move: the instants its footprint leaves and enters the ego's
-        lane (criticality.band_times, closed form), where the PET's conflict areas are set (the vehicle
+        lane (measures.band_times, closed form), where the PET's conflict areas are set (the vehicle
         leaving first; the ego leaving first: the far end of the area the vehicle will enter)."""
         traffic, road = self.traffic, self.road
         self.leaves_lane.pop(i, None)
@@ -287,7 +338,7 @@ class CriticalityFollower:
 
     def _entries(self, t1: float) -> None:
         """The vehicles whose footprint entered the ego's lane by t1 (closed-form instants): the PET where the
-        ego's rear had left the area first (criticality.Extremes.path_entered); none for a vehicle that left the
+        ego's rear had left the area first (extremes.Extremes.path_entered); none for a vehicle that left the
         road before entering."""
         for i, enter in list(self.enters_lane.items()):
             if enter <= t1:

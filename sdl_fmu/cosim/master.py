@@ -10,13 +10,14 @@ own module:
   another surface) could become true, and whether one is true at a state;
 - `Inputs` (inputs.py): the driver's (or BRK's) pedals, the steer and the surfaces under the wheels;
 - `Recorder` (recorder.py): the samples;
-- `CriticalityFollower` (follower.py): the criticality record (criticality.py), fed through the hooks `look`,
-  `look_before_change`, `criticality_due` and `follow_criticality` below, and the extremes located inside steps.
-Where nothing can happen the loop steps long: to the next driver sample, the `step` limit or the earliest
-trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU state
-and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
-until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire_due`). Traffic motion is
-closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
+- `CriticalityFollower` (follower.py): the criticality record (extremes.py) and the extremes located inside
+  steps; the loop asks it whether a step needs an FMU snapshot (`wants_snapshot`) and tells it the step's end
+  (`stepped`).
+Where nothing can happen the loop steps long (`advance`): to the next driver sample, the `step` limit or the
+earliest trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU
+state and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
+until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire`, and the
+handlers beside it). Traffic motion is closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
 own period (`driver_period`): its samples are instants the master steps to, independent of `step`.
 """
 
@@ -142,18 +143,19 @@ class Cosimulation:
     # ---- the loop -------------------------------------------------------------------------------
 
     def run(self) -> RunResult:
+        """The loop (FMPy's simulateCS over its helpers): each pass steps the FMU to the next communication point
+        (a driver sample, the `step` limit or the earliest trigger bound), fires what became true there, and
+        records a sample with the inputs from that instant on."""
         started = wall_clock.perf_counter()
         try:
             ego, inputs, schedule, follower = self.ego, self.inputs, self.schedule, self.follower
             state = ego.read()
             self.fire_due(state)
-            self.look(state, everyone=True)
-            follower.touched.clear()
+            follower.start(state)
             inputs.sample_driver(state, None)
             inputs.apply(state, True)
             self.record(state)
-            step, progress = self.options.step, self.options.progress
-            period = self.options.driver_period
+            step, period, progress = self.options.step, self.options.driver_period, self.options.progress
             sample = 1  # index of the next driver sample, at next_sample = sample * period
             next_sample = sample * period
             until_time = self.options.until_time
@@ -171,47 +173,16 @@ class Cosimulation:
                 if earliest < limit:
                     horizons = schedule.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
-                if follower.pet_pending and follower.pet_due <= limit:
-                    follower.pet_due = follower.pet_horizon(state)
-                if self.exact and follower.earliest_quiet <= limit:
-                    self.look(state, ahead=limit)  # a vehicle's bound from an earlier look ends in this step
-                # a snapshot at the step's start, from which extremes inside the step are located
-                base = ego.save() if self.exact and (follower.earliest_quiet <= limit or follower.pet_pending
-                                                     or follower.leaves_lane) and self.criticality_due(t, limit) \
-                    else None
-                if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
-                    # nothing can become true before `end`; something may be true exactly at it (then at no
-                    # other instant: its instant is known exactly)
-                    end = min(limit, earliest)
-                    ego.step_to(end)
-                    state = ego.read()
-                    fired = earliest <= end and schedule.triggered(
-                        state, [kind for kind, instant in horizons.items() if instant <= end])
-                    self.time_uncertainty = 0.0
-                else:
-                    end = min(t + MIN_LOOKAHEAD, limit)
-                    kinds = [kind for kind, instant in horizons.items() if instant <= end]
-                    if self.exact:
-                        fired = step_until_time(ego, end, lambda probe: schedule.triggered(probe, kinds),
-                                                TIME_TOLERANCE)
-                    else:  # what became true did so somewhere in (t, end]
-                        ego.step_to(end)
-                        fired = schedule.triggered(ego.read(), kinds)
-                        self.time_uncertainty = end - t
-                    state = ego.read()
-                self.steps += 1
-                driver_sample = state.time >= next_sample
-                if base is not None or fired or state.time >= follower.earliest_look or not self.exact:
-                    self.follow_criticality(base, t, state, everyone=False)
+                # a snapshot at the step's start, from which the extremes inside the step are located
+                base = ego.save() if follower.wants_snapshot(state, limit) else None
+                state, fired = self.advance(t, limit, horizons, earliest)
+                follower.stepped(base, t, state, fired)
                 if fired:
-                    self.fire_due(state)
-                    schedule.forget()  # spawns, actions, contacts, departures, the next event, BRK: bounds changed
+                    self.fire(state)
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
-                    self.look(state, only=follower.touched)  # the changed motions from this instant on
-                    follower.touched.clear()
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
-                if driver_sample:
+                if state.time >= next_sample:
                     inputs.sample_driver(state, period)
                     while next_sample <= state.time:
                         sample += 1
@@ -220,11 +191,36 @@ class Cosimulation:
                 self.record(state)
                 if progress is not None:
                     progress(self, state)
-            self.look(state, everyone=True)  # an extreme at the end of the run
-            wall = wall_clock.perf_counter() - started
-            return self.result(state, wall)
+            follower.finish(state)  # an extreme at the end of the run
+            return self.result(state, wall_clock.perf_counter() - started)
         finally:
             self.ego.close()
+
+    def advance(self, t: float, limit: float, horizons: dict, earliest: float) -> tuple[EgoState, bool]:
+        """One communication step from t toward `limit`: (the state at its end, whether a trigger fired there).
+        Where nothing can become true before `limit` (no trigger bound within MIN_LOOKAHEAD of t) one step to
+        the earliest bound or the limit; else a step of at most MIN_LOOKAHEAD, bisected to the instant a trigger
+        turned true (the FMU rolled back), or located within it (time_uncertainty) without rollback."""
+        ego, schedule = self.ego, self.schedule
+        self.steps += 1
+        if earliest - t >= MIN_LOOKAHEAD or earliest >= limit:
+            # nothing can become true before `end`; something may be true exactly at it (then at no other instant:
+            # its instant is known exactly)
+            end = min(limit, earliest)
+            ego.step_to(end)
+            state = ego.read()
+            self.time_uncertainty = 0.0
+            return state, earliest <= end and schedule.triggered(
+                state, [kind for kind, instant in horizons.items() if instant <= end])
+        end = min(t + MIN_LOOKAHEAD, limit)
+        kinds = [kind for kind, instant in horizons.items() if instant <= end]
+        if self.exact:
+            fired = step_until_time(ego, end, lambda probe: schedule.triggered(probe, kinds), TIME_TOLERANCE)
+        else:  # what became true did so somewhere in (t, end]
+            ego.step_to(end)
+            fired = schedule.triggered(ego.read(), kinds)
+            self.time_uncertainty = end - t
+        return ego.read(), fired
 
     def record(self, state: EgoState) -> None:
         """A sample of the ego and its inputs; the first time the ego leaves the bounds the trigger prediction
@@ -243,6 +239,13 @@ class Cosimulation:
         if not self.exact:
             entry["time_uncertainty_s"] = self.time_uncertainty
         self.events.append(entry)
+
+    def fire(self, state: EgoState) -> None:
+        """What became true at this instant fires; the trigger bounds and the fired vehicles' criticality looks are
+        redone from it (spawns, actions, contacts, departures, the next event, BRK change what they rest on)."""
+        self.fire_due(state)
+        self.schedule.forget()
+        self.follower.fired(state)
 
     def fire_due(self, state: EgoState) -> None:
         """Fires everything due at this state, in file order, until nothing more is due."""
@@ -266,7 +269,7 @@ class Cosimulation:
         action, overlap, away = schedule.vehicle_conditions(active, kinematics)
         if action.any():
             for i in active[action]:
-                self.look_before_change(int(i), state)
+                self.follower.changing(int(i), state)
                 while True:  # each action once, the next armed as the previous fires; several may be due at once
                     index = int(traffic.next_action[i]) + 1
                     traffic.start_action(i, state.time, -state.y, state.v)
@@ -283,9 +286,9 @@ class Cosimulation:
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
-        self.follower.touched.update(changed.tolist())
+        self.follower.touch(changed.tolist())
         for i in active[away & ~overlap]:
-            self.look_before_change(int(i), state)
+            self.follower.changing(int(i), state)
             traffic.remove(i)
             recorder.left(i)
             self.log("A", "despawn", state, vehicle=recorder.vehicle_ids[i])
@@ -295,7 +298,7 @@ class Cosimulation:
             model_number = choose_model(event, self.rng)
             model = self.vehicle_table[model_number]
             index = self.traffic.add(event, model, state.time, state.x, -state.y, state.v)
-            self.follower.touched.add(index)
+            self.follower.touch([index])
             self.recorder.spawned(index + 1)
             self.log("A", "spawn", state, vehicle=index + 1, model=model_number, name=model.name, line=event.line)
         elif isinstance(event, Brake):
@@ -332,20 +335,6 @@ class Cosimulation:
             self.release_brakes(state, "end")
         self.log("ES", "end", state, reason=reason)
         self.finished = True
-
-    # ---- criticality hooks (follower.py) ---------------------------------------------------------
-
-    def look(self, state: EgoState, everyone: bool = False, ahead: float | None = None, only=None) -> None:
-        self.follower.look(state, everyone, ahead, only)
-
-    def look_before_change(self, i: int, state: EgoState) -> None:
-        self.follower.look_before_change(i, state)
-
-    def criticality_due(self, t: float, limit: float) -> bool:
-        return self.follower.criticality_due(t, limit)
-
-    def follow_criticality(self, base, t0: float, state: EgoState, everyone: bool) -> None:
-        self.follower.follow_criticality(base, t0, state, everyone)
 
     # ---- the result -----------------------------------------------------------------------------
 

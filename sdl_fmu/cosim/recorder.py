@@ -11,7 +11,9 @@ import numpy as np
 from ..run_result import VehicleTracks
 from ..storage import ChunkedTable, release_pages
 from ..vehicle import EgoState
-from .criticality import RANGE, Footprint, distances, ttcs
+from .extremes import RANGE
+from .geometry import Footprint
+from .measures import distances, ttcs
 from .traffic import Traffic
 from .triggers import EgoBounds
 

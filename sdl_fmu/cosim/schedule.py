@@ -16,12 +16,12 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoState
-from .criticality import SCALAR_VEHICLES
 from .inputs import Inputs
+from .geometry import SCALAR_VEHICLES, reach_time_scalar
 from .road import SurfaceMap, WheelGeometry
 from .traffic import Traffic
-from .triggers import (EgoBounds, EgoKinematics, reach_time_scalar, vehicle_condition, vehicle_conditions,
-                       vehicle_horizon, vehicle_horizons, vehicle_triggered)
+from .triggers import (EgoBounds, EgoKinematics, vehicle_condition, vehicle_conditions, vehicle_horizon,
+                       vehicle_horizons, vehicle_triggered)
 
 TriggerKind = Literal["event", "end", "brake", "surface", "traffic"]
 

@@ -8,62 +8,13 @@ its state a pure function of time, so the master can roll back and bisect a step
 
 from __future__ import annotations
 
-import math
 import random
 from array import array
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..sdl.events import Action, ApproachingVehicle, ClosureTrigger
+from ..sdl.events import Action, ApproachingVehicle
 from ..sdl.vehicles import VehicleModel
-
-
-@dataclass(frozen=True)
-class Motion:
-    """Motion from t0: lateral and speed move linearly from (lateral0, speed0) to (lateral1, speed1)
-    over `duration`, then hold."""
-
-    t0: float
-    station0: float
-    lateral0: float
-    speed0: float
-    lateral1: float
-    speed1: float
-    duration: float
-
-    def at(self, t: float) -> tuple[float, float, float]:
-        """(station, lateral, speed) at time t >= t0."""
-        return motion_at(self.t0, self.station0, self.lateral0, self.speed0, self.lateral1, self.speed1,
-                         self.duration, t)
-
-
-def motion_at(t0: float, station0: float, lateral0: float, speed0: float, lateral1: float, speed1: float,
-              duration: float, t: float) -> tuple[float, float, float]:
-    """`Motion.at` on plain floats (the bisection's probes call it without making a Motion)."""
-    elapsed = t - t0
-    if elapsed < duration:
-        fraction = elapsed / duration
-        speed = speed0 + (speed1 - speed0) * fraction
-        travelled = speed0 * elapsed + (speed1 - speed0) * elapsed**2 / (2 * duration)
-        return station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed
-    travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
-    return station0 - travelled, lateral1, speed1
-
-
-def closure_reached(trigger: ClosureTrigger, gap: float, gap_rate: float) -> bool:
-    """Whether an action's closure-time condition holds.
-
-    gap = vehicle station - ego station (> 0: the vehicle is in front), gap_rate = d(gap)/dt.
-    Closing (|gap| shrinking) at speed c: fires when |gap| / c <= T. Separating at speed c: a negative T
-    fires when |gap| / c >= |T|. F / B: only with the vehicle in front of / behind the ego.
-    """
-    if gap == 0.0 or (trigger.where == "F" and gap < 0) or (trigger.where == "B" and gap > 0):
-        return False
-    closing_speed = -gap_rate * math.copysign(1.0, gap)
-    if trigger.seconds > 0:
-        return closing_speed > 0 and abs(gap) <= trigger.seconds * closing_speed
-    return closing_speed < 0 and abs(gap) >= -trigger.seconds * -closing_speed
 
 
 def choose_model(event: ApproachingVehicle, rng: random.Random) -> int:
@@ -71,85 +22,16 @@ def choose_model(event: ApproachingVehicle, rng: random.Random) -> int:
     return rng.randint(event.model.low, event.model.high) if event.model.is_random else event.model.low
 
 
-@dataclass
-class TrafficVehicle:
-    vehicle: int  # id, 1-based in spawn order
-    event: ApproachingVehicle
-    model: VehicleModel
-    motion: Motion
-    next_action: int = 0  # index into event.actions of the armed action
-    in_contact: bool = False
-    present: bool = True
-
-    def at(self, t: float) -> tuple[float, float, float]:
-        return self.motion.at(t)
-
-    def armed(self) -> Action | None:
-        actions = self.event.actions
-        return actions[self.next_action] if self.next_action < len(actions) else None
-
-    def action_due(self, t: float, ego_station: float, ego_station_rate: float) -> bool:
-        action = self.armed()
-        if action is None:
-            return False
-        station, _, speed = self.at(t)
-        return closure_reached(action.trigger, station - ego_station, -speed - ego_station_rate)
-
-    def start_action(self, t: float, ego_lateral: float, ego_speed: float) -> Action:
-        """Fires the armed action: a new transition from where the vehicle is now (interrupting any)."""
-        action = self.armed()
-        station, lateral, speed = self.at(t)
-        self.motion = Motion(t, station, lateral, speed, action.lateral.resolve(ego_lateral),
-                             action.speed.resolve(ego_speed), action.duration)
-        self.next_action += 1
-        return action
-
-    def may_leave(self, t: float, ego_station: float, ego_station_rate: float, ego_length: float) -> bool:
-        """Wholly behind the ego (its front behind the ego's rear), moving away, and no action left that
-        could still fire (docs/decisions.md, A vehicles)."""
-        station, _, speed = self.at(t)
-        gap, gap_rate = station - ego_station, -speed - ego_station_rate
-        if not (gap < -(ego_length + self.model.length) / 2 and gap_rate < 0):
-            return False
-        action = self.armed()
-        # while behind and separating only a negative closure time without 'F' can still fire
-        return action is None or action.trigger.seconds > 0 or action.trigger.where == "F"
-
-
-def spawn(vehicle_id: int, event: ApproachingVehicle, model: VehicleModel, t: float, ego_station: float,
-          ego_lateral: float, ego_speed: float) -> TrafficVehicle:
-    speed = event.speed.resolve(ego_speed)
-    lateral = event.lateral.resolve(ego_lateral)
-    motion = Motion(t, ego_station + event.gap, lateral, speed, lateral, speed, 0.0)
-    return TrafficVehicle(vehicle_id, event, model, motion)
-
-
-def footprints_overlap(a_center, a_heading, a_size, b_center, b_heading, b_size) -> bool:
-    """Separating-axis test of two rectangles (centre (x, y), heading rad, (length, width)) in one plane."""
-    corners = []
-    axes = []
-    for (cx, cy), heading, (length, width) in ((a_center, a_heading, a_size), (b_center, b_heading, b_size)):
-        c, s = math.cos(heading), math.sin(heading)
-        axes += [(c, s), (-s, c)]
-        corners.append([(cx + dx * c - dy * s, cy + dx * s + dy * c)
-                        for dx, dy in ((length / 2, width / 2), (length / 2, -width / 2),
-                                       (-length / 2, -width / 2), (-length / 2, width / 2))])
-    for ax, ay in axes:
-        a = [x * ax + y * ay for x, y in corners[0]]
-        b = [x * ax + y * ay for x, y in corners[1]]
-        if max(a) <= min(b) or max(b) <= min(a):
-            return False
-    return True
-
-
-# ---- all vehicles at once ---------------------------------------------------------------------------
-
 WHERE_CODES = {None: 0, "F": 1, "B": 2}
 
 
 class Traffic:
     """Every traffic vehicle of a run in NumPy arrays (index = vehicle id - 1), so that the master checks
-    only the vehicles on the road (`active`), and those vectorised. Same motion law as `Motion`."""
+    only the vehicles on the road (`active`), and those vectorised.
+
+    The motion law (`at`, and its forms `motion_of`, `motion`, `track`): from its motion's start t0 a vehicle's
+    lateral position and speed move linearly from (lateral0, speed0) to (lateral1, speed1) over `duration`,
+    then hold; its station decreases by the distance travelled at that speed."""
 
     _FLOATS = ("t0", "station0", "lateral0", "speed0", "lateral1", "speed1", "duration", "length", "width",
                "trigger_seconds", "next_check")
@@ -213,7 +95,7 @@ class Traffic:
         self.active = self.active[self.active != i]
 
     def motion(self, idx: np.ndarray, t: float):
-        """(station, lateral, speed, lateral rate, |speed rate|) of vehicles idx at time t (`Motion.at`)."""
+        """(station, lateral, speed, lateral rate, |speed rate|) of vehicles idx at time t (`at`)."""
         elapsed = t - self.t0[idx]
         duration = self.duration[idx]
         speed0, speed1 = self.speed0[idx], self.speed1[idx]
@@ -248,9 +130,18 @@ class Traffic:
                 speed0 + (speed1 - speed0) * fraction, lateral_rate, speed_rate)
 
     def at(self, i: int, t: float) -> tuple[float, float, float]:
-        """(station, lateral, speed) of vehicle i at time t, in plain floats (`Motion.at`)."""
-        return motion_at(float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
-                         float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]), t)
+        """(station, lateral, speed) of vehicle i at time t, in plain floats: the motion law."""
+        t0, station0, lateral0, speed0, lateral1, speed1, duration = (
+            float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
+            float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]))
+        elapsed = t - t0
+        if elapsed < duration:
+            fraction = elapsed / duration
+            speed = speed0 + (speed1 - speed0) * fraction
+            travelled = speed0 * elapsed + (speed1 - speed0) * elapsed**2 / (2 * duration)
+            return station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction, speed
+        travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
+        return station0 - travelled, lateral1, speed1
 
     def start_action(self, i: int, t: float, ego_lateral: float, ego_speed: float) -> Action:
         """Fires the armed action: a new transition from where the vehicle is now (interrupting any)."""

@@ -8,11 +8,16 @@ of the ego at arm l from the CG moves, along any road axis, at most
     |rate now| tau + A tau^2 / 2 + l r_max tau,
 and a traffic vehicle moves by its closed-form motion (speed ramps, lateral moves at a constant rate
 during a transition). The instant a gap, speed or time margin could close is then the positive root of a
-quadratic (`reach_time`). The bounds are valid whatever the ego's inputs do, so a per-vehicle bound
+quadratic (geometry.reach_time). The bounds are valid whatever the ego's inputs do, so a per-vehicle bound
 stays valid until that vehicle's own motion changes (an action fires), and the master caches it.
 
-Traffic conditions here are the vectorised forms of `closure_reached`, `footprints_overlap` and
-`TrafficVehicle.may_leave`.
+The traffic conditions (`vehicle_conditions`, and its plain-float forms `vehicle_condition`, `vehicle_triggered`):
+- an action's closure time T (docs/scenarios.md): with gap = vehicle station - ego station and the closing speed
+  c at which |gap| shrinks, a positive T fires when c > 0 and |gap| / c <= T, a negative T when the two separate
+  (c < 0) and |gap| / -c >= |T|; `F` / `B` only with the vehicle in front of / behind the ego;
+- contact: the footprints overlap (geometry.penetration > 0);
+- departure: the vehicle is wholly behind the ego (its front behind the ego's rear), moving away, and no action
+  is left that could still fire (docs/decisions.md, A vehicles).
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import numpy as np
 
 from ..units import STANDARD_GRAVITY
 from ..vehicle import EgoState
+from .geometry import Footprint, overlaps, penetration, penetrations, reach_time, reach_time_scalar
 from .traffic import Traffic
 
 ACCELERATION_MARGIN = 1.25  # x the physical bound, + ACCELERATION_SLACK: model transients, round-off
@@ -61,29 +67,6 @@ def ego_bounds(model, mu_max: float, start_speed: float, wheel_arm: float, max_s
     return EgoBounds(acceleration, yaw_rate, length, width, radius, wheel_arm)
 
 
-def reach_time(distance, rate, acceleration):
-    """Smallest tau >= 0 with rate tau + acceleration tau^2 / 2 >= distance: the earliest instant a margin
-    `distance` can be used up when it shrinks now at `rate` (signed, + shrinking) and that rate grows at
-    most by `acceleration`. Zero for a margin already used up. Scalars or arrays."""
-    used_up = distance <= 0.0
-    distance = np.maximum(distance, 0.0)
-    root = np.sqrt(rate * rate + 2 * acceleration * distance)
-    # two forms of the same root, each free of cancellation on its side of rate = 0; a margin already used up
-    # is 0 whatever the rate (the root form alone would give the later root -2 rate / acceleration)
-    return np.where(used_up, 0.0,
-                    np.where(rate > 0, 2 * distance / np.maximum(rate + root, 1e-300), (root - rate) / acceleration))
-
-
-def reach_time_scalar(distance: float, rate: float, acceleration: float) -> float:
-    """`reach_time` for plain floats (the per-step path: no array overhead), operation for operation, so that
-    the two give the same bits (`vehicle_horizon` must equal `vehicle_horizons`: step ends, and so the
-    samples, depend on it)."""
-    if distance <= 0.0:
-        return 0.0
-    root = math.sqrt(rate * rate + 2 * acceleration * distance)
-    return 2 * distance / max(rate + root, 1e-300) if rate > 0 else (root - rate) / acceleration
-
-
 class EgoKinematics(NamedTuple):
     """The ego in the road frame at one instant: station X, lateral Y (+ right) and their rates (a named
     tuple: made at trigger checks and bisection probes, it must be cheap)."""
@@ -102,19 +85,8 @@ class EgoKinematics(NamedTuple):
                              -(state.vx * s + state.vy * c), state.psi)
 
 
-def _penetrations(ego: EgoKinematics, bounds: EgoBounds, d_station, d_lateral, length, width):
-    """Overlap depth of the two footprints along the four separating axes (all > 0: they overlap).
-    d_* = vehicle - ego; the ego's footprint is turned by psi, the vehicle's is aligned with the road."""
-    c, s = abs(math.cos(ego.psi)), abs(math.sin(ego.psi))
-    cos_psi, sin_psi = math.cos(ego.psi), math.sin(ego.psi)
-    half_l, half_w = bounds.length / 2, bounds.width / 2
-    # ISO frame of the ego: y = -lateral
-    dx, dy = d_station, -d_lateral
-    along_x = half_l * c + half_w * s + length / 2 - np.abs(dx)
-    along_y = half_l * s + half_w * c + width / 2 - np.abs(dy)
-    along_u = half_l + length / 2 * c + width / 2 * s - np.abs(dx * cos_psi + dy * sin_psi)
-    along_v = half_w + length / 2 * s + width / 2 * c - np.abs(-dx * sin_psi + dy * cos_psi)
-    return along_x, along_y, np.minimum(np.minimum(along_x, along_y), np.minimum(along_u, along_v))
+def _footprint(ego: EgoKinematics, bounds: EgoBounds) -> Footprint:
+    return Footprint.of(bounds.length, bounds.width, ego.psi)
 
 
 def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bounds: EgoBounds):
@@ -129,7 +101,7 @@ def vehicle_conditions(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, bo
     due = allowed & (((seconds > 0) & (closing > 0) & (np.abs(gap) <= seconds * closing))
                      | ((seconds < 0) & (closing < 0) & (np.abs(gap) >= seconds * closing)))
     length, width = traffic.length[idx], traffic.width[idx]
-    overlap = _penetrations(ego, bounds, gap, lateral - ego.lateral, length, width)[2] > 0
+    overlap = penetrations(_footprint(ego, bounds), gap, -(lateral - ego.lateral), length, width) > 0
     leave_allowed = np.isnan(seconds) | (seconds > 0) | (where == 1)
     away = leave_allowed & (gap < -(bounds.length + length) / 2) & (gap_rate < 0)
     return due, overlap, away
@@ -149,14 +121,7 @@ def vehicle_triggered(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoB
         if seconds < 0 and closing < 0 and abs(gap) >= seconds * closing:
             return True
     length, width = traffic.length[i], traffic.width[i]
-    c, s = math.cos(ego.psi), math.sin(ego.psi)
-    ac, as_ = abs(c), abs(s)
-    half_l, half_w = bounds.length / 2, bounds.width / 2
-    dx, dy = gap, -(lateral - ego.lateral)
-    overlap = (half_l * ac + half_w * as_ + length / 2 - abs(dx) > 0
-               and half_l * as_ + half_w * ac + width / 2 - abs(dy) > 0
-               and half_l + length / 2 * ac + width / 2 * as_ - abs(dx * c + dy * s) > 0
-               and half_w + length / 2 * as_ + width / 2 * ac - abs(-dx * s + dy * c) > 0)
+    overlap = penetration(_footprint(ego, bounds), gap, -(lateral - ego.lateral), length, width) > 0
     in_contact = bool(traffic.in_contact[i])
     if overlap != in_contact:
         return True
@@ -177,7 +142,7 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     seconds, where = traffic.trigger_seconds[idx], traffic.where[idx]
     inf = np.full(len(idx), np.inf)
 
-    # closure-time actions (see closure_reached)
+    # closure-time actions (the module's docstring)
     pass_time = reach_time(np.abs(gap), closing, relative_acceleration)  # earliest instant gap = 0
     blocked = ((where == 1) & (gap <= 0)) | ((where == 2) & (gap >= 0))
     closing_margin = np.abs(gap) - seconds * closing  # <= 0: a positive T is due
@@ -194,7 +159,8 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     # footprint contact: starts once both road-axis separations have closed; ends once any penetration has
     length, width = traffic.length[idx], traffic.width[idx]
     d_lateral = lateral - ego.lateral
-    along_x, along_y, depth = _penetrations(ego, bounds, gap, d_lateral, length, width)
+    along_x, along_y, along_u, along_v = overlaps(_footprint(ego, bounds), gap, -d_lateral, length, width)
+    depth = np.minimum(np.minimum(along_x, along_y), np.minimum(along_u, along_v))  # penetrations
     turn = bounds.radius * bounds.yaw_rate
     lateral_closing = np.sign(d_lateral) * ego.lateral_rate
     start = np.maximum(reach_time(-along_x, closing + turn, relative_acceleration),
@@ -206,7 +172,7 @@ def vehicle_horizons(traffic: Traffic, idx: np.ndarray, ego: EgoKinematics, boun
     in_contact = traffic.in_contact[idx]
     contact = np.where(in_contact, end, start)
 
-    # departure: wholly behind the ego and moving away (may_leave)
+    # departure: wholly behind the ego and moving away
     leave_allowed = (np.isnan(seconds) | (seconds > 0) | (where == 1)) & ~in_contact
     behind = reach_time(gap + (bounds.length + length) / 2, -gap_rate, relative_acceleration)
     away = np.where(gap_rate >= 0, gap_rate / relative_acceleration, 0.0)
@@ -226,24 +192,10 @@ def vehicle_condition(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoB
     due = allowed and ((seconds > 0 and closing > 0 and abs(gap) <= seconds * closing)
                        or (seconds < 0 and closing < 0 and abs(gap) >= seconds * closing))
     length, width = float(traffic.length[i]), float(traffic.width[i])
-    overlap = _penetration(ego, bounds, gap, lateral - ego.lateral, length, width) > 0
+    overlap = penetration(_footprint(ego, bounds), gap, -(lateral - ego.lateral), length, width) > 0
     leave_allowed = seconds != seconds or seconds > 0 or where == 1
     away = leave_allowed and gap < -(bounds.length + length) / 2 and gap_rate < 0
     return due, overlap, away
-
-
-def _penetration(ego: EgoKinematics, bounds: EgoBounds, d_station: float, d_lateral: float, length: float,
-                 width: float) -> float:
-    """`_penetrations`' overlap depth for one vehicle in plain floats, operation for operation."""
-    cos_psi, sin_psi = math.cos(ego.psi), math.sin(ego.psi)
-    c, s = abs(cos_psi), abs(sin_psi)
-    half_l, half_w = bounds.length / 2, bounds.width / 2
-    dx, dy = d_station, -d_lateral
-    along_x = half_l * c + half_w * s + length / 2 - abs(dx)
-    along_y = half_l * s + half_w * c + width / 2 - abs(dy)
-    along_u = half_l + length / 2 * c + width / 2 * s - abs(dx * cos_psi + dy * sin_psi)
-    along_v = half_w + length / 2 * s + width / 2 * c - abs(-dx * sin_psi + dy * cos_psi)
-    return min(min(along_x, along_y), min(along_u, along_v))
 
 
 def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBounds) -> float:
@@ -276,20 +228,17 @@ def vehicle_horizon(traffic: Traffic, i: int, ego: EgoKinematics, bounds: EgoBou
             action = reach_time_scalar(-seconds * separating - abs(gap), separating - seconds * relative_acceleration,
                                        relative_acceleration)
 
-    # footprint contact (_penetrations)
+    # footprint contact (geometry.overlaps)
     d_lateral = lateral - ego.lateral
     turn = bounds.radius * bounds.yaw_rate
     if in_contact:
-        depth = _penetration(ego, bounds, gap, d_lateral, length, width)
+        depth = penetration(_footprint(ego, bounds), gap, -d_lateral, length, width)
         vehicle_radius = float(np.hypot(length / 2, width / 2))
         relative_speed = abs(gap_rate) + abs(ego.lateral_rate) + abs(lateral_rate)
         contact = reach_time_scalar(depth, relative_speed + 2 * (bounds.radius + vehicle_radius) * bounds.yaw_rate,
                                     relative_acceleration)
     else:
-        c, s = abs(math.cos(ego.psi)), abs(math.sin(ego.psi))
-        half_l, half_w = bounds.length / 2, bounds.width / 2
-        along_x = half_l * c + half_w * s + length / 2 - abs(gap)
-        along_y = half_l * s + half_w * c + width / 2 - abs(-d_lateral)
+        along_x, along_y, _, _ = overlaps(_footprint(ego, bounds), gap, -d_lateral, length, width)
         lateral_closing = (1.0 if d_lateral > 0 else -1.0 if d_lateral < 0 else 0.0) * ego.lateral_rate
         contact = max(reach_time_scalar(-along_x, closing + turn, relative_acceleration),
                       reach_time_scalar(-along_y, lateral_closing + abs(lateral_rate) + turn, a))

@@ -1,0 +1,404 @@
+"""The run's criticality record: per traffic vehicle, the extreme of each measure (measures.py) and the instant
+it was first reached, and what the run needs to locate those instants instead of taking the best sample.
+
+Design: how the master uses these (one record for the run, `Extremes`, one row per traffic vehicle).
+1. Looks. At a look (`Extremes.look`, one pass) a vehicle's values at the ego's state are offered to the
+   record (a value replaces the recorded extreme only when better by more than FLAT, so the first instant
+   an extreme is reached stays), and the look returns the vehicle's rates and its horizon. The master
+   keeps a next-look instant per vehicle and their minimum, as it keeps its traffic bounds: at a
+   communication point it looks at the vehicles whose instant has come, and drops every next-look instant
+   when something fires (an action changes a vehicle's motion). A look also leaves `Extremes.quiet`, a
+   bound before which none of the vehicle's located instants (2) can be: the master starts a step from an FMU
+   snapshot only when such a bound ends within it. It also looks at every vehicle at its
+   spawn, its departure and the run's end (an extreme at the end of an interval), and at every located
+   instant below.
+2. Located instants. Inside a step an extreme is the root of its rate (`Extremes.rates`: distance, TTC,
+   minus DRAC, headway; from < 0 to >= 0), or a contact's start or end (the master's contact triggers
+   already locate them; TTC is 0 and the distance 0 there), or a collision course's start or end (TTC
+   turns finite / infinite). The master adds a trigger kind "criticality" whose condition at a probe is: a
+   looked-at vehicle's rate turned from < 0 at the step's start to >= 0, or its collision course began or
+   ended. It bisects it like any trigger (rollback, TIME_TOLERANCE) and looks at the vehicle at the
+   located instant.
+3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range) while a
+   vehicle is on a collision course or has a headway: TTC, DRAC and headway are followed at every
+   communication point there (the driver's 20 Hz samples at least), their roots and courses found by the
+   sign checks of 2, which assume at most one change of sign between two communication points (no horizon
+   bounds TTC's or headway's rate yet). Within RANGE with neither (a car beside the ego's path), the
+   distance's horizon below, cut to `course_horizon`'s proven bound on when a course or a headway can
+   begin. Beyond RANGE only the
+   distance applies, and the horizon is a proven lower bound, from the ego's bounds as in triggers.py (the
+   acceleration A of its CG, its yaw rate r_max, the radius R of its footprint): the earliest of coming
+   within RANGE (`distance_horizon`) and of a new minimum distance, which needs both the distance below the
+   recorded minimum (`distance_horizon`) and an approach ending (`approach_horizon` near,
+   `heading_horizon` far), and never past the end of a lateral transition.
+4. PET: when an action starts a lateral move, `band_times` gives the instant the vehicle's footprint
+   leaves the ego's lane (closed form); the master steps to it like a driver sample and calls
+   `Extremes.path_left`; the conflict stations then pending (`Extremes.pending_stations`) are distance
+   triggers for the ego's front, horizon reach_time(station - front, station_rate + R r_max, A) as for the
+   master's event distances, and at the located instant `Extremes.reach` records the PET.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .geometry import SCALAR_VEHICLES, Footprint, axis_reaches, reach_time_scalar
+from .measures import (INF, approach_horizon, conflict_station, course_horizon, distance, distance_and_rates, distances,
+                       drac, drac_rate_known, dracs, headway, headway_rate_known, headways, heading_horizon,
+                       post_encroachment_time, ttc, ttc_rate_known, ttcs)
+
+FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is better by more than this
+# m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
+# follows encounters within device.ssm.range (default 50 m); the distance everywhere
+RANGE = 50.0
+MEASURES = ("min_distance", "min_ttc", "max_drac", "min_pet", "min_headway")
+
+
+class Extremes:
+    """Per traffic vehicle (index as in traffic.Traffic), the extreme of each measure and the instant it was
+    first reached, offered values at every communication point and at every instant the master locates (a
+    root of a rate, a contact's or a collision course's start or end, a PET instant).
+
+    A later value replaces the recorded one only when better by more than FLAT, so that a flat extreme (the
+    distance to a car passing in the next lane, constant over the whole overlap) keeps the first instant it
+    was reached, whatever the samples after it: with the start located, the instant does not depend on the
+    step. Values are SI (m, s, m/s2); `summary` converts lengths at the results boundary."""
+
+    def __init__(self, ego_length: float, ego_width: float, capacity: int = 16):
+        self.ego_length, self.ego_width = ego_length, ego_width
+        self.size = 0
+        self.value = {name: np.full(capacity, np.nan) for name in MEASURES}
+        self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
+        self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
+        self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
+        # the ego passing first (PET): the far end of the area where the vehicle's footprint will enter the ego's
+        # path, while the ego's rear has yet to pass it (m), and the instant it did (s)
+        self.far_end = np.full(capacity, np.nan)
+        self.rear_left = np.full(capacity, np.nan)
+        # s from the last look: a lower bound on when that vehicle's next located instant (a closest
+        # approach, a collision course's start or end, a transition's end) can be (0: any time)
+        self.quiet = 0.0
+        # the last ego state evaluated at and (footprint, cos, sin, inertial velocity) there; per vehicle its
+        # (length, width) in floats (fixed from its spawn, a vehicle's index is never reused)
+        self._at = (None, None)
+        self._sizes: dict[int, tuple[float, float]] = {}
+
+    def _grow(self, size: int) -> None:
+        while size > len(self.left_path):
+            for table in (self.value, self.time):
+                for name, values in table.items():
+                    table[name] = np.concatenate([values, np.full(len(values), np.nan)])
+            self.left_path = np.concatenate([self.left_path, np.full(len(self.left_path), np.nan)])
+            self.conflict = np.concatenate([self.conflict, np.full(len(self.conflict), np.nan)])
+            self.far_end = np.concatenate([self.far_end, np.full(len(self.far_end), np.nan)])
+            self.rear_left = np.concatenate([self.rear_left, np.full(len(self.rear_left), np.nan)])
+        self.size = max(self.size, size)
+
+    # -- offering values
+
+    def offer(self, name: str, i: int, t: float, value: float) -> None:
+        """One vehicle's value of one measure at instant t (nan or inf: not applicable now)."""
+        if not math.isfinite(value):
+            return
+        if i >= self.size:
+            self._grow(i + 1)
+        values = self.value[name]
+        recorded = float(values[i])
+        if name == "max_drac":
+            better = recorded != recorded or value > recorded + FLAT
+        else:
+            better = recorded != recorded or value < recorded - FLAT
+        if better:
+            values[i] = value
+            self.time[name][i] = t
+        elif (value > recorded) if name == "max_drac" else (value < recorded):
+            values[i] = value  # within FLAT: the value improves, the first instant stays
+
+    def offers(self, name: str, idx: np.ndarray, t: float, values: np.ndarray) -> None:
+        """`offer` for vehicles idx at once."""
+        if len(idx) and int(idx.max()) >= self.size:
+            self._grow(int(idx.max()) + 1)
+        recorded = self.value[name][idx]
+        finite = np.isfinite(values)
+        empty = np.isnan(recorded)
+        if name == "max_drac":
+            better = finite & (empty | (values > recorded + FLAT))
+            improves = finite & ~empty & (values > recorded)
+        else:
+            better = finite & (empty | (values < recorded - FLAT))
+            improves = finite & ~empty & (values < recorded)
+        self.value[name][idx] = np.where(better | improves, values, recorded)
+        self.time[name][idx[better]] = t
+
+    def observe(self, traffic, idx: np.ndarray, state) -> None:
+        """Offers the distance (and within RANGE, TTC, DRAC and headway) of vehicles idx (traffic.Traffic
+        indices) at the ego's state (EgoState: ISO 8855 position x, y, yaw psi, body-frame velocity vx, vy),
+        and completes any PET whose conflict station the ego's front has reached. A few vehicles in plain
+        floats, more in arrays (the same bits)."""
+        t = state.time
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c  # inertial
+        if len(idx) <= SCALAR_VEHICLES:
+            for i in idx.tolist():
+                station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
+                length, width = float(traffic.length[i]), float(traffic.width[i])
+                dx, dy = station - state.x, -lateral - state.y
+                vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+                d = distance(ego, dx, dy, length, width)
+                self.offer("min_distance", i, t, d)
+                if d <= RANGE:
+                    value = ttc(ego, dx, dy, vx, vy, length, width)
+                    self.offer("min_ttc", i, t, value)
+                    self.offer("max_drac", i, t, drac(value, vx, vy))
+                    self.offer("min_headway", i, t, headway(ego, dx, dy, ego_vx, -speed, length, width))
+        else:
+            station, lateral, speed, lateral_rate, _ = traffic.motion(idx, t)
+            length, width = traffic.length[idx], traffic.width[idx]
+            dx, dy = station - state.x, -lateral - state.y
+            vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+            d = distances(ego, dx, dy, length, width)
+            self.offers("min_distance", idx, t, d)
+            near = d <= RANGE  # beyond: inf, not applicable
+            values = np.where(near, ttcs(ego, dx, dy, vx, vy, length, width), INF)
+            self.offers("min_ttc", idx, t, values)
+            self.offers("max_drac", idx, t, dracs(values, vx, vy))
+            self.offers("min_headway", idx, t, np.where(near, headways(ego, dx, dy, ego_vx, -speed, length, width),
+                                                        INF))
+        self.reach(state)
+
+    def _evaluate(self, traffic, i: int, state):
+        """Vehicle i at the ego's state, in one pass: (values to offer {measure: value}, rates, what the horizon
+        needs). Beyond RANGE only the distance and its rates."""
+        t = state.time
+        at = self._at
+        if at[0] is state:  # another vehicle at the same ego state: its footprint and velocity as computed
+            ego, c, s, ego_vx, ego_vy = at[1]
+        else:
+            c, s = math.cos(state.psi), math.sin(state.psi)
+            ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+            ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+            self._at = (state, (ego, c, s, ego_vx, ego_vy))
+        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
+        elapsed, duration = t - float(traffic.t0[i]), float(traffic.duration[i])
+        moving = elapsed < duration
+        speed_rate = (float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration if moving else 0.0
+        size = self._sizes.get(i)
+        if size is None:
+            size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
+        length, width = size
+        dx, dy = station - state.x, -lateral - state.y
+        vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+        d, rate, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
+        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego)
+        if d > RANGE:
+            return {"min_distance": d}, (rate, math.nan, math.nan, math.nan), motion
+        value = ttc(ego, dx, dy, vx, vy, length, width)
+        ego_ax = state.ax * c - state.ay * s
+        gap_time = headway(ego, dx, dy, ego_vx, -speed, length, width)
+        values = {"min_distance": d, "min_ttc": value, "min_headway": gap_time}
+        headway_change = math.nan if gap_time == INF else \
+            headway_rate_known(ego, gap_time, ego_vx, -speed, ego_ax, state.yaw_rate)
+        if not 0.0 < value < INF:
+            return values, (rate, math.nan, math.nan, headway_change), motion
+        ax, ay = -speed_rate - ego_ax, -(state.ax * s + state.ay * c)
+        values["max_drac"] = drac(value, vx, vy)
+        value_rate = ttc_rate_known(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
+        return values, (rate, value_rate, -drac_rate_known(value, value_rate, vx, vy, ax, ay), headway_change), motion
+
+    def rates(self, traffic, i: int, state) -> tuple[float, float, float, float]:
+        """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
+        where the measure is not defined, and for all but the distance beyond RANGE). The master's
+        "criticality" condition at a bisection probe: any of them turned from < 0 at the step's start to >= 0
+        (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), or the TTC rate turned
+        from nan to a number or back (a collision course began or ended, or the vehicle crossed RANGE: the
+        value there bounds the interval over which the extreme is taken)."""
+        return self._evaluate(traffic, i, state)[1]
+
+    def distance_rate(self, traffic, i: int, state) -> float:
+        """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
+        t = state.time
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
+        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+        return distance_and_rates(Footprint(self.ego_length / 2, self.ego_width / 2, c, s), station - state.x,
+                                   -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy, state.yaw_rate,
+                                   float(traffic.length[i]), float(traffic.width[i]))[1]
+
+    def evaluate(self, traffic, i: int, state):
+        """Vehicle i at the ego's state, nothing offered yet: for `look` (its `evaluated`), so that the master
+        reads the rates at a step's end (`rates`) and looks there with one evaluation."""
+        return self._evaluate(traffic, i, state)
+
+    def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
+             radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
+        """The master's look at vehicle i at a communication point or a located instant: offers its values
+        and returns its rates (`rates`) and a horizon: a lower bound (s from now) on when it next needs a
+        look. 0 within RANGE on a collision course or with a headway (TTC, DRAC and headway are followed at
+        every communication point there, their roots and collision courses located by the master); beyond
+        it, the earliest of the vehicle coming within RANGE and of a new minimum distance (which needs both
+        the distance below the recorded minimum and an approach ending: the latest of `distance_horizon`,
+        `approach_horizon` and `heading_horizon`), and never past the end of a lateral transition (the
+        vehicle's velocity changes at once there). Within RANGE with neither, the new minimum's and the
+        transition's bound, no later than `course_horizon` proves no collision course or headway can
+        begin. The ego's bounds as in
+        triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
+        Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
+        vehicle bounds."""
+        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left, ego) = \
+            self._evaluate(traffic, i, state) if evaluated is None else evaluated
+        t = state.time
+        for name, value in values.items():
+            self.offer(name, i, t, value)
+        near = d <= RANGE
+        if near and (rates[1] == rates[1] or rates[3] == rates[3]):
+            self.quiet = 0.0
+            return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
+        # the per-look path: min(x, y) written as `y if y < x else x` and max(x, y) as `y if y > x else x`
+        # (what the builtins return, nan included), without their calls
+        turn = radius * yaw_rate_bound
+        relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
+        new_minimum = reach_time_scalar(d - (float(self.value["min_distance"][i]) - FLAT), turn - frozen, relative)
+        # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
+        approach_end = INF if rates[0] >= 0.0 else 0.0
+        if frozen < -turn:
+            vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
+            approach_end = approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative, yaw_rate_bound)
+            heading = heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative)
+            if heading > approach_end:
+                approach_end = heading
+            if approach_end > new_minimum:
+                new_minimum = approach_end
+        if not near:
+            # a collision course can be seen only within RANGE
+            entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
+            quiet = approach_end if approach_end < entering else entering
+            self.quiet = transition_left if transition_left < quiet else quiet
+            horizon = new_minimum if new_minimum < entering else entering
+            return rates, transition_left if transition_left < horizon else horizon
+        # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
+        longest = approach_end if approach_end > new_minimum else new_minimum
+        if transition_left < longest:
+            longest = transition_left
+        if not longest > 0.0:
+            self.quiet = 0.0
+            return rates, 0.0
+        reach_x, reach_y, _, _ = axis_reaches(ego, length, width)
+        course = course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative)
+        quiet = transition_left if transition_left < approach_end else approach_end
+        self.quiet = course if course < quiet else quiet
+        horizon = transition_left if transition_left < new_minimum else new_minimum
+        return rates, course if course < horizon else horizon
+
+    # -- post-encroachment time
+
+    def path_left(self, i: int, t: float, station: float, length: float, ego_front: float) -> None:
+        """Vehicle i's footprint left the ego's path at t (`band_times`' leave instant, which the master steps
+        to), standing at `station`. If the ego's front has not yet reached the area it stood on, a PET is
+        pending until it does (`pending_stations`, `reach`); if it has, the two were there together (a
+        contact or a near miss: distance and TTC tell) and there is none."""
+        if i >= self.size:
+            self._grow(i + 1)
+        near_end = conflict_station(station, length)
+        if ego_front < near_end:
+            self.left_path[i], self.conflict[i] = t, near_end
+        else:
+            self.left_path[i] = self.conflict[i] = np.nan
+
+    def path_entering(self, i: int, far_end: float, ego_rear: float) -> None:
+        """Vehicle i's footprint will enter the ego's path (`band_times`' enter instant, closed form as its move
+        starts), reaching then up to `far_end` (`conflict_far_end`). If the ego's rear has yet to pass that
+        station, the ego may leave the area first: its rear's passage (`rear_stations`, `rear_reached`) and the
+        entry (`path_entered`) give the PET. If the rear has passed it already (the ego left the area before
+        the move began), no PET is measured for this entry (README)."""
+        if i >= self.size:
+            self._grow(i + 1)
+        self.rear_left[i] = np.nan
+        self.far_end[i] = far_end if ego_rear < far_end else np.nan
+
+    def cancel_entry(self, i: int) -> None:
+        """Vehicle i's motion changed before it entered the ego's path: its pending entry is void."""
+        if i < self.size:
+            self.far_end[i] = self.rear_left[i] = np.nan
+
+    def rear_stations(self) -> np.ndarray:
+        """(vehicle indices, far ends) whose passage by the ego's rear is pending."""
+        far = self.far_end[:self.size]
+        pending = np.flatnonzero((far == far) & (self.rear_left[:self.size] != self.rear_left[:self.size]))
+        return pending, far[pending]
+
+    def rear_reached(self, i: int, t: float) -> None:
+        """The ego's rear passed vehicle i's entry area's far end at t."""
+        self.rear_left[i] = t
+
+    def path_entered(self, i: int, t: float) -> None:
+        """Vehicle i's footprint entered the ego's path at t: if the ego's rear had left the area by then, the
+        PET (ego first) = t - that instant; either way the entry is done."""
+        if i >= self.size:
+            return
+        left = float(self.rear_left[i])
+        if left == left and self.far_end[i] == self.far_end[i]:
+            self.offer("min_pet", i, t, post_encroachment_time(left, t))
+        self.far_end[i] = self.rear_left[i] = np.nan
+
+    def pending_stations(self) -> np.ndarray:
+        """The conflict stations the ego's front has yet to reach (the master's PET trigger: a station, like
+        an event distance; horizon reach_time(station - front, station_rate + R r_max, A))."""
+        conflict = self.conflict[:self.size]
+        return conflict[~np.isnan(conflict)]
+
+    def reach(self, state) -> None:
+        """Completes the PETs whose conflict station the ego's front has reached by this state."""
+        conflict = self.conflict[:self.size]
+        if not (conflict == conflict).any():
+            return
+        c, s = math.cos(state.psi), math.sin(state.psi)
+        front = state.x + self.ego_length / 2 * abs(c) + self.ego_width / 2 * abs(s)
+        for i in np.flatnonzero(conflict <= front).tolist():
+            self.offer("min_pet", i, state.time, post_encroachment_time(float(self.left_path[i]), state.time))
+            self.left_path[i] = self.conflict[i] = np.nan
+
+    # -- the results
+
+    def summary(self, vehicle_ids, to_scenario_units) -> dict:
+        """summary.json's `criticality` object (docs/results.md): run-wide extremes and one entry per vehicle,
+        lengths (and DRAC, a length per s^2) through `to_scenario_units` (units.from_si), null where a measure
+        never applied.
+        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s."""
+        def number(x):
+            return None if x != x else float(x)
+
+        def entry(values: dict, times: dict) -> dict:
+            length = {"min_distance", "max_drac"}
+            out = {}
+            for name, key, time_key in (("min_distance", "min_distance", "min_distance_time_s"),
+                                        ("min_ttc", "min_ttc_s", "min_ttc_time_s"),
+                                        ("max_drac", "max_drac", "max_drac_time_s"),
+                                        ("min_pet", "min_pet_s", None),
+                                        ("min_headway", "min_headway_s", "min_headway_time_s")):
+                value = number(values[name])
+                out[key] = None if value is None else (to_scenario_units(value) if name in length else value)
+                if time_key:
+                    out[time_key] = number(times[name])
+            return out
+
+        n = len(vehicle_ids)
+        self._grow(n)  # a vehicle never looked at has all its measures null
+        vehicles = [{"vehicle": int(vehicle_ids[i]),
+                     **entry({k: self.value[k][i] for k in MEASURES}, {k: self.time[k][i] for k in MEASURES})}
+                    for i in range(n)]
+        overall_values, overall_times = {}, {}
+        for name in MEASURES:
+            values, times = self.value[name][:n], self.time[name][:n]
+            if n == 0 or np.isnan(values).all():
+                overall_values[name] = overall_times[name] = math.nan
+                continue
+            # the best value; among vehicles within FLAT of it, the earliest instant
+            best = np.nanmax(values) if name == "max_drac" else np.nanmin(values)
+            near = np.abs(values - best) <= FLAT
+            overall_values[name] = best
+            overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
+        return {**entry(overall_values, overall_times), "vehicles": vehicles}
+

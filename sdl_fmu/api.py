@@ -558,8 +558,13 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     except FmuTimeout as error:
         raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU {fmu_path.name} "
                          f"{_first_line(error)}") from None  # "did not answer in fmi2DoStep from t = ..."
-    except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
+    except FmuError as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
+    except OSError as error:  # the samples' temporary files: a full or unwritable $TMPDIR
+        import tempfile
+
+        raise InputError(None, f"cannot write the run's temporary files in {tempfile.gettempdir()}: "
+                               f"{error.strerror or error}; nothing was written") from None
     raw.warnings[:0] = [*scenario.warnings, *tire_warnings]
     result = Result(raw, scenario)
     if out is not None:

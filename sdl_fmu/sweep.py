@@ -25,6 +25,7 @@ own deadline, and the sweep stops waiting for it after twice that, so the sweep 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -50,6 +51,9 @@ STATUSES: tuple[Status, ...] = ("ok", "failed", "timeout")
 TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
     "sweep.parquet", "sweep.csv", "sweep-rows.jsonl", "sweep.json", "sweep.png")
 OWN_FILES = {TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME}
+# the files above, each with its size and SHA-256 (the journal: its start), signed with the user's key (ownership.py)
+MANIFEST_NAME, MANIFEST_FORMAT = ".sdl-fmu-sweep.json", "sdl-fmu sweep 1"
+PARTIAL = ".partial"  # a file being written: renamed into place when whole
 RUN_OPTIONS = {"speed", "seed", "until_distance", "until_time"}
 DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
 # Limits checked before anything is generated, allocated or started (docs/sweeps.md): the runs of one sweep (the
@@ -402,18 +406,84 @@ def _key(index: int, values: dict) -> str:
     return json.dumps({"run": index, "values": {name: values[name] for name in sorted(values)}}, sort_keys=True)
 
 
+def _proved(out: Path) -> set[str] | None:
+    """The files of OWN_FILES in `out` that sdl-fmu's sweep provably wrote (its signed manifest lists them, unchanged;
+    the journal: its start), or None without a valid manifest."""
+    from . import ownership
+
+    try:
+        data = json.loads((out / MANIFEST_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not ownership.authentic(data):
+        return None
+    files = data.get("files")
+    if not isinstance(files, dict):
+        return None
+    return {name for name, entry in files.items() if name in OWN_FILES and ownership.unchanged(out / name, entry)}
+
+
+def _manifest_entry(out: Path, name: str):
+    """What the folder's valid manifest records for `name` (None without one)."""
+    from . import ownership
+
+    try:
+        data = json.loads((out / MANIFEST_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or not ownership.authentic(data) or not isinstance(data.get("files"), dict):
+        return None
+    entry = data["files"].get(name)
+    if isinstance(entry, list):  # the form it was exchanged to
+        entry = next((form for form in reversed(entry) if form is not None), None)
+    return entry
+
+
+def _write_manifest(out: Path, coming: dict[str, Path] | None = None) -> None:
+    """The manifest of the sweep's files as they are now (written whole, then renamed into place); `coming`: files
+    about to replace some of them (name -> the file that will be renamed there), each listed in both forms, so that
+    an interruption between the renames leaves every file provably the sweep's."""
+    from . import ownership
+
+    coming = coming or {}
+    files = {}
+    journal = _manifest_entry(out, JOURNAL_NAME)  # the journal's start as compacted (rows are appended after it)
+    for name in sorted(OWN_FILES):
+        now = ownership.record(out / name, prefix=name == JOURNAL_NAME) if (out / name).is_file() else None
+        if name == JOURNAL_NAME and name not in coming and journal is not None and ownership.unchanged(out / name,
+                                                                                                       journal):
+            files[name] = journal
+        elif name in coming:
+            files[name] = [now, ownership.record(coming[name], prefix=name == JOURNAL_NAME)]
+        elif now is not None:
+            files[name] = now
+    ownership.write_json(out / MANIFEST_NAME, ownership.signed({"format": MANIFEST_FORMAT, "files": files}))
+
+
 def _check_folder(out: Path, spec: dict) -> list[dict]:
     """The `ok` rows of an earlier, interrupted or partly failed run of the same sweep in `out` (resume), or
-    [] for a new folder. A folder holding anything sdl-fmu's sweep did not write, or another sweep's
-    table, is refused."""
+    [] for a new folder. A folder holding anything sdl-fmu's sweep did not write (a file of the sweep's names
+    included, unless its signed manifest proves it sdl-fmu's and unchanged), or another sweep's table, is
+    refused. Files left half-written by a sweep that was killed (`*.partial`) go, in a proved folder."""
     if out.exists() and not out.is_dir():
         raise SweepError(f"--out {out}: exists and is not a folder")
     if not out.exists():
         return []
-    foreign = sorted(entry.name for entry in out.iterdir() if entry.name not in OWN_FILES)
+    names = sorted(entry.name for entry in out.iterdir())
+    proved = _proved(out)
+    leftovers = [name for name in names if name.endswith(PARTIAL) and name[:-len(PARTIAL)] in
+                 {*OWN_FILES, MANIFEST_NAME}]
+    foreign = [name for name in names if name not in {*OWN_FILES, MANIFEST_NAME}
+               and not (proved is not None and name in leftovers)]
     if foreign:
         raise SweepError(f"--out {out}: holds files a sweep did not write ({', '.join(foreign[:3])}); "
                          "choose a new or empty folder")
+    unproved = [name for name in names if name in OWN_FILES and name not in (proved or set())]
+    if unproved:
+        raise SweepError(f"--out {out}: its {unproved[0]} was not written by sdl-fmu's sweep, or was changed since; "
+                         "move it away, or choose another folder")
+    for name in leftovers:
+        (out / name).unlink(missing_ok=True)
     if not (out / SPEC_NAME).exists():
         return []
     try:
@@ -453,11 +523,18 @@ def write_table(rows: list[dict], out: Path, varied: list[str], units: Units) ->
                   key=_column_order)
     columns = {name: [row.get(name) for row in rows] for name in [*first, *rest]}
     table = pa.table({name: pa.array(values, from_pandas=True) for name, values in columns.items()})
-    pq.write_table(table, out / (TABLE_NAME + ".partial"))
-    pa_csv.write_csv(table, out / (CSV_NAME + ".partial"))
-    os.replace(out / (TABLE_NAME + ".partial"), out / TABLE_NAME)
-    os.replace(out / (CSV_NAME + ".partial"), out / CSV_NAME)
-    plot_sweep(rows, varied, units, out / PLOT_NAME)
+    partials = [out / (name + PARTIAL) for name in (TABLE_NAME, CSV_NAME, PLOT_NAME)]
+    try:
+        pq.write_table(table, partials[0])
+        pa_csv.write_csv(table, partials[1])
+        plot_sweep(rows, varied, units, partials[2])
+        _write_manifest(out, {partial.name[:-len(PARTIAL)]: partial for partial in partials})
+        for partial in partials:
+            os.replace(partial, partial.with_name(partial.name[:-len(PARTIAL)]))
+        _write_manifest(out)
+    finally:
+        for partial in partials:
+            partial.unlink(missing_ok=True)
 
 
 def _column_order(name: str):
@@ -485,7 +562,14 @@ def _axis_label(column: str) -> str:
 def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     """One row of panels per varied quantity that takes more than one value: collisions, the first BRK's
     distance and the smallest gap to any vehicle against that quantity; failed and timed-out runs marked
-    at the bottom. Axes carry units."""
+    at the bottom. Axes carry units; names are drawn as written (a `$` in a --vary name is not mathtext)."""
+    from .text import plain_text
+
+    with plain_text():
+        _plot_sweep(rows, varied, units, path)
+
+
+def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -520,7 +604,7 @@ def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) ->
             if row_index == 0 and k == 0 and any(r.get("status") != "ok" for r in rows):
                 ax.legend(fontsize=8)
     figure.suptitle(f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok", fontsize=11)
-    figure.savefig(path)
+    figure.savefig(path, format="png")
 
 
 # ---- the sweep ------------------------------------------------------------------------------------
@@ -561,6 +645,40 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
             "files": {option: bundle.digest for option, bundle in bundles.items()}}
+    from . import ownership
+
+    if out.exists() and not out.is_dir():
+        raise SweepError(f"--out {out}: exists and is not a folder")
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)  # to hold its lock from the start; removed again if nothing is written
+    except OSError as error:
+        raise SweepError(f"--out {out}: cannot be made: {error.strerror or error}") from None
+    held = False
+    try:
+        with ownership.locked(out):
+            held = True
+            return _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
+                               progress)
+    except ownership.Locked:
+        raise SweepError(f"--out {out}: another sweep is writing into it; wait until it ends, or choose another "
+                         "folder") from None
+    except OSError as error:  # a full disk, a folder that became read-only: what was written stays consistent
+        done = (out / JOURNAL_NAME).exists()
+        raise SweepError(f"--out {out}: cannot write: {error.strerror or error}; "
+                         + ("the finished runs are kept: the same command resumes the sweep" if done else
+                            "nothing was written")) from None
+    finally:
+        if created and held:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if empty: a sweep that wrote nothing leaves nothing
+
+
+def _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
+                progress) -> list[dict]:
+    """The sweep proper, with `out`'s lock held."""
+    from . import ownership
+
     done = _check_folder(out, spec)
     columns = column_names(list(varied), loaded.units, model)
     runs = combinations(varied)
@@ -571,23 +689,28 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     try:
         if todo and client is None:  # connect before anything is written
             client, owned = _client(workers, scheduler, len(todo))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
-        _keep_only(out / JOURNAL_NAME, rows)
+        if not (out / SPEC_NAME).exists():  # a resumed sweep's is the same
+            ownership.write_json(out / SPEC_NAME, spec)
+        _keep_only(out / JOURNAL_NAME, rows)  # and the manifest
         if todo:
             rows += _run_all(bundles, todo, fixed, timeout, out, client, progress, columns)
     finally:
         for thing in owned:
             thing.close()
-    write_table(rows, out, list(columns.values()), loaded.units)
+    write_table(rows, out, list(columns.values()), loaded.units)  # and the manifest
     return sorted(rows, key=lambda r: r["run"])
 
 
 def _keep_only(journal: Path, rows: list[dict]) -> None:
     """The journal with only the rows kept (the `ok` ones): the runs that failed are run again."""
-    partial = journal.with_name(journal.name + ".partial")
-    partial.write_text("".join(json.dumps(row, default=_plain) + "\n" for row in rows), encoding="utf-8")
-    os.replace(partial, journal)
+    partial = journal.with_name(journal.name + PARTIAL)
+    try:
+        partial.write_text("".join(json.dumps(row, default=_plain) + "\n" for row in rows), encoding="utf-8")
+        _write_manifest(journal.parent, {journal.name: partial})
+        os.replace(partial, journal)
+        _write_manifest(journal.parent)
+    finally:
+        partial.unlink(missing_ok=True)
 
 
 def max_workers() -> int:

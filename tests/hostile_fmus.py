@@ -44,8 +44,8 @@ def library(folder: Path) -> Path:
 
 def description(*, model_name: str = "Hostile car", guid: str = GUID, identifier: str = IDENTIFIER,
                 can_get_set: bool = True, speed_unit: str | None = None, extra_variables: str = "",
-                ranges: dict[str, tuple[float, float]] | None = None) -> str:
-    """The model description; `ranges` declares min/max of variables by name."""
+                ranges: dict[str, tuple[float, float]] | None = None, names: dict[str, str] | None = None) -> str:
+    """The model description; `ranges` declares min/max of variables by name, `names` renames variables."""
     from xml.sax.saxutils import quoteattr
 
     units = f" unit={quoteattr(speed_unit)}" if speed_unit is not None else ""
@@ -55,7 +55,8 @@ def description(*, model_name: str = "Hostile car", guid: str = GUID, identifier
         if ranges and name in ranges:
             attributes += f' min="{ranges[name][0]!r}" max="{ranges[name][1]!r}"'
         unit = units if name == "speed" else ""
-        variables.append(f'    <ScalarVariable name="{name}" valueReference="{len(variables)}" causality="{causality}" '
+        shown = quoteattr((names or {}).get(name, name))
+        variables.append(f'    <ScalarVariable name={shown} valueReference="{len(variables)}" causality="{causality}" '
                          f'variability="{variability}"><Real{unit}{attributes}/></ScalarVariable>')
     outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(VARIABLES) if v[1] == "output")
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -89,9 +90,10 @@ def hostile_fmu(folder: Path, name: str = "HostileCar", *, members: dict[str, by
 
 
 def hostile_map(folder: Path, mode: str | int = "honest", trigger_time: float = 1.0, *, name: str = "hostile",
-                vehicle: str | None = None, extra: str = "", speed: str = 'variable = "speed"') -> Path:
+                vehicle: str | None = None, extra: str = "", speed: str = 'variable = "speed"',
+                parameters: str | None = None) -> Path:
     """A vehicle map driving the hostile car; `mode` (a name of MODES or a number) starts at `trigger_time` (s).
-    `vehicle` replaces the [vehicle] table's body, `extra` is appended at the top level."""
+    `vehicle` replaces the [vehicle] table's body, `parameters` the [parameters] table's, `extra` is the top level."""
     mode = MODES.get(mode, mode)
     vehicle = vehicle if vehicle is not None else "length = 4.5\nwidth = 1.8\nwheelbase = 2.7\ntrack = 1.5\n"
     text = f"""{extra}
@@ -112,8 +114,7 @@ speed = {{ variable = "v_init" }}
 [vehicle]
 {vehicle}
 [parameters]
-mode = {float(mode)!r}
-trigger_time = {float(trigger_time)!r}
+{parameters if parameters is not None else f"mode = {float(mode)!r}{chr(10)}trigger_time = {float(trigger_time)!r}"}
 """
     path = folder / f"{name}.toml"
     folder.mkdir(parents=True, exist_ok=True)

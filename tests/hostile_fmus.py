@@ -21,7 +21,8 @@ GUID = "{8c4e810f-3df3-4a00-8276-176fa3c9f000}"
 IDENTIFIER = "HostileCar"
 MEMORY_CAP = 1536 * 2**20  # bytes of address space for every command under test (1.5 GB)
 HANG_LIMIT = 600  # s: only a hang takes this long; no test asserts on speed
-MODES = {"honest": 0, "hang": 1, "crash": 2, "exit": 3, "nan": 4, "inf": 5, "huge": 6, "garbage_log": 7, "lie": 8}
+MODES = {"honest": 0, "hang": 1, "crash": 2, "exit": 3, "nan": 4, "inf": 5, "huge": 6, "garbage_log": 7, "lie": 8,
+         "no_init": 9}
 
 VARIABLES = [  # name, causality, variability, start (None: an output)
     ("throttle", "input", "continuous", 0.0), ("brake", "input", "continuous", 0.0),

@@ -20,7 +20,8 @@ import pytest
 from hostile_fmus import (GUID, HANG_LIMIT, IDENTIFIER, capped, hostile_fmu, hostile_map, library, one_line,
                           popen_capped)
 
-SCENARIO = "English\n300,BRK,100,1,50\n600,ES\n"  # a BRK whose threshold is bisected: FMU states saved and restored
+SCENARIO = "English\n300,BRK,100,1,50\n600,ES\n"
+SLOW = pytest.mark.slow  # the fast loop keeps a crash and a hang under Ctrl-C; the rest runs in CI  # a BRK whose threshold is bisected: FMU states saved and restored
 
 
 @pytest.fixture(scope="module")
@@ -76,10 +77,10 @@ def run(car, work, mode, *more, **map_options):
 
 @pytest.mark.parametrize("mode, needle", [
     ("crash", "it crashed (SIGSEGV) in fmi2DoStep from t = 1.000000 s to "),
-    ("exit", "its process ended (exit status 0) in fmi2DoStep from t = 1.000000 s to "),
-    ("nan", "its output 'x' (x) is nan at t = 1.000000 s: not a finite number"),
-    ("inf", "its output 'x' (x) is inf at t = 1.000000 s: not a finite number"),
-    ("huge", "its output 'x' (x) is 1e+308 at t = 1.000000 s: beyond 1e+09 in SI units"),
+    pytest.param("exit", "its process ended (exit status 0) in fmi2DoStep from t = 1.000000 s to ", marks=SLOW),
+    pytest.param("nan", "its output 'x' (x) is nan at t = 1.000000 s: not a finite number", marks=SLOW),
+    pytest.param("inf", "its output 'x' (x) is inf at t = 1.000000 s: not a finite number", marks=SLOW),
+    pytest.param("huge", "its output 'x' (x) is 1e+308 at t = 1.000000 s: beyond 1e+09 in SI units", marks=SLOW),
 ])
 def test_a_crash_an_exit_or_a_non_finite_output_ends_the_run_in_one_line(car, work, mode, needle):
     completed = run(car, work, mode)
@@ -88,6 +89,7 @@ def test_a_crash_an_exit_or_a_non_finite_output_ends_the_run_in_one_line(car, wo
     assert_clean(work)
 
 
+@SLOW
 def test_an_honest_foreign_fmu_runs_out_of_process_and_leaves_nothing_behind(car, work):
     completed = run(car, work, "honest")
     assert completed.returncode == 0, completed.stderr
@@ -96,6 +98,7 @@ def test_an_honest_foreign_fmu_runs_out_of_process_and_leaves_nothing_behind(car
     assert_clean(work)
 
 
+@SLOW
 def test_a_capability_lie_is_caught_by_the_state_round_trip(car, work):
     """canGetAndSetFMUstate declared, fmi2SetFMUstate answers OK and restores nothing: the first restore finds outputs
     other than those saved (the BRK threshold is bisected on saved states)."""
@@ -113,12 +116,15 @@ def wait_for(path: Path, process) -> None:
         time.sleep(0.02)
 
 
-@pytest.mark.parametrize("how", ["ctrl-c", "timeout"])
-def test_a_hang_in_do_step_is_ended_by_ctrl_c_and_by_timeout(car, work, how):
+@pytest.mark.parametrize("how, verb", [("ctrl-c", "run"), pytest.param("timeout", "run", marks=SLOW),
+                                       pytest.param("ctrl-c", "verify", marks=SLOW),
+                                       pytest.param("timeout", "verify", marks=SLOW)])
+def test_a_hang_in_do_step_is_ended_by_ctrl_c_and_by_timeout(car, work, how, verb):
     folder, fmu, scenario = car
     vehicle = hostile_map(work, "hang")
     hanging = work / "hanging"
-    command = ["run", scenario, "--fmu", fmu, "--vehicle", vehicle, "--out", work / "work" / "out"]
+    command = ([verb, scenario] if verb == "run" else [verb, "--only", "braking"]) + [
+        "--fmu", fmu, "--vehicle", vehicle, "--out", work / "work" / "out"]
     env = environment(work, HOSTILE_HANG_FILE=str(hanging))
     if how == "ctrl-c":
         process = popen_capped(*command, cwd=work / "work", env=env)
@@ -143,6 +149,7 @@ def test_a_hang_in_do_step_is_ended_by_ctrl_c_and_by_timeout(car, work, how):
     assert_clean(work)
 
 
+@SLOW
 def test_the_api_timeout_ends_a_hang_inside_a_step(car, work):
     """api.run(timeout=) (the sweep's per-run limit) stops waiting for a hung FMU mid-step, not only between steps."""
     folder, fmu, scenario = car
@@ -159,6 +166,7 @@ def test_the_api_timeout_ends_a_hang_inside_a_step(car, work):
     assert_clean(work)
 
 
+@SLOW
 def test_a_killed_sdl_fmu_takes_its_hung_host_along_and_the_next_run_removes_its_unpacked_fmu(car, work):
     folder, fmu, scenario = car
     hanging = work / "hanging"
@@ -184,6 +192,22 @@ def test_a_killed_sdl_fmu_takes_its_hung_host_along_and_the_next_run_removes_its
     assert_clean(work)
 
 
+@SLOW
+def test_an_fmu_that_fails_to_initialise_is_one_line_for_run_verify_and_sweep(car, work):
+    folder, fmu, scenario = car
+    vehicle = hostile_map(work, "no_init")
+    for command in (["run", scenario, "--out", work / "work" / "out"], ["verify", "--out", work / "work" / "out"],
+                    ["sweep", scenario, "--vary", "speed=40,50", "--workers", "1", "--out", work / "work" / "out"]):
+        completed = capped(*command, "--fmu", fmu, "--vehicle", vehicle, cwd=work / "work", env=environment(work))
+        lines = completed.stderr.splitlines()  # the FMU's own log line, then sdl-fmu's
+        assert completed.returncode == 2 and len(lines) == 2, completed.stderr
+        assert lines[0] == "HostileCar.fmu: [Error] logAll: cannot initialise: the engine is missing"
+        assert "HostileCar.fmu" in lines[1] and "could not be initialised: fmi2ExitInitializationMode failed" in lines[1]
+        assert os.listdir(work / "work") == []
+    assert_clean(work)
+
+
+@SLOW
 def test_instantiation_failures_are_one_line_for_run_verify_and_sweep(car, work):
     """A GUID the binary does not know: fmi2Instantiate returns NULL. run, verify and sweep refuse the FMU before
     anything runs (the sweep does not start its runs)."""
@@ -199,6 +223,7 @@ def test_instantiation_failures_are_one_line_for_run_verify_and_sweep(car, work)
     assert_clean(work)
 
 
+@SLOW
 @pytest.mark.parametrize("variant, needle", [
     ("identifier", "modelIdentifier '../../../tmp/Evil' is not a C identifier"),
     ("absolute", "the member name '/tmp/evil.so' has an absolute path"),
@@ -257,6 +282,7 @@ def declared_size(fmu: Path, member: str, size: int) -> Path:
     return fmu
 
 
+@SLOW
 def test_the_fmu_is_unpacked_once_per_process(car, work):
     """The vehicle test pack instantiates the FMU for every manoeuvre (and the probe before): one unpack folder for
     all of them, gone at the end."""
@@ -272,6 +298,7 @@ def test_the_fmu_is_unpacked_once_per_process(car, work):
     assert_clean(work)
 
 
+@SLOW
 def test_a_full_disk_during_the_unpack_leaves_nothing(car, work):
     """$TMPDIR on a 1 MB tmpfs (a private mount namespace: nothing of the machine is touched) and an FMU whose binary
     needs more: one line naming the FMU and the full disk, and the partial unpack is gone."""
@@ -299,6 +326,7 @@ def test_a_full_disk_during_the_unpack_leaves_nothing(car, work):
     assert os.listdir(work / "work") == []
 
 
+@SLOW
 def test_fmu_log_lines_go_to_stderr_decoded_leniently_escaped_and_bounded(car, work):
     completed = run(car, work, "garbage_log")
     assert completed.returncode == 0, completed.stderr[-2000:]
@@ -312,6 +340,7 @@ def test_fmu_log_lines_go_to_stderr_decoded_leniently_escaped_and_bounded(car, w
     assert_clean(work)
 
 
+@SLOW
 def test_isolation_changes_no_result(simple_fmu, work):
     """The shipped FMU in its host process (SDL_FMU_ISOLATION=always) gives byte-identical results to the same FMU in
     sdl-fmu's process: the requests carry every call, in the same order."""

@@ -22,6 +22,8 @@ from sdl_fmu.api import HOLD_VARIABLE
 
 from hostile_fmus import HANG_LIMIT, _capped, capped, capped_command, one_line, popen_capped
 
+pytestmark = pytest.mark.slow  # whole runs, sweeps and verifications of the command line, each capped
+
 SHORT = ["--until-time", "2"]  # a short run of the demo: a few hundred samples
 
 

@@ -17,6 +17,7 @@ import pytest
 from hostile_fmus import HANG_LIMIT, capped, hostile_fmu, hostile_map, library, one_line
 
 SCENARIO = "English\n300,BRK,100,1,50\n600,ES\n"
+SLOW = pytest.mark.slow  # the fast loop keeps three sweep refusals and the grammar; the rest runs in CI
 
 # --- sweep sizes and values: refused before a value is generated, a grid built or a cluster started ----------------
 SWEEP = [
@@ -46,7 +47,8 @@ def work(tmp_path):
     return tmp_path
 
 
-@pytest.mark.parametrize("arguments, needle", SWEEP, ids=[" ".join(a)[:60] for a, _ in SWEEP])
+@pytest.mark.parametrize("arguments, needle", [
+    pytest.param(*case, marks=() if index < 3 else SLOW, id=" ".join(case[0])[:60]) for index, case in enumerate(SWEEP)])
 def test_a_sweep_too_big_or_with_a_bad_value_is_one_line_before_anything_runs(work, arguments, needle):
     completed = capped("sweep", work / "rsa.sdl", *arguments, "--out", work / "work" / "sweep", cwd=work / "work")
     one_line(completed, 2, f"sdl-fmu: {needle}")
@@ -90,6 +92,7 @@ def _garbage(connection):
     connection.sendall(b"\xff" * 64)
 
 
+@SLOW
 @pytest.mark.parametrize("server, needle", [
     (_http, "no Dask scheduler there (it sent nothing in 10 s: a web server? The dashboard is usually on 8787"),
     (_garbage, "not a Dask scheduler (what it sent is not Dask's handshake)"),
@@ -124,6 +127,7 @@ def car(tmp_path_factory):
     return folder, scenario
 
 
+@SLOW
 @pytest.mark.parametrize("where", ["fmu", "map"])
 def test_a_unit_string_cannot_make_sdl_fmu_compute(car, work, where):
     """`10**10**10*m/s`: pint would compute a number of ten billion digits (sdl-fmu hung resolving the FMU)."""
@@ -187,6 +191,7 @@ MAP_VALUES = [
 ]
 
 
+@SLOW
 @pytest.mark.parametrize("vehicle, needle", [case[1:] for case in MAP_VALUES], ids=[case[0] for case in MAP_VALUES])
 def test_map_values_outside_their_range_are_one_line_naming_the_file_and_key(car, work, vehicle, needle):
     folder, scenario = car
@@ -198,6 +203,7 @@ def test_map_values_outside_their_range_are_one_line_naming_the_file_and_key(car
     assert os.listdir(work / "work") == []
 
 
+@SLOW
 @pytest.mark.parametrize("extra, needle", [
     ('speed = { variable = "speed", scale = 1e300 }', "outputs.speed.scale: 1e+300 is outside its range: 1e-06 <= "
                                                        "|scale| <= 1e+06"),
@@ -212,6 +218,7 @@ def test_channel_scales_and_offsets_are_range_checked(car, work, extra, needle):
     one_line(completed, 2, f"sdl-fmu: {path}: {needle}")
 
 
+@SLOW
 def test_map_parameters_are_checked_against_the_fmus_declared_range(car, work):
     folder, scenario = car
     fmu = hostile_fmu(work / "fmu", ranges={"v_init": (0.0, 100.0)})
@@ -222,6 +229,7 @@ def test_map_parameters_are_checked_against_the_fmus_declared_range(car, work):
     one_line(completed, 2, f"sdl-fmu: {path}: parameters.v_init: 1000.0 is above the FMU's declared maximum 100")
 
 
+@SLOW
 def test_a_huge_start_value_without_a_declared_range_ends_the_run_at_the_fmus_output(car, work):
     """v_init = 1e308 on an FMU that declares no range: the car's first output is 1e308 m/s: one line naming it."""
     folder, scenario = car
@@ -233,6 +241,7 @@ def test_a_huge_start_value_without_a_declared_range_ends_the_run_at_the_fmus_ou
                            "0.000000 s: beyond 1e+09 in SI units")
 
 
+@SLOW
 @pytest.mark.parametrize("depth", [100_000, 2_000])
 def test_a_map_nested_deep_is_one_line(car, work, depth):
     folder, scenario = car
@@ -243,6 +252,7 @@ def test_a_map_nested_deep_is_one_line(car, work, depth):
     one_line(completed, 2, f"sdl-fmu: {path}: not TOML sdl-fmu reads (nested too deeply)")
 
 
+@SLOW
 def test_a_huge_map_is_refused_unread(car, work):
     folder, scenario = car
     path = work / "huge.toml"
@@ -253,6 +263,7 @@ def test_a_huge_map_is_refused_unread(car, work):
     one_line(completed, 2, f"sdl-fmu: --vehicle {path}: larger than 1024 KB; a vehicle map is a small text")
 
 
+@SLOW
 def test_a_param_the_vehicle_cannot_have_is_one_line_naming_the_param(work):
     """--param brake_decel_max=0 is within the Simple FMU's declared range (>= 0), but the driver model divides by
     it: refused before the run, naming --param (it was a ZeroDivisionError traceback at the first braking)."""

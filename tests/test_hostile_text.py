@@ -11,6 +11,8 @@ import pytest
 
 from hostile_fmus import capped, hostile_fmu, hostile_map, library
 
+pytestmark = pytest.mark.slow  # whole runs, sweeps and verifications of the command line, each capped
+
 MATH = r"$\frac{1}{$ and $x^^$"  # unbalanced and malformed mathtext: matplotlib's parser fails on both
 ESCAPES = "\x1b[2J\x1b[31m\x07\u202e"  # clear the screen, red, bell, right-to-left override
 ESCAPED = r"\x1b[2J\x1b[31m\x07\u202e"

@@ -5,6 +5,7 @@
  *   4 outputs NaN           5 outputs +inf                         6 outputs 1e308
  *   7 logs a message that is not UTF-8 and holds terminal escapes, on every step (and drives on honestly)
  *   8 fmi2SetFMUstate returns OK but restores nothing (the capability lie; the XML declares the capability)
+ *   9 fmi2ExitInitializationMode fails (with a log message)
  * fmi2Instantiate refuses a GUID other than HOSTILE_GUID (a wrong GUID in the modelDescription).
  * For the tests to act when it happens, not after a guessed time: on entering the hang it creates the file named by
  * $HOSTILE_HANG_FILE, and each fmi2Instantiate appends its resource location to the file $HOSTILE_INSTANCES_FILE.
@@ -90,6 +91,10 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     Car *car = (Car *)c;
+    if ((int)car->now.r[MODE] == 9) {
+        say(car, fmi2Error, "cannot initialise: the engine is missing");
+        return fmi2Error;
+    }
     car->now.r[SPEED] = car->now.r[V_INIT];
     car->initialized = 1;
     return fmi2OK;

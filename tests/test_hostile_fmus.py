@@ -247,7 +247,10 @@ def test_an_archive_that_could_escape_or_exhaust_is_refused_before_anything_is_u
     path = hostile_fmu(work / variant, members=members, **options)
     if variant == "size":  # a member that declares 4 GiB (the archive lies; nothing that big is ever written)
         path = declared_size(path, f"binaries/linux64/{IDENTIFIER}.so", 4 << 30)
-    for command in (["run", scenario, "--out", work / "work" / "out"], ["verify", "--out", work / "work" / "out"]):
+    commands = [["run", scenario, "--out", work / "work" / "out"]]
+    if variant == "absolute":  # verify reads the FMU the same way: once is enough to show it
+        commands.append(["verify", "--out", work / "work" / "out"])
+    for command in commands:
         completed = capped(*command, "--fmu", path, "--vehicle", hostile_map(work, "honest"), cwd=work / "work",
                            env=environment(work))
         one_line(completed, 2, f"sdl-fmu: --fmu {path}: ", needle)

@@ -197,7 +197,10 @@ def test_map_values_outside_their_range_are_one_line_naming_the_file_and_key(car
     folder, scenario = car
     fmu = hostile_fmu(work / "fmu")
     path = hostile_map(work, vehicle=vehicle)
-    for command in (["run", scenario, "--out", work / "work" / "out"], ["verify", "--out", work / "work" / "out"]):
+    commands = [["run", scenario, "--out", work / "work" / "out"]]
+    if "mass = 0" in vehicle:  # verify reads the map the same way: once is enough to show it
+        commands.append(["verify", "--out", work / "work" / "out"])
+    for command in commands:
         completed = capped(*command, "--fmu", fmu, "--vehicle", path, cwd=work / "work")
         one_line(completed, 2, f"sdl-fmu: {path}: {needle}")
     assert os.listdir(work / "work") == []

@@ -76,14 +76,16 @@ def _file_digest(path: Path) -> str:
     return _digest(str(path.resolve()), status.st_mtime_ns, status.st_size)
 
 
-def built_digests() -> set[str]:
-    """SHA-256 of every FMU sdl-fmu built into its FMU cache (<Model>-fmi<version>-<key>/fmi<version>/<Model>.fmu)."""
+def built_digests(size: int | None = None) -> set[str]:
+    """SHA-256 of every FMU sdl-fmu built into its FMU cache (<Model>-fmi<version>-<key>/fmi<version>/<Model>.fmu),
+    of those `size` bytes long if given (only those are read)."""
     from ..fmu.cache import cache_directory
 
     digests = set()
     for path in cache_directory().glob("*-fmi*-*/fmi*/*.fmu"):
         try:
-            digests.add(_file_digest(path))
+            if size is None or path.stat().st_size == size:
+                digests.add(_file_digest(path))
         except OSError:
             continue
     return digests
@@ -94,7 +96,8 @@ def runs_in_process(fmu: str | os.PathLike) -> bool:
     if os.environ.get(ISOLATION_VARIABLE, "auto") == "always":
         return False
     try:
-        return _file_digest(Path(fmu)) in built_digests()
+        path = Path(fmu)
+        return _file_digest(path) in built_digests(path.stat().st_size)
     except OSError:
         return False
 

@@ -34,7 +34,8 @@ from .units import Units
 from .vehicle.vehicle_map import Dynamics
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios",
-           "resolve_scenario", "ego_fmu", "ego_model", "tire_slot_starts", "LIMITS"]
+           "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "tire_slot_starts", "LIMITS", "DRIVERS",
+           "ON_COLLISION"]
 
 # Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
 # cannot reach within it could never end a run.
@@ -64,6 +65,8 @@ def _shipped_variables() -> tuple[str, ...]:
 
 
 EGO_VARIABLES = _shipped_variables()
+DRIVERS = ("lane", "follow")  # the built-in drivers (docs/controllers.md); lane is the default
+ON_COLLISION = ("continue", "stop")  # what the first contact does; continue is the default
 MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
 
 
@@ -249,6 +252,35 @@ def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
     path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
                                                             f"{path.parent.parent} (first use)", file=sys.stderr))
     return EgoModel.open(path, shipped_map)
+
+
+def controller_model(controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None):
+    """The run's ControllerModel (docs/controllers.md): `controller` (or the map's own `fmu`) driven through the
+    controller map `controller_map`; None when neither is given. Raises InputError naming the map file and key, or
+    the FMU."""
+    from .vehicle.controller import ControllerMapError, ControllerModel
+
+    if controller is None and controller_map is None:
+        return None
+    if controller_map is None:
+        raise _option_error("controller", controller, "needs a controller map (controller_map, a TOML file: "
+                                                      "docs/controllers.md)")
+    try:
+        return ControllerModel.open(None if controller is None else _regular_file("controller", controller),
+                                    _regular_file("controller_map", controller_map))
+    except ControllerMapError as error:
+        text = str(error)
+        for option in ("controller_map", "controller"):  # the keyword form for the API, the flag form for the CLI
+            flag = f"--{option.replace('_', '-')} "
+            if text.startswith(flag):
+                raise InputError(option, "", subject=text[len(flag):]) from None
+        raise InputError("controller_map", text) from None
+
+
+def _choice(option: str, value, choices: tuple[str, ...]) -> str:
+    if value not in choices:
+        raise _option_error(option, value, f"must be one of {', '.join(choices)}")
+    return value
 
 
 def _parameters(params: dict | None, model) -> dict[str, float]:
@@ -502,7 +534,9 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         driver_period: float | None = None, until_distance: float | None = None,
         until_time: float | None = None, params: dict[str, float] | None = None,
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
-        out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None) -> Result:
+        out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None,
+        controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
+        driver: str = "lane", on_collision: str = "continue") -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
@@ -514,12 +548,19 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     advanced). progress: a bar on stderr (None: only when stderr is a terminal). out: also write the results
     folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
+    controller, controller_map: a controller FMU in the loop and its controller map (TOML, docs/controllers.md; the
+    map's own `fmu` when controller is None). driver: the built-in driver, "lane" (holds its lane and speed,
+    ignores traffic) or "follow" (also follows the vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
+    (the run ends at the first contact).
     Raises InputError or ScenarioError for user mistakes."""
     from .cosim.ego import FmuError
     from .cosim.master import RunOptions, run_scenario
     from .results_folder import ResultsFolderError, check_results_folder
+    from .vehicle.controller import ControllerError
 
     seed = _seed(seed)
+    driver = _choice("driver", driver, DRIVERS)
+    on_collision = _choice("on_collision", on_collision, ON_COLLISION)
     from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
 
     step = DEFAULT_STEP if step is None else _checked_option("step", step)
@@ -534,6 +575,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     if model.surface_meaning == "attribute":
         _whole_attributes(scenario)
     tire_starts, known_attributes, tire_warnings = tire_slot_starts(tires, model)
+    in_the_loop = controller_model(controller, controller_map)
     if out is not None:
         try:
             check_results_folder(out)
@@ -544,7 +586,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     options = RunOptions(speed=speed, seed=seed, step=step, driver_period=driver_period,
                          until_distance=until_distance,
                          until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
-                         known_attributes=None if known_attributes is None else set(known_attributes))
+                         known_attributes=None if known_attributes is None else set(known_attributes),
+                         driver=driver, controller=in_the_loop, on_collision=on_collision)
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
@@ -558,6 +601,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     except FmuTimeout as error:
         raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU {fmu_path.name} "
                          f"{_first_line(error)}") from None  # "did not answer in fmi2DoStep from t = ..."
+    except ControllerError as error:  # the controller's binary, or values it refused or returned
+        raise InputError("controller", _first_line(error)) from None
     except FmuError as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
     except OSError as error:  # the samples' temporary files: a full or unwritable $TMPDIR

@@ -94,7 +94,9 @@ def _run(args) -> int:
                      seed=args.seed,
                      step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
-                     params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out)
+                     params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out,
+                     controller=args.controller, controller_map=args.controller_map, driver=args.driver,
+                     on_collision=args.on_collision)
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
           f"ended at {final['time_s']:.2f} s, distance {final['distance']:.1f} {length_label(units)}, "
@@ -120,6 +122,13 @@ def _sweep(args) -> int:
         fixed["params"] = _parse_parameters(args.param)
     if args.tires:
         fixed["tires"] = args.tires
+    for option in ("controller", "controller_map"):
+        if getattr(args, option):
+            fixed[option] = getattr(args, option)
+    if args.driver != "lane":
+        fixed["driver"] = args.driver
+    if args.on_collision != "continue":
+        fixed["on_collision"] = args.on_collision
     if args.skip_unsupported:
         fixed["skip_unsupported"] = True
     scenario = api.resolve_scenario(args.scenario)
@@ -188,6 +197,19 @@ exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 3 a sw
             130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
 
 
+def _loop_arguments(command, every: str = "") -> None:
+    """run's and sweep's options of what drives the ego: a controller in the loop, the built-in driver, collisions."""
+    command.add_argument("--controller", metavar="FMU", help=f"controller FMU in the loop{every} (AEB, ACC, ...; "
+                         "default: the controller map's fmu)")
+    command.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests, "
+                         "period and arbitration (docs/controllers.md)")
+    command.add_argument("--driver", choices=("lane", "follow"), default="lane",
+                         help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
+                              "(also follows the vehicle ahead: Gipps' car-following law)")
+    command.add_argument("--on-collision", choices=("continue", "stop"), default="continue",
+                         help="continue (default) or stop: end the run at the first contact")
+
+
 def parser() -> argparse.ArgumentParser:
     from . import __version__
 
@@ -234,6 +256,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--tires", help="Tire Attribute File (advanced dynamics)")
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _loop_arguments(run)
     run.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)
@@ -258,6 +281,7 @@ def parser() -> argparse.ArgumentParser:
                        help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _loop_arguments(sweep, " for every run")
     sweep.add_argument("--out", help="table folder: new, empty or an interrupted sweep's (resumed); "
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)

@@ -82,6 +82,16 @@ def _timeseries_columns(result: RunResult) -> list[tuple[str, object, str]]:
     for wheel in WHEELS:
         if f"surface_{wheel}" in result.columns:
             table.append((f"surface_{wheel}", ego(f"surface_{wheel}", transform=np.round), "%d"))
+    if result.controller is not None:  # the driver's commands before arbitration, the requests (docs/controllers.md)
+        requested = result.controller.get("outputs", [])
+        table += [("driver_throttle_1", ego("driver_throttle"), GENERAL_FORMAT),
+                  ("driver_brake_1", ego("driver_brake"), GENERAL_FORMAT),
+                  ("driver_steer_rad", ego("driver_steer"), GENERAL_FORMAT),
+                  ("request_active", ego("request_active", transform=lambda v: (v > 0.5).astype(float)), "%d")]
+        headers = {"throttle": "request_throttle_1", "brake": "request_brake_1", "steer": "request_steer_rad",
+                   "deceleration": f"request_deceleration_{accel}"}
+        table += [(header, ego(f"request_{name}", convert=name == "deceleration"), GENERAL_FORMAT)
+                  for name, header in headers.items() if name in requested]
     if len(result.vehicles) > WIDE_VEHICLE_LIMIT:
         return table
     ego_station = _ego_column(result, "station")
@@ -224,6 +234,8 @@ def _summary_fields(result: RunResult, events) -> dict:
         "timing": result.timing,
         **({"vehicle": result.vehicle} if result.vehicle else {}),
         **({"criticality": result.criticality} if result.criticality is not None else {}),
+        **({"driver": result.driver} if result.driver is not None else {}),
+        **({"controller": result.controller} if result.controller is not None else {}),
     }
 
 

@@ -101,3 +101,5 @@ class RunResult:
     criticality: dict | None = None
     # s per sample, the smallest time to collision (nan: none defined), computed when called (the plot)
     ttc_series: Callable[[], np.ndarray] | None = None
+    controller: dict | None = None  # summary "controller" (docs/controllers.md): a controller in the loop, or None
+    driver: dict | None = None  # summary "driver": the follow driver's law and parameters; None for the lane driver

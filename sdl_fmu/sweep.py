@@ -254,7 +254,8 @@ def _tire_files(path: Path) -> Bundle:
 
 # The file-valued options of api.run: option -> how to pack what a run reads through it. A new file-valued
 # option is one entry here. (The scenario itself always goes, as the bundle "scenario".)
-SHIPPED: dict[str, Callable[[Path], Bundle]] = {"fmu": _one_file, "tires": _tire_files, "vehicle": _one_file}
+SHIPPED: dict[str, Callable[[Path], Bundle]] = {"fmu": _one_file, "tires": _tire_files, "vehicle": _one_file,
+                                                "controller": _one_file, "controller_map": _one_file}
 SHIPPED_FOLDER = "shipped"
 
 
@@ -641,6 +642,10 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
         fixed["tires"] = str(Path(fixed["tires"]).absolute())
     if fixed.get("vehicle") is not None:
         fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())
+    controller = api.controller_model(fixed.get("controller"), fixed.get("controller_map"))  # a bad map fails now
+    if controller is not None:  # the map's own `fmu` resolved here: the map travels alone
+        fixed["controller"] = str(controller.fmu_path.absolute())
+        fixed["controller_map"] = str(Path(fixed["controller_map"]).absolute())
     bundles = _pack(scenario_path, fixed)
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),

@@ -154,6 +154,28 @@ def foreign_parameters(fmu: Path) -> dict[str, float]:
     return parameter_defaults(fmu)
 
 
+# ---- the foreign controller (tests/controllers), built by other tools ----------------------------------------------
+
+CONTROLLERS = TESTS / "controllers"
+FOREIGN_AEB_MAP = CONTROLLERS / "foreign_aeb.toml"
+
+
+def build_foreign_controller(folder: Path, fmi_version: int = 2, handle_state: bool = False) -> Path:
+    """Packages the foreign AEB controller (tests/controllers) into folder with another tool, in a subprocess through
+    its command line: PythonFMU for FMI 2.0, pythonfmu3 for FMI 3.0; handle_state: the FMU can get and set its state
+    (canGetAndSetFMUstate). Returns the FMU's path."""
+    script, tool, name = {3: ("foreign_aeb.py", "pythonfmu3", "ForeignAeb"),
+                          2: ("foreign_aeb_fmi2.py", "pythonfmu", "ForeignAebFmi2")}[fmi_version]
+    folder = Path(folder) / ("with-state" if handle_state else "without-state")
+    folder.mkdir(parents=True, exist_ok=True)
+    built = subprocess.run([sys.executable, "-m", tool, "build", "-f", str(CONTROLLERS / script), "-d", str(folder),
+                            *(["--handle-state"] if handle_state else []), str(CONTROLLERS / "foreign_aeb_logic.py")],
+                           capture_output=True, text=True)
+    if built.returncode != 0:
+        pytest.fail(f"{tool} could not build {script}:\n{built.stdout}{built.stderr}")
+    return folder / f"{name}.fmu"
+
+
 class FmpyCar:
     """A co-simulation FMU (FMI 2.0 or 3.0) opened directly through fmpy, driven by variable name:
     car = FmpyCar(fmu, {"v_init": 100.0}); car.set(brake_pressure=60.0); car.step(0.05); car.get("veh_speed")."""

@@ -52,10 +52,22 @@ class Driver:
 
     def pedals(self, state: EgoState) -> tuple[float, float]:
         """(throttle, brake) that hold the target speed."""
-        v = state.v
-        error = self.target_speed - v
-        resistance = self.rolling_resistance * STANDARD_GRAVITY * (v > 0) + self.drag_factor * v**2
-        demand = SPEED_GAIN * error + SPEED_INTEGRAL_GAIN * self.integral + resistance
+        return self.pedals_for(self.demand(state), state.v)
+
+    def resistance(self, v: float) -> float:
+        """The rolling and air resistance's deceleration at speed v (m/s2), the feed-forward."""
+        return self.rolling_resistance * STANDARD_GRAVITY * (v > 0) + self.drag_factor * v**2
+
+    def demand(self, state: EgoState) -> float:
+        """The acceleration the drive or the brakes must give (m/s2; resistance included) to hold the target
+        speed: PI on the speed error plus the resistance's feed-forward."""
+        error = self.target_speed - state.v
+        return SPEED_GAIN * error + SPEED_INTEGRAL_GAIN * self.integral + self.resistance(state.v)
+
+    def pedals_for(self, demand: float, v: float, deadband: bool = True) -> tuple[float, float]:
+        """(throttle, brake) that give the acceleration `demand` (m/s2, resistance included) at speed v: throttle
+        against the drive limit (acceleration or power), brake against brake_decel_max; with `deadband` it
+        coasts for decelerations below BRAKE_DEADBAND."""
         if demand >= 0:
             power_limited = self.drive_power_max / (self.mass * (1e-3 if v < 1e-3 else v))
             available = power_limited if power_limited < self.drive_accel_max else self.drive_accel_max
@@ -63,7 +75,7 @@ class Driver:
                 return 0.0, 0.0
             throttle = demand / available
             return (1.0 if throttle > 1.0 else throttle), 0.0
-        if demand > -BRAKE_DEADBAND:
+        if deadband and demand > -BRAKE_DEADBAND:
             return 0.0, 0.0
         brake = -demand / self.brake_decel_max
         return 0.0, (1.0 if brake > 1.0 else brake)

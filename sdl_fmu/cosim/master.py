@@ -17,8 +17,10 @@ Where nothing can happen the loop steps long (`advance`): to the next driver sam
 earliest trigger bound, whichever is first. Within MIN_LOOKAHEAD of a possible trigger it steps from a saved FMU
 state and, if a trigger became true inside the step, rolls back and bisects (fmi2GetFMUstate / fmi2SetFMUstate)
 until the instant is known within TIME_TOLERANCE (locate.py); then it fires what is due (`fire`, and the
-handlers beside it). Traffic motion is closed-form in time, so it needs no rollback of its own. The driver model is a sampled controller with its
-own period (`driver_period`): its samples are instants the master steps to, independent of `step`.
+handlers beside it). Traffic motion is closed-form in time, so it needs no rollback of its own. The driver model is
+a sampled controller with its own period (`driver_period`), and so are the follow driver's decisions and a controller
+FMU in the loop (clocks.py): their samples are instants the master steps to, independent of `step`, so none of them
+is stepped or read inside a located step.
 """
 
 from __future__ import annotations
@@ -37,15 +39,19 @@ from ..sdl.vehicles import VehicleModel
 from ..storage import EventLog
 from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
+from ..vehicle.controller import ControllerModel
 from .brake import BrakeHold
+from .clocks import SampleClocks
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
+from .follow import REACTION_TIME, FollowDriver
 from .follower import CriticalityFollower
-from .inputs import Inputs
+from .inputs import CONTROLLER_COLUMNS, Inputs
 from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICALITY_TOLERANCE: the master's API)
 from .recorder import Recorder, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
+from .signals import lead_of
 from .traffic import Traffic, choose_model
 from .triggers import EgoKinematics, ego_bounds
 
@@ -56,7 +62,10 @@ MAX_TIME = 3600.0  # s, a run never goes beyond
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
-EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit"]  # summary.json's ES reason
+# summary.json's ES reason
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision"]
+DriverName = Literal["lane", "follow"]  # the built-in driver (docs/controllers.md)
+OnCollision = Literal["continue", "stop"]  # what the first contact does
 DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
 DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
@@ -74,6 +83,9 @@ class RunOptions:
     tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
     known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
     progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
+    driver: DriverName = "lane"  # lane: holds its lane and speed; follow: also follows the vehicle ahead
+    controller: ControllerModel | None = None  # a controller in the loop (docs/controllers.md)
+    on_collision: OnCollision = "continue"  # stop: the run ends at the first contact (ES reason "collision")
 
 
 class Cosimulation:
@@ -103,12 +115,12 @@ class Cosimulation:
         wheel_arm = max(math.hypot(x, y) for x, y in model.wheels)
         self.bounds = ego_bounds(model, mu_max, speed, wheel_arm, MAX_STEER)
         self.traffic = Traffic()
-        self.inputs = Inputs(self.ego, model, make_driver(speed, start_lateral, model), self.road, self.surfaces,
-                             geometry)
+        self.controller = None
+        self.clocks, self.inputs = self._sampled(options, make_driver(speed, start_lateral, model), geometry)
         self.end_distance, self.end_reason = self._end_distance()
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
                                         self.bounds, self.traffic, self.inputs)
-        self.recorder = Recorder(model.wheel_columns)
+        self.recorder = Recorder(model.wheel_columns, () if self.controller is None else CONTROLLER_COLUMNS)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
         if not self.exact:
@@ -124,6 +136,26 @@ class Cosimulation:
         self.steps = 0
         self.finished = False
         self.follower = CriticalityFollower(self.ego, self.traffic, self.bounds, self.road, self.exact)
+
+    def _sampled(self, options: RunOptions, driver, geometry) -> tuple[SampleClocks, Inputs]:
+        """The sampled parts and their clocks (clocks.py): the driver (lane, or follow with its decisions every
+        reaction time) and a controller in the loop, instantiated here (the ego is closed if it cannot be)."""
+        model = self.model
+        periods = {"driver": options.driver_period}
+        if options.driver == "follow":
+            driver = FollowDriver(driver)
+            periods["follow"] = REACTION_TIME
+        if options.controller is not None:
+            periods["controller"] = options.controller.period
+            try:
+                self.controller = options.controller.instantiate()
+            except Exception:
+                self.ego.close()
+                raise
+        inputs = Inputs(self.ego, model, driver, self.road, self.surfaces, geometry, options.driver_period,
+                        self.controller, lambda state: lead_of(state, model.length, model.width, self.traffic))
+        inputs.counts = lambda: (self.collisions, len(self.events))
+        return SampleClocks(periods), inputs
 
     def _scenario_units(self, value: float) -> float:
         return from_si(value, self.scenario.units)
@@ -144,20 +176,18 @@ class Cosimulation:
 
     def run(self) -> RunResult:
         """The loop (FMPy's simulateCS over its helpers): each pass steps the FMU to the next communication point
-        (a driver sample, the `step` limit or the earliest trigger bound), fires what became true there, and
-        records a sample with the inputs from that instant on."""
+        (a sample of the driver or a controller, the `step` limit or the earliest trigger bound), fires what became
+        true there, and records a sample with the inputs from that instant on."""
         started = wall_clock.perf_counter()
         try:
-            ego, inputs, schedule, follower = self.ego, self.inputs, self.schedule, self.follower
+            ego, inputs, schedule, follower, clocks = self.ego, self.inputs, self.schedule, self.follower, self.clocks
             state = ego.read()
             self.fire_due(state)
             follower.start(state)
-            inputs.sample_driver(state, None)
+            inputs.sample(state, {name: 0 for name in clocks.periods})
             inputs.apply(state, True)
             self.record(state)
-            step, period, progress = self.options.step, self.options.driver_period, self.options.progress
-            sample = 1  # index of the next driver sample, at next_sample = sample * period
-            next_sample = sample * period
+            step, progress = self.options.step, self.options.progress
             until_time = self.options.until_time
             stop_time = min(MAX_TIME, math.inf if until_time is None else until_time)
             # the kept bounds and their minimum: while none of them is below the limit and nothing has fired,
@@ -169,7 +199,7 @@ class Cosimulation:
                     self.warnings.append(f"the run was stopped at the time limit of {MAX_TIME:g} s")
                     self.finish(state, "time_limit")
                     break
-                limit = min(t + step, next_sample, stop_time)
+                limit = min(t + step, clocks.earliest, stop_time)
                 if earliest < limit:
                     horizons = schedule.horizons(state, limit)
                     earliest = min(horizons.values()) if horizons else math.inf
@@ -182,11 +212,9 @@ class Cosimulation:
                     earliest = -math.inf  # the kinds of trigger and their bounds are recomputed next step
                 if until_time is not None and state.time >= until_time:
                     self.finish(state, "until_time")
-                if state.time >= next_sample:
-                    inputs.sample_driver(state, period)
-                    while next_sample <= state.time:
-                        sample += 1
-                        next_sample = sample * period
+                due = clocks.due(state.time)  # the samples of the driver, its decisions, a controller
+                if due:
+                    inputs.sample(state, due)
                 inputs.apply(state, fired)  # the inputs from this instant on, as recorded with it
                 self.record(state)
                 if progress is not None:
@@ -195,6 +223,8 @@ class Cosimulation:
             return self.result(state, wall_clock.perf_counter() - started)
         finally:
             self.ego.close()
+            if self.controller is not None:
+                self.controller.close()
 
     def advance(self, t: float, limit: float, horizons: dict, earliest: float) -> tuple[EgoState, bool]:
         """One communication step from t toward `limit`: (the state at its end, whether a trigger fired there).
@@ -229,7 +259,8 @@ class Cosimulation:
         if not self.schedule.bounds_exceeded and (abs(state.yaw_rate) > bounds.yaw_rate
                                                   or math.hypot(state.ax, state.ay) > bounds.acceleration):
             self.warnings.append(self.schedule.exceeded_warning(state))
-        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values)
+        self.recorder.record(state, inputs.controls, inputs.brake_hold is not None, inputs.wheel_values,
+                             () if self.controller is None else inputs.controller_columns())
 
     # ---- what happens at an instant -------------------------------------------------------------
 
@@ -278,11 +309,14 @@ class Cosimulation:
                     if not schedule.action_due(int(i), kinematics):
                         break
             _, overlap, away = schedule.vehicle_conditions(active, kinematics)
-        for i in active[overlap & ~traffic.in_contact[active]]:
+        contacts = active[overlap & ~traffic.in_contact[active]]
+        for i in contacts:
             self.collisions += 1
             station, lateral, _ = traffic.at(i, state.time)
             self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
             self.log("A", "collision", state, vehicle=recorder.vehicle_ids[i])
+        if len(contacts) and self.options.on_collision == "stop":
+            self.finish(state, "collision")
         changed = active[overlap != traffic.in_contact[active]]
         traffic.in_contact[active] = overlap
         traffic.next_check[changed] = state.time
@@ -328,7 +362,8 @@ class Cosimulation:
         self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: EndReason) -> None:
-        """Ends the run; reason: scenario (ES), until_distance, until_time, runout or time_limit."""
+        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit or collision
+        (--on-collision stop)."""
         if self.finished:
             return
         if self.inputs.brake_hold is not None:
@@ -358,8 +393,20 @@ class Cosimulation:
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
             criticality=self.criticality_summary(),
+            controller=None if self.options.controller is None else self.options.controller.summary(),
+            driver=self.driver_summary(),
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
+
+    def driver_summary(self) -> dict | None:
+        """summary.json's `driver` for the follow driver (docs/controllers.md); None (no key) for the lane driver."""
+        if self.options.driver != "follow":
+            return None
+        from . import follow
+
+        return {"name": "follow", "law": "Gipps (1981)", "reaction_time_s": follow.REACTION_TIME,
+                "braking_m/s2": follow.BRAKING, "leader_braking_m/s2": follow.LEADER_BRAKING,
+                "standstill_gap_m": follow.STANDSTILL_GAP, "period_s": self.options.driver_period}
 
     def criticality_summary(self) -> dict:
         """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll

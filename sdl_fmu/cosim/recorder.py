@@ -29,20 +29,21 @@ class Recorder:
     vehicle, its id and the samples it spawned and left at; the vehicles' own samples come from their
     closed-form motions at the end (`vehicle_tracks`)."""
 
-    def __init__(self, wheel_columns: list[str]):
+    def __init__(self, wheel_columns: list[str], extra_columns: tuple[str, ...] = ()):
         self.wheel_columns = wheel_columns
-        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(wheel_columns))
+        self.extra_columns = extra_columns  # after the wheel columns (a controller's: inputs.CONTROLLER_COLUMNS)
+        self.ego_rows = ChunkedTable(len(EGO_COLUMNS) + len(wheel_columns) + len(extra_columns))
         self.sample_count = 0
         self.vehicle_ids = array("q")  # per vehicle (index = id - 1), its id
         # per vehicle, its first sample and the sample it left at (-1 while on the road); compact arrays
         self.spawn_sample = array("q")
         self.leave_sample = array("q")
 
-    def record(self, state: EgoState, controls: tuple, braking: bool, wheel_values: tuple) -> None:
+    def record(self, state: EgoState, controls: tuple, braking: bool, wheel_values: tuple, extra: tuple = ()) -> None:
         # EGO_COLUMNS: the state's fields in their order (time ... yaw_rate, stopped), station, lateral, the
-        # controls, brk, then the wheel inputs
+        # controls, brk, then the wheel inputs and the extra columns
         self.ego_rows.append((*state[:STOPPED], float(state.stopped), state.x, -state.y, *controls,
-                              float(braking), *wheel_values))
+                              float(braking), *wheel_values, *extra))
         self.sample_count += 1
 
     def spawned(self, vehicle_id: int) -> None:
@@ -56,7 +57,7 @@ class Recorder:
     def columns(self) -> dict[str, np.ndarray]:
         """The ego's samples by column name (ends the recording)."""
         table = self.ego_rows.finish()
-        return {name: table[:, i] for i, name in enumerate((*EGO_COLUMNS, *self.wheel_columns))}
+        return {name: table[:, i] for i, name in enumerate((*EGO_COLUMNS, *self.wheel_columns, *self.extra_columns))}
 
     def vehicle_tracks(self, traffic: Traffic, times: np.ndarray) -> VehicleTracks:
         """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, into

@@ -8,7 +8,7 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Callable, Literal, NoReturn
 
 from ..interface import WHEELS
 from .vehicle_map import (Channel, Dynamics, FrictionMeaning, VehicleMap, VehicleMapError, declared_range_problem,
@@ -29,7 +29,8 @@ INTEGER_TYPES = ("Integer", "Enumeration", "Int8", "UInt8", "Int16", "UInt16", "
 SI_UNITS = {"steer": "rad", "x": "m", "y": "m", "distance": "m", "yaw": "rad", "speed": "m/s", "vx": "m/s",
             "vy": "m/s", "yaw_rate": "rad/s", "ax": "m/s**2", "ay": "m/s**2"}
 # FMI BaseUnit exponents of those SI units (rad is not compared: FMUs declare angles with or without it)
-SI_EXPONENTS = {"rad": {}, "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "rad/s": {"s": -1}, "m/s**2": {"m": 1, "s": -2}}
+SI_EXPONENTS = {"rad": {}, "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "rad/s": {"s": -1}, "m/s**2": {"m": 1, "s": -2},
+                "s": {"s": 1}}
 UNIT_TOLERANCE = 1e-9  # relative: two declarations of one unit agree (km/h: 1/3.6 written to 16 digits or computed)
 
 
@@ -87,6 +88,39 @@ def _shown_unit(unit: str) -> str:
 def _agree(a: tuple[float, float], b: tuple[float, float]) -> bool:
     return (math.isclose(a[0], b[0], rel_tol=UNIT_TOLERANCE)
             and math.isclose(a[1], b[1], rel_tol=UNIT_TOLERANCE, abs_tol=UNIT_TOLERANCE * abs(a[0])))
+
+
+def si_conversion(key: str, variable, unit_definitions: dict, map_unit: str | None, si: str,
+                  fail: Callable[[str, str], NoReturn]) -> tuple[float, float]:
+    """(factor, offset) taking a variable's values to the SI unit `si`: from the FMU's UnitDefinitions (by unit
+    name) where it declares the unit, else from the map's `unit` (through pint), which must agree with the FMU's
+    where both exist; neither: SI as it is. A mistake calls fail(key, reason) (one line naming the map's key). The
+    vehicle map and the controller map convert through this one function."""
+    declared = variable.declaredType.unit if variable.declaredType is not None and not variable.unit \
+        else variable.unit
+    fmu_conversion = None
+    if declared:
+        definition = unit_definitions.get(declared)
+        base = definition.baseUnit if definition is not None else None
+        if base is not None:
+            exponents = {k: getattr(base, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd")
+                         if getattr(base, k)}
+            if exponents != SI_EXPONENTS[si]:
+                fail(key, f"the FMU declares {variable.name!r} in {declared!r}, not a unit of {si}")
+            fmu_conversion = (float(base.factor), float(base.offset))
+        else:
+            fmu_conversion = _pint_conversion(declared, si)
+            if fmu_conversion is None:
+                fail(key, f"the FMU declares {variable.name!r} in {_shown_unit(declared)}, an unknown unit or not "
+                          f"one of {si}")
+    map_conversion = None
+    if map_unit is not None:
+        map_conversion = _pint_conversion(map_unit, si)
+        if map_conversion is None:
+            fail(f"{key}.unit", f"{_shown_unit(map_unit)} is an unknown unit or not a unit of {si}")
+    if fmu_conversion is not None and map_conversion is not None and not _agree(fmu_conversion, map_conversion):
+        fail(f"{key}.unit", f"{map_unit!r} disagrees with the FMU's unit {declared!r} of {variable.name!r}")
+    return fmu_conversion or map_conversion or (1.0, 0.0)
 
 
 def parameter_defaults(description) -> dict[str, float]:
@@ -157,33 +191,7 @@ class EgoModel:
         return variable
 
     def _si(self, key: str, variable, map_unit: str | None, si: str) -> tuple[float, float]:
-        """(factor, offset) taking the variable's values to SI: from the FMU's UnitDefinitions where it declares
-        the unit, else from the map's `unit` (through pint), which must agree with the FMU's where both exist."""
-        declared = variable.declaredType.unit if variable.declaredType is not None and not variable.unit \
-            else variable.unit
-        fmu_conversion = None
-        if declared:
-            definition = self._units.get(declared)
-            base = definition.baseUnit if definition is not None else None
-            if base is not None:
-                exponents = {k: getattr(base, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd")
-                             if getattr(base, k)}
-                if exponents != SI_EXPONENTS[si]:
-                    self._fail(key, f"the FMU declares {variable.name!r} in {declared!r}, not a unit of {si}")
-                fmu_conversion = (float(base.factor), float(base.offset))
-            else:
-                fmu_conversion = _pint_conversion(declared, si)
-                if fmu_conversion is None:
-                    self._fail(key, f"the FMU declares {variable.name!r} in {_shown_unit(declared)}, an unknown unit "
-                                    f"or not one of {si}")
-        map_conversion = None
-        if map_unit is not None:
-            map_conversion = _pint_conversion(map_unit, si)
-            if map_conversion is None:
-                self._fail(f"{key}.unit", f"{_shown_unit(map_unit)} is an unknown unit or not a unit of {si}")
-        if fmu_conversion is not None and map_conversion is not None and not _agree(fmu_conversion, map_conversion):
-            self._fail(f"{key}.unit", f"{map_unit!r} disagrees with the FMU's unit {declared!r} of {variable.name!r}")
-        return fmu_conversion or map_conversion or (1.0, 0.0)
+        return si_conversion(key, variable, self._units, map_unit, si, self._fail)
 
     def _input(self, channel: Channel, start: bool = False) -> Conversion:
         """FMU value = (scale * SI + offset) in the variable's unit; pedals: scale * pedal + offset as they are."""
@@ -359,36 +367,37 @@ class EgoModel:
         return f"EgoModel({self.name!r}, {self.fmu_path}, FMI {self.fmi_version})"
 
 
-def read_description(fmu: Path):
+def read_description(fmu: Path, option: str = "--fmu"):
     """The FMU's model description, checked to be a co-simulation FMI 2.0 or 3.0 FMU with a binary for this
-    platform; VehicleMapError naming the FMU otherwise."""
+    platform; VehicleMapError naming the FMU (as `option` FMU: ...) otherwise."""
     import fmpy
 
     from .unpack import UnpackError, check_archive, check_identifier
 
     if not fmu.is_file():
-        raise VehicleMapError(f"--fmu {fmu}: no such file" if not fmu.exists() else f"--fmu {fmu}: not a file")
+        raise VehicleMapError(f"{option} {fmu}: no such file" if not fmu.exists() else f"{option} {fmu}: not a file")
     try:  # member names and sizes, before anything is read from it
         names = [member.filename for member in check_archive(fmu)]
     except UnpackError as error:
-        raise VehicleMapError(f"--fmu {error}") from None
+        raise VehicleMapError(f"{option} {error}") from None
     try:
         description = _read_description(str(fmu.resolve()), fmu.stat().st_mtime_ns, fmu.stat().st_size)
     except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
         text = (str(error).strip() or type(error).__name__).splitlines()[0]
-        raise VehicleMapError(f"--fmu {fmu}: is not a readable FMU ({text})") from None
+        raise VehicleMapError(f"{option} {fmu}: is not a readable FMU ({text})") from None
     if description.fmiVersion not in ("2.0", "3.0"):
-        raise VehicleMapError(f"--fmu {fmu}: FMI {description.fmiVersion}; sdl-fmu drives FMI 2.0 and 3.0 FMUs")
+        raise VehicleMapError(f"{option} {fmu}: FMI {description.fmiVersion}; sdl-fmu drives FMI 2.0 and 3.0 FMUs")
     if description.coSimulation is None:
-        raise VehicleMapError(f"--fmu {fmu}: has no co-simulation interface (sdl-fmu co-simulates the vehicle)")
+        what = "the vehicle" if option == "--fmu" else "it"
+        raise VehicleMapError(f"{option} {fmu}: has no co-simulation interface (sdl-fmu co-simulates {what})")
     try:  # it names the binary's file
         check_identifier(fmu, description.coSimulation.modelIdentifier)
     except UnpackError as error:
-        raise VehicleMapError(f"--fmu {error}") from None
+        raise VehicleMapError(f"{option} {error}") from None
     binary = f"binaries/{_platform(description.fmiVersion)}/{description.coSimulation.modelIdentifier}" \
              f"{fmpy.sharedLibraryExtension}"
     if binary not in names:
-        raise VehicleMapError(f"--fmu {fmu}: has no binary for this platform ({binary})")
+        raise VehicleMapError(f"{option} {fmu}: has no binary for this platform ({binary})")
     return description
 
 

@@ -5,6 +5,8 @@ instance (then one line saying the rest are not shown)."""
 
 from __future__ import annotations
 
+import functools
+import itertools
 import sys
 
 from ..text import printable
@@ -36,16 +38,20 @@ class FmuLog:
             pass
 
     def fmi2_callbacks(self):
-        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
-                               fmi2CallbackLoggerTYPE)
+        """FMI 2.0 callbacks whose logger reaches this log. fmpy's native proxy (which formats the printf-style
+        message with its arguments) keeps ONE logger for the whole process, so every instance's callbacks share one
+        logger that lives as long as the process, and it finds the instance's log by its componentEnvironment."""
+        from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions
         from fmpy.fmi2 import calloc, free
 
+        self.key = next(_keys)
+        _logs[self.key] = self
         callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(lambda component, name, status, category, message:
-                                                  self(status, category, message))
+        callbacks.logger = _dispatcher()
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        try:  # a native proxy formats the printf-style message with its arguments before it reaches Python
+        callbacks.componentEnvironment = self.key
+        try:
             from ctypes import byref
 
             from fmpy.logging import addLoggerProxy
@@ -57,6 +63,26 @@ class FmuLog:
 
     def fmi3_log_message(self):
         return lambda environment, status, category, message: self(status, category, message)
+
+    def release(self) -> None:
+        """The instance is freed: its messages have nowhere to go (a late one is shown under no FMU's name)."""
+        _logs.pop(getattr(self, "key", None), None)
+
+
+_logs: dict[int, FmuLog] = {}
+_keys = itertools.count(1)
+_others = FmuLog("FMU")  # an instance with fmpy's own callbacks, whose messages the shared logger now gets too
+
+
+@functools.lru_cache(maxsize=None)
+def _dispatcher():
+    """The one FMI 2.0 logger of the process (kept for its whole life: fmpy's proxy calls it for every FMU)."""
+    from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+    def log(environment, name, status, category, message):
+        _logs.get(environment or 0, _others)(status, category, message)
+
+    return fmi2CallbackLoggerTYPE(log)
 
 
 def _decoded(value) -> str:

@@ -80,6 +80,7 @@ class EgoInstance:
                 self.slave.instantiate(callbacks=self._log.fmi2_callbacks())
         except Exception:  # noqa: BLE001 - fmpy: "Failed to instantiate model" (a plain Exception)
             self.slave = None
+            self._log.release()
             raise FmuError(f"{self._prefix_of()}Instantiate returned NULL (its GUID or instantiation token "
                            f"{model.guid!r} is not the binary's, or it cannot run here)") from None
         try:
@@ -406,6 +407,7 @@ class EgoInstance:
         except Exception:
             pass
         self.slave = None
+        self._log.release()
 
     def __enter__(self) -> EgoInstance:
         return self

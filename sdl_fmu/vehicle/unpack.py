@@ -64,7 +64,7 @@ def check_archive(fmu: str | os.PathLike) -> list[zipfile.ZipInfo]:
         with zipfile.ZipFile(fmu) as archive:
             members = archive.infolist()
     except (OSError, zipfile.BadZipFile, ValueError) as error:
-        raise UnpackError(f"{fmu}: not a readable zip archive ({error})") from None
+        raise UnpackError(f"{fmu}: is not a readable FMU ({str(error).strip() or type(error).__name__})") from None
     if len(members) > MAX_MEMBERS:
         raise UnpackError(f"{fmu}: {len(members)} members, more than the {MAX_MEMBERS} an FMU may hold here")
     total = 0

@@ -21,16 +21,12 @@ from sdl_fmu.cosim.master import RunOptions, run_scenario
 from sdl_fmu.fmu.package import build_fmu
 from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table
-from sdl_fmu.vehicle import EgoInstance
+from sdl_fmu.vehicle import EgoInstance, EgoModel, shipped_map_path
 
 
-def options(dynamics: str, **extra) -> RunOptions:
-    if dynamics == "advanced":
-        from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
-
-        starts, attributes, _ = slot_parameters(default_attribute_file())
-        return RunOptions(dynamics=dynamics, tire_parameters=starts, known_attributes=set(attributes), **extra)
-    return RunOptions(dynamics=dynamics, **extra)
+def ego(fmu: Path, dynamics: str, parameters: dict | None = None) -> EgoModel:
+    """The FMU through its shipped map, as `sdl-fmu run` drives it (the Advanced FMU's tire slots filled)."""
+    return EgoModel.open(fmu, shipped_map_path(dynamics)).with_tires().with_parameters(parameters)
 
 
 def compare(run, reference) -> dict:
@@ -80,18 +76,19 @@ def main() -> int:
         for dynamics in ("simple", "advanced"):
             fmu = build_fmu(dynamics, Path(folder))
             # where the time goes: the master's own time per communication step, the FMU's excluded
-            master = report[f"{dynamics}_master"] = master_cost(scenario, fmu, options(dynamics), table, args.repeat)
+            master = master_cost(scenario, ego(fmu, dynamics), RunOptions(), table, args.repeat)
+            report[f"{dynamics}_master"] = master
             print(f"{dynamics:8}: master (loop minus fmi2DoStep): {master['master_us_per_step']:.1f} us per "
                   f"communication step ({master['master_s']:.3f} s; inside fmi2DoStep {master['do_step_s']:.3f} s)")
             runs, cpu = [], []
             for _ in range(args.repeat):
                 began = time.process_time()
-                runs.append(run_scenario(scenario, fmu, options(dynamics), table))
+                runs.append(run_scenario(scenario, ego(fmu, dynamics), RunOptions(), table))
                 cpu.append(time.process_time() - began)
             best = min(runs, key=lambda r: r.timing["wall_s"])
-            fixed = run_scenario(scenario, fmu, options(dynamics, parameters={"solver_tolerance": 0.0,
-                                                                            "solver_step": 1e-3}), table)
-            reference = run_scenario(scenario, fmu, options(dynamics, step=0.01), table)
+            fixed = run_scenario(scenario, ego(fmu, dynamics, {"solver_tolerance": 0.0, "solver_step": 1e-3}),
+                                 RunOptions(), table)
+            reference = run_scenario(scenario, ego(fmu, dynamics), RunOptions(step=0.01), table)
             report[dynamics] = {"simulated_s": best.final["time_s"], "wall_s": best.timing["wall_s"],
                                 "real_time_factor": best.timing["real_time_factor"], "steps": best.timing["steps"],
                                 "reference_wall_s": reference.timing["wall_s"],

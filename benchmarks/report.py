@@ -23,6 +23,7 @@ VEHICLES_TIME_RATIO = 12.0  # 10 000 vehicles take at most 12x the time of 1 000
 SWEEP_SPEEDUP = 1.8  # 2 workers against 1
 CRITICALITY_OVERHEAD = 0.15  # on the demo
 VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
+AEB_CCR_CPU_S = 60.0  # the whole CCR grid, Simple vehicle, example AEB, one core
 
 
 def _load(name: str, results: Path) -> dict:
@@ -257,9 +258,46 @@ def verify_pack(results: Path) -> list[str]:
         *[f"- {v}" for v in verdicts], ""]
 
 
+def aeb_ccr(results: Path) -> list[str]:
+    data = _load("aeb_ccr", results)
+    best = data["best_cpu_s"]
+    points = ", ".join(f"{group} {value:g}" for group, value in data["points"].items())
+    return [
+        "## 8. The AEB car-to-car pack", "", "Script: `benchmarks/aeb_ccr.py`.", "",
+        f"`api.verify(pack=\"aeb-ccr\", controller=\"example-aeb\", workers=0)`: the whole grid ({data['tests']} "
+        "tests: CCRs, CCRm, CCRb at every overlap) on the Simple vehicle with the shipped example AEB in the loop, the "
+        "tests one after the other in one process (one core, no Dask), results folder with report.html written; "
+        "best of the repeats by CPU time (`time.process_time`).", "",
+        *_table(["tests", "CPU s (best)", "CPU s (each)", "wall s (each)", "median test, wall ms", "runs failed",
+                 "points"],
+                [[str(data["tests"]), f"**{best:.1f}**", ", ".join(f"{x:.1f}" for x in data["cpu_s"]),
+                  ", ".join(f"{x:.1f}" for x in data["wall_s"]), f"{data['median_test_wall_s'] * 1000:.0f}",
+                  str(data["errors"]), points]]), "",
+        _measured(data["measured"]), "",
+        f"- The whole CCR grid in < {AEB_CCR_CPU_S:g} s of CPU on one core: {_met(best < AEB_CCR_CPU_S)}", ""]
+
+
+def scenario_step(results: Path) -> list[str]:
+    data = _load("scenario_step", results)
+    ego, scenario = data["ego_simple"], data["scenario"]
+    rows = [["Simple ego FMU", f"{ego['cpu_us_per_step']:.2f}", f"**{ego['do_step_us']:.2f}**"],
+            ["scenario FMU (demo)", f"{scenario['cpu_us_per_step']:.2f}", f"**{scenario['do_step_us']:.2f}**"]]
+    ratio = scenario["do_step_us"] / ego["do_step_us"]
+    return [
+        "## 9. The scenario FMU's step", "", "Script: `benchmarks/scenario_step.py`.", "",
+        f"The demo run as a fixed-step master runs it (the scenario FMU and the Simple ego FMU stepped together at "
+        f"10 ms, each given the other's outputs at the step's start; {data['steps']} steps, "
+        f"{data['simulated_s']:.1f} s), each FMU's inputs recorded; then each FMU replays its own inputs alone "
+        "through fmpy's FMU2Slave calls: set its inputs, doStep(10 ms), get the outputs the other FMU reads (from "
+        "the ego its 10 pose and motion outputs, from the scenario its 7 commands and surfaces). CPU time per step, "
+        "and the time inside doStep alone. Best of the rounds, the two FMUs alternating.", "",
+        *_table(["FMU", "µs CPU per step (set + doStep + get)", "µs in doStep"], rows), "",
+        _measured(data["measured"]), "",
+        f"- The scenario FMU's doStep costs at most the Simple ego FMU's per 10 ms step: {ratio:.2f}× "
+        f"{_met(ratio <= 1.0)}", ""]
+
+
 def isolation(results: Path) -> list[str]:
-    if not (results / "isolation.json").exists():
-        return []
     data = _load("isolation", results)
     rows = []
     for key in ("simple_fmi2", "simple_fmi3", "advanced_fmi2", "advanced_fmi3"):
@@ -271,7 +309,7 @@ def isolation(results: Path) -> list[str]:
                      f"{a['step_us']:.0f} / **{b['step_us']:.0f}**",
                      f"{a['run_s']:.2f} / **{b['run_s']:.2f}**", f"{extra['loop_per_step_us']:.0f}"])
     return [
-        "## 8. A foreign FMU in its host process", "", "Script: `benchmarks/isolation.py`.", "",
+        "## 10. A foreign FMU in its host process", "", "Script: `benchmarks/isolation.py`.", "",
         "An FMU sdl-fmu did not build runs in a host process (`sdl_fmu/vehicle/isolated.py`; the decision: "
         "[docs/decisions.md](docs/decisions.md)). Measured on the shipped FMUs, in process and in a host "
         "(`SDL_FMU_ISOLATION=always`), side by side in one process, wall clock (the work is split over two "
@@ -284,7 +322,7 @@ def isolation(results: Path) -> list[str]:
 
 
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            isolation)
+            aeb_ccr, scenario_step, isolation)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -307,6 +345,8 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/criticality_overhead.py --repeat 25 --json benchmarks/results/criticality_overhead.json",
         "python benchmarks/vehicle_path_speed.py --reference CHECKOUT --json benchmarks/results/vehicle_path_speed.json",
         "python benchmarks/verify_pack.py --json benchmarks/results/verify_pack.json",
+        "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
+        "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
         "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",

@@ -26,79 +26,36 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from .cosim import master
+from .cosim.ego import FmuError
+from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
+from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DRIVERS, LIMITS, MAX_TIME, ON_COLLISION,
+                      InputError, checked_choice, checked_option, checked_seed, option_error, regular_file)
 from .paths import SCENARIO_DIRECTORY
 from .results import summary, timeseries_table, write_results
+from .results_folder import ResultsFolderError, check_results_folder
 from .run_result import RunResult
-from .sdl import Scenario, ScenarioError, SdlError, SurfaceAttribute, check_models, load_scenario, load_vehicle_table
-from .units import Units
-from .vehicle.vehicle_map import Dynamics
+from .sdl import Scenario, ScenarioError, SdlError, default_vehicle_table_path, load_scenario, load_vehicle_table
+from .sdl.checks import check_scenario, vehicle_warnings
+from .shipped import shipped_controller, shipped_fmu
+from .shipping import ClusterError
+from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
+from .units import from_si, length_label, speed_label
+from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
+from .vehicle.controller import ControllerError, ControllerModel
 
-__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "run", "shipped_scenarios",
-           "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "tire_slot_starts", "LIMITS", "DRIVERS",
-           "ON_COLLISION"]
-
-# Option ranges (SI). A run never goes beyond MAX_TIME (cosim.master), and a distance the fastest ego
-# cannot reach within it could never end a run.
-MAX_SPEED = 150.0  # m/s (335 mph)
-MAX_TIME = 3600.0  # s
-LIMITS = {
-    "speed": (0.0, MAX_SPEED),  # scenario units on input, checked in m/s
-    "step": (1e-5, 10.0),  # s
-    "driver_period": (1e-3, 1.0),  # s
-    "until_time": (0.0, MAX_TIME),  # s, > 0
-    "until_distance": (0.0, MAX_SPEED * MAX_TIME),  # m, > 0
-    "seed": (0, 2**63 - 1),
-}
-
-
-def _shipped_variables() -> tuple[str, ...]:
-    """The FMU variables both shipped vehicle maps name (their common interface: docs/fmu-runtime.md, Variables)."""
-    from .vehicle import SHIPPED, load_vehicle_map, shipped_map_path
-
-    named = []
-    for name in SHIPPED:
-        vehicle_map = load_vehicle_map(shipped_map_path(name))
-        channels = [*vehicle_map.inputs.values(), *vehicle_map.outputs.values(), *vehicle_map.start.values()]
-        named.append([c.variable for c in channels]
-                     + [v for v in vehicle_map.vehicle.values() if isinstance(v, str)])
-    return tuple(v for v in named[0] if all(v in other for other in named[1:]))
-
-
-EGO_VARIABLES = _shipped_variables()
-DRIVERS = ("lane", "follow")  # the built-in drivers (docs/controllers.md); lane is the default
-ON_COLLISION = ("continue", "stop")  # what the first contact does; continue is the default
-MAX_INPUT_FILE = 10 * 2**20  # bytes: tire and attribute files are small texts
-
-
-class InputError(ValueError):
-    """A user mistake outside the scenario file: a bad option, FMU, tire file or results folder.
-
-    `option` is the keyword (e.g. "until_time", "params", "fmu"). The message names it as the API spells it
-    (`until_time nan: must be a finite number`); `command_line()` gives the same line with the command
-    line's flag (`--until-time nan: ...`)."""
-
-    def __init__(self, option: str | None, message: str, subject: str | None = None):
-        self.option = option
-        self.subject = subject  # the value and reason ("nan: must be ..."), when the message is keyword + subject
-        super().__init__(message if subject is None else f"{option} {subject}")
-
-    def command_line(self) -> str:
-        """The message as the command line words it: the keyword replaced by its flag."""
-        if self.subject is None:
-            return str(self)
-        return f"--{COMMAND_LINE_FLAGS.get(self.option, self.option.replace('_', '-'))} {self.subject}"
-
-
-# keywords whose command-line flag is not the keyword with - for _
-COMMAND_LINE_FLAGS = {"params": "param"}
+__all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
+           "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "LIMITS",
+           "RUN_OPTIONS", "DRIVERS", "ON_COLLISION"]
 
 
 class RunTimeout(RuntimeError):
     """A run stopped because it exceeded its wall-clock `timeout` (run(..., timeout=...))."""
 
 
-def _option_error(option: str, value, reason: str) -> InputError:
-    return InputError(option, "", subject=f"{value}: {reason}")
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip() or type(error).__name__
+    return text.splitlines()[0]
 
 
 # --- scenarios ----------------------------------------------------------------------------------
@@ -132,196 +89,119 @@ def resolve_scenario(name: str | os.PathLike) -> Path:
 
 @functools.lru_cache(maxsize=None)
 def _vehicle_table():
-    from .sdl import default_vehicle_table_path
-
     return load_vehicle_table(default_vehicle_table_path())
 
 
-def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None) -> Scenario:
-    """Reads and checks a scenario file (or a shipped example by name); raises ScenarioError listing every
-    problem. skip_unsupported: lines sdl-fmu does not simulate become warnings (one per code). dynamics:
-    also apply that model's rules (advanced: RSA values are whole attribute numbers), as `run` does."""
+def _vehicle_map(dynamics: Dynamics | None, vehicle: str | os.PathLike | VehicleMap | None) -> VehicleMap:
+    """The vehicle map a run would drive: the map file `vehicle`, else the shipped map of `dynamics` (default simple);
+    read without its FMU. InputError naming `dynamics` or `vehicle`."""
+    if vehicle is not None and dynamics is not None:
+        raise option_error("dynamics", dynamics, "give either a shipped model (dynamics) or a vehicle map "
+                           "(vehicle), not both")
+    if isinstance(vehicle, VehicleMap):
+        return vehicle
+    if vehicle is not None:
+        return load_vehicle_map(regular_file("vehicle", vehicle))
+    dynamics = "simple" if dynamics is None else dynamics
+    if dynamics not in SHIPPED:
+        raise option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
+    return load_vehicle_map(shipped_map_path(dynamics))
+
+
+def _read(scenario: str | os.PathLike, skip_unsupported: bool) -> Scenario:
     path = resolve_scenario(scenario)
     if not os.path.lexists(path) and isinstance(scenario, str):
         names = ", ".join(shipped_scenarios())
         raise ScenarioError([SdlError(os.fspath(scenario), 0, "file",
                                       f"no such file (shipped examples by name: {names})")])
-    loaded = load_scenario(path, skip_unsupported=skip_unsupported)
-    problems = check_models(loaded, _vehicle_table())
-    if problems:
-        raise ScenarioError(problems)
-    if dynamics is not None:
-        from .vehicle import load_vehicle_map
-
-        friction = load_vehicle_map(_shipped_map(dynamics)).friction
-        if friction is not None and friction.meaning == "attribute":
-            _whole_attributes(loaded)
-    return loaded
+    return load_scenario(path, skip_unsupported=skip_unsupported)
 
 
-# --- options -----------------------------------------------------------------------------------
+def _checked(scenario: str | os.PathLike | Scenario, vehicle_map: VehicleMap, skip_unsupported: bool) -> Scenario:
+    """The one scenario check: a file read (or a Scenario as given) and checked against the vehicle table and the
+    map's friction meaning. Costs a parse; nothing is built or loaded. ScenarioError listing every problem."""
+    if not isinstance(scenario, Scenario):
+        scenario = _read(scenario, skip_unsupported)
+    friction = vehicle_map.friction
+    check_scenario(scenario, _vehicle_table(), None if friction is None else friction.meaning)
+    return scenario
 
 
-def _checked_option(option: str, value, units: Units | None = None, low_open: bool = False):
-    """A numeric option's value checked: a finite number within LIMITS[option] (given in scenario units when
-    `units`); returns SI."""
-    from .units import from_si, length_label, speed_label, to_si
-
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise _option_error(option, value, "must be a number")
-    value = float(value)
-    if not math.isfinite(value):
-        raise _option_error(option, f"{value:g}", "must be a finite number")
-    si = to_si(value, units) if units else value
-    low, high = LIMITS[option]
-    if si < low or (low_open and si == low) or si > high:
-        if units:
-            label = speed_label(units) if option == "speed" else length_label(units)
-            low, high = from_si(low, units), from_si(high, units)
-        else:
-            label = "s"
-        relation = ">" if low_open else ">="
-        raise _option_error(option, f"{value:g}", f"must be {relation} {low:g} and <= {high:.6g} {label}")
-    return si
+def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None,
+         vehicle: str | os.PathLike | None = None) -> Scenario:
+    """Reads and checks a scenario file (or a shipped example by name) for the vehicle `run` would drive (the map
+    `vehicle`, else the shipped map of `dynamics`, default simple: for advanced, RSA values are whole attribute
+    numbers); raises ScenarioError listing every problem. skip_unsupported: lines sdl-fmu does not simulate become
+    warnings (one per code)."""
+    return _checked(scenario, _vehicle_map(dynamics, vehicle), skip_unsupported)
 
 
-def _seed(seed) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise _option_error("seed", seed, "must be a whole number")
-    low, high = LIMITS["seed"]
-    if not low <= seed <= high:
-        raise _option_error("seed", seed, f"must be from {low} to {high}")
-    return int(seed)
+@dataclass
+class Check:
+    """What `check` found: the scenario and every warning a whole run with this vehicle would give because of the
+    scenario (the file's own, the Tire Attribute File's, then per event: BRK ignored, an RSA the vehicle cannot feel,
+    an attribute number without a tire)."""
+
+    scenario: Scenario
+    warnings: list[str]
 
 
-def _regular_file(option: str, path: str | os.PathLike) -> Path:
-    """An input file that exists, is a regular file and is not absurdly large."""
-    path = Path(path)
-    if not path.exists():
-        raise _option_error(option, path, "no such file")
-    if path.is_dir():
-        raise _option_error(option, path, "is a folder, not a file")
-    if not path.is_file():
-        raise _option_error(option, path, "is not a regular file")
-    return path
+def check(scenario: str | os.PathLike | Scenario, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None,
+          vehicle: str | os.PathLike | None = None, tires: str | os.PathLike | None = None) -> Check:
+    """load() and the warnings a run of the whole scenario would print for this vehicle and Tire Attribute File,
+    without building or loading its FMU (`sdl-fmu check`)."""
+    vehicle_map = _vehicle_map(dynamics, vehicle)
+    loaded = _checked(scenario, vehicle_map, skip_unsupported)
+    friction = vehicle_map.friction
+    known, tire_warnings = None, []
+    if friction is not None and friction.tire_slots is not None:
+        known, tire_warnings = _tire_file_check(tires)
+    elif tires is not None:
+        raise _no_tire_slots(tires, vehicle_map.name or vehicle_map.label)
+    warnings = vehicle_warnings(loaded, vehicle_map.name or vehicle_map.label,
+                                None if friction is None else friction.meaning, vehicle_map.flags.get("brk_acts", True),
+                                known)
+    return Check(loaded, [*loaded.warnings, *tire_warnings, *warnings])
 
 
-def _first_line(error: BaseException) -> str:
-    text = str(error).strip() or type(error).__name__
-    return text.splitlines()[0]
+def _no_tire_slots(tires, name: str) -> InputError:
+    return option_error("tires", tires, f"applies to the advanced dynamics only (a vehicle map whose friction input "
+                                        f"has tire_slots; {name}'s has none)")
 
 
-def _shipped_map(dynamics: Dynamics) -> Path:
-    """The shipped vehicle map of `dynamics`; InputError naming `dynamics` for a name that is not shipped."""
-    from .vehicle import SHIPPED, shipped_map_path
+def _tire_file_check(tires: str | os.PathLike | None) -> tuple[frozenset[int], list[str]]:
+    """(the attribute numbers it gives, its warnings) of a Tire Attribute File (None: the shipped one), read before any
+    FMU is loaded; InputError naming `tires`. How many tire slots the FMU has is known only once it is loaded: here
+    every attribute the file gives counts (EgoModel.with_tires then reads the file for the FMU's slots)."""
+    path = default_attribute_file() if tires is None else regular_file("tires", tires)
+    try:  # as many slots as the file has attributes: how many the FMU has is known once it is loaded
+        count = 1 + max((entry.attribute for entry in read_attribute_file(path)), default=0)
+        _, attributes, warnings = slot_values(path, count)
+    except TireFileError as error:
+        raise InputError("tires", _first_line(error)) from None
+    return frozenset(attributes), warnings
 
-    if dynamics not in SHIPPED:
-        raise _option_error("dynamics", dynamics, f"must be one of {', '.join(SHIPPED)}")
-    return shipped_map_path(dynamics)
+
+# --- the vehicle --------------------------------------------------------------------------------
 
 
 def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
-              vehicle: str | os.PathLike | None = None):
+              vehicle: str | os.PathLike | VehicleMap | None = None) -> EgoModel:
     """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
-    the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use).
-    Raises InputError naming the map file and key, or the FMU."""
-    from .vehicle import EgoModel, VehicleMapError
-
-    if vehicle is not None and dynamics is not None:
-        raise _option_error("dynamics", dynamics, "give either a shipped model (dynamics) or a vehicle map "
-                            "(vehicle), not both")
+    the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use, with one line
+    on stderr). Raises InputError naming the map file and key, or the FMU."""
+    vehicle_map = _vehicle_map(dynamics, vehicle)
+    if vehicle is not None:
+        return EgoModel.open(None if fmu is None else regular_file("fmu", fmu), vehicle_map)
     dynamics = "simple" if dynamics is None else dynamics
-    shipped_map = _shipped_map(dynamics)
+    if fmu is None:
+        return EgoModel.open(shipped_fmu(dynamics), vehicle_map)
     try:
-        if vehicle is not None:
-            return EgoModel.open(fmu, _regular_file("vehicle", vehicle))
-        if fmu is not None:
-            return EgoModel.open(_regular_file("fmu", fmu), shipped_map)
+        return EgoModel.open(regular_file("fmu", fmu), vehicle_map)
     except VehicleMapError as error:
-        text = str(error)
-        if vehicle is None and not text.startswith("--fmu"):  # the FMU does not fit the shipped map
-            text = f"--fmu {fmu}: does not fit the shipped {dynamics} map: {text}"
-        option = "fmu" if vehicle is None or text.startswith("--fmu") else "vehicle"
-        if text.startswith(f"--{option} "):  # the keyword form for the API, the flag form for the command line
-            raise InputError(option, "", subject=text[len(option) + 3:]) from None
-        raise InputError(option, text) from None
-    from .fmu.cache import cached_fmu
-
-    path = cached_fmu(dynamics, announce=lambda path: print(f"building {path.name} into the cache "
-                                                            f"{path.parent.parent} (first use)", file=sys.stderr))
-    return EgoModel.open(path, shipped_map)
-
-
-def controller_model(controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None):
-    """The run's ControllerModel (docs/controllers.md): `controller` (or the map's own `fmu`) driven through the
-    controller map `controller_map`; None when neither is given. Raises InputError naming the map file and key, or
-    the FMU."""
-    from .vehicle.controller import ControllerMapError, ControllerModel
-
-    if controller is None and controller_map is None:
-        return None
-    if controller_map is None:
-        raise _option_error("controller", controller, "needs a controller map (controller_map, a TOML file: "
-                                                      "docs/controllers.md)")
-    try:
-        return ControllerModel.open(None if controller is None else _regular_file("controller", controller),
-                                    _regular_file("controller_map", controller_map))
-    except ControllerMapError as error:
-        text = str(error)
-        for option in ("controller_map", "controller"):  # the keyword form for the API, the flag form for the CLI
-            flag = f"--{option.replace('_', '-')} "
-            if text.startswith(flag):
-                raise InputError(option, "", subject=text[len(flag):]) from None
-        raise InputError("controller_map", text) from None
-
-
-def _choice(option: str, value, choices: tuple[str, ...]) -> str:
-    if value not in choices:
-        raise _option_error(option, value, f"must be one of {', '.join(choices)}")
-    return value
-
-
-def _parameters(params: dict | None, model) -> dict[str, float]:
-    """params checked against the FMU: an existing Real parameter, finite, within its min/max."""
-    from .vehicle.model import REAL_TYPES
-
-    description, fmu = model.description, model.fmu_path
-    checked = {}
-    variables = {v.name: v for v in description.modelVariables}
-    for name, value in (params or {}).items():
-        shown = f"{name}={value}"
-        variable = variables.get(name)
-        if variable is None or variable.causality != "parameter":
-            known = ", ".join(v.name for v in description.modelVariables
-                              if v.causality == "parameter" and not v.name.startswith("tire"))
-            raise _option_error("params", shown, f"{fmu.name} has no parameter {name!r} (parameters: {known}, "
-                                "tire<slot>_<KEY>)")
-        if variable.type not in REAL_TYPES:
-            raise _option_error("params", shown, f"{name} is {variable.type}; only Real parameters can be set")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise _option_error("params", shown, "the value must be a number (SI units)")
-        value = float(value)
-        if not math.isfinite(value):
-            raise _option_error("params", shown, "the value must be a finite number")
-        unit = f" {variable.unit}" if variable.unit and variable.unit != "1" else ""
-        low = None if variable.min is None else float(variable.min)
-        high = None if variable.max is None else float(variable.max)
-        if low is not None and value < low:
-            raise _option_error("params", shown, f"below the declared minimum {low:g}{unit} of {name}")
-        if high is not None and value > high:
-            raise _option_error("params", shown, f"above the declared maximum {high:g}{unit} of {name}")
-        checked[name] = value
-    if checked:  # the vehicle's properties that follow from the parameters, each within its range
-        from .vehicle import VehicleMapError
-
-        try:
-            model.with_parameters(checked)
-        except VehicleMapError as error:
-            name = next((n for n in checked if f"parameter {n!r}" in str(error)), next(iter(checked)))
-            raise _option_error("params", f"{name}={checked[name]:g}", str(error)) from None
-    return checked
+        if error.option == "fmu":
+            raise
+        raise InputError("fmu", "", subject=f"{fmu}: does not fit the shipped {dynamics} map: {error}") from None
 
 
 def ego_fmu(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
@@ -331,39 +211,21 @@ def ego_fmu(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = No
     return ego_model(dynamics, fmu, vehicle).fmu_path
 
 
-def tire_slot_starts(tires: str | os.PathLike | None,
-                     model) -> tuple[dict[str, float], dict[int, int] | None, list[str]]:
-    """(the tire slots' start values, attribute -> slot for the attributes the file gives, its warnings) from a
-    Tire Attribute File (None: the shipped one), for a vehicle whose map declares tire slots; for any other
-    vehicle ({}, None, []). Raises InputError naming `tires` for a bad file, or for `tires` given to a vehicle
-    without tire slots."""
-    if model.friction is None or model.friction.tire_slots is None:
-        if tires is not None:
-            raise _option_error("tires", tires, "applies to the advanced dynamics only (a vehicle map whose friction "
-                                                f"input has tire_slots; {model.name}'s has none)")
-        return {}, None, []
-    from .dynamics.tires import TireFileError, default_attribute_file, slot_parameters
-
-    path = _regular_file("tires", tires) if tires is not None else default_attribute_file()
-    try:
-        return slot_parameters(path)
-    except TireFileError as error:
-        raise InputError("tires", _first_line(error)) from None
-
-
-def _whole_attributes(scenario: Scenario) -> None:
-    """For a vehicle whose friction input means an attribute (the Advanced FMU), an RSA value is an attribute
-    number: a fraction is an error naming the line."""
-    errors = []
-    for event in scenario.events:
-        if isinstance(event, SurfaceAttribute):
-            for index, (_lane, value) in enumerate(event.settings):
-                if value != int(value):
-                    errors.append(SdlError(scenario.path, event.line, f"RSA parameter {2 * index + 2} (value)",
-                                           f"{value:g}: for this vehicle the value is a surface attribute "
-                                           "number and must be whole"))
-    if errors:
-        raise ScenarioError(errors)
+def controller_model(controller: str | os.PathLike | None = None,
+                     controller_map: str | os.PathLike | None = None) -> ControllerModel | None:
+    """The run's ControllerModel (docs/controllers.md): `controller` (or the map's own `fmu`) driven through the
+    controller map `controller_map`; `controller="example-aeb"` without a map: the shipped example AEB (its cached
+    FMU, built on first use, and its shipped map); None when neither is given. Raises InputError naming the map file
+    and key, or the option and its value."""
+    if controller is None and controller_map is None:
+        return None
+    if controller_map is None and os.fspath(controller) == EXAMPLE_CONTROLLER:  # the shipped example AEB
+        controller, controller_map = example_controller()
+    if controller_map is None:
+        raise option_error("controller", controller, "needs a controller map (controller_map, a TOML file: "
+                                                     "docs/controllers.md), or is example-aeb")
+    return ControllerModel.open(None if controller is None else regular_file("controller", controller),
+                                regular_file("controller_map", controller_map))
 
 
 # --- the result ----------------------------------------------------------------------------------
@@ -433,8 +295,6 @@ class Result:
 
     def write(self, out: str | os.PathLike, plot: bool = True) -> Path:
         """Writes a results folder (timeseries.csv, summary.json, plot.png); see results_folder for the rules."""
-        from .results_folder import ResultsFolderError
-
         try:
             return write_results(self.raw, Path(out), plot=plot)
         except ResultsFolderError as error:
@@ -442,7 +302,7 @@ class Result:
 
     def plot(self, path: str | os.PathLike) -> Path:
         """Only the plot, as a PNG at `path`."""
-        from . import plots
+        from . import plots  # matplotlib: loaded only to plot
 
         plots.plot_run(self.raw, Path(path))
         return Path(path)
@@ -457,10 +317,9 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
         enabled = sys.stderr.isatty()
     if not enabled:
         return None
-    from tqdm import tqdm
+    from tqdm import tqdm  # loaded only for a bar
 
     from .text import unescaped  # the bar's own carriage returns, not escaped
-    from .units import from_si, length_label
 
     state_of = {}
 
@@ -536,7 +395,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
         out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None,
         controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
-        driver: str = "lane", on_collision: str = "continue") -> Result:
+        driver: str = "lane", on_collision: str = "continue", until_not_closing: int | None = None) -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
@@ -549,45 +408,33 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     folder; it is checked before the simulation.
     timeout: wall-clock seconds after which the simulation stops with RunTimeout (checked every step).
     controller, controller_map: a controller FMU in the loop and its controller map (TOML, docs/controllers.md; the
-    map's own `fmu` when controller is None). driver: the built-in driver, "lane" (holds its lane and speed,
-    ignores traffic) or "follow" (also follows the vehicle ahead: Gipps' law). on_collision: "continue" or "stop"
-    (the run ends at the first contact).
-    Raises InputError or ScenarioError for user mistakes."""
-    from .cosim.ego import FmuError
-    from .cosim.master import RunOptions, run_scenario
-    from .results_folder import ResultsFolderError, check_results_folder
-    from .vehicle.controller import ControllerError
-
-    seed = _seed(seed)
-    driver = _choice("driver", driver, DRIVERS)
-    on_collision = _choice("on_collision", on_collision, ON_COLLISION)
-    from .cosim.master import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP
-
-    step = DEFAULT_STEP if step is None else _checked_option("step", step)
-    driver_period = DEFAULT_DRIVER_PERIOD if driver_period is None else _checked_option("driver_period", driver_period)
-    until_time = _checked_option("until_time", until_time, low_open=True)
-    if not isinstance(scenario, Scenario):
-        scenario = load(scenario, skip_unsupported=skip_unsupported)
-    units = scenario.units
-    speed = _checked_option("speed", speed, units)
-    until_distance = _checked_option("until_distance", until_distance, units, low_open=True)
-    model = ego_model(dynamics, fmu, vehicle)
-    if model.surface_meaning == "attribute":
-        _whole_attributes(scenario)
-    tire_starts, known_attributes, tire_warnings = tire_slot_starts(tires, model)
-    in_the_loop = controller_model(controller, controller_map)
+    map's own `fmu` when controller is None; controller "example-aeb" without a map: the shipped example AEB).
+    driver: the built-in driver, "lane" (holds its lane and speed, ignores traffic) or "follow" (also follows the
+    vehicle ahead: Gipps' law). on_collision: "continue" or "stop" (the run ends at the first contact).
+    until_not_closing: a vehicle id: the run ends (ES reason not_closing) once the ego, having closed on that vehicle,
+    no longer does (its speed along the road has fallen to the vehicle's or below: a stop behind a stopped one), as a
+    test of the AEB car-to-car pack ends.
+    Raises InputError or ScenarioError for user mistakes, each before anything is built or loaded where it can be
+    told without the FMU (the options, the scenario, the map, the tire file, the results folder)."""
+    vehicle_map = _vehicle_map(dynamics, vehicle)
+    scenario = _checked(scenario, vehicle_map, skip_unsupported)
+    options = run_options(scenario, speed=speed, seed=seed, step=step, driver_period=driver_period,
+                          until_distance=until_distance, until_time=until_time, driver=driver,
+                          on_collision=on_collision)
+    friction = vehicle_map.friction
+    if friction is not None and friction.tire_slots is not None:
+        _tire_file_check(tires)
+    elif tires is not None:
+        raise _no_tire_slots(tires, vehicle_map.name or vehicle_map.label)
+    options.controller = controller_model(controller, controller_map)
+    options.until_not_closing = until_not_closing
     if out is not None:
         try:
             check_results_folder(out)
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
-    fmu_path = model.fmu_path
-    parameters = _parameters(params, model)
-    options = RunOptions(speed=speed, seed=seed, step=step, driver_period=driver_period,
-                         until_distance=until_distance,
-                         until_time=until_time, parameters=parameters, tire_parameters=tire_starts,
-                         known_attributes=None if known_attributes is None else set(known_attributes),
-                         driver=driver, controller=in_the_loop, on_collision=on_collision)
+    model = ego_model(dynamics, fmu, vehicle_map if vehicle is not None else None)
+    model = model.with_tires(tires).with_parameters(params)
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
@@ -597,56 +444,122 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
 
     try:
         with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
-            raw = run_scenario(scenario, model, options, _vehicle_table())
+            raw = master.run_scenario(scenario, model, options, _vehicle_table())
     except FmuTimeout as error:
-        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU {fmu_path.name} "
-                         f"{_first_line(error)}") from None  # "did not answer in fmi2DoStep from t = ..."
+        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU "
+                         f"{model.fmu_path.name} {_first_line(error)}") from None  # "did not answer in fmi2DoStep ..."
     except ControllerError as error:  # the controller's binary, or values it refused or returned
         raise InputError("controller", _first_line(error)) from None
     except FmuError as error:  # a broken binary, or values the model cannot simulate
-        raise InputError("fmu", f"the FMU {fmu_path.name} failed: {_first_line(error)}") from None
+        raise InputError("fmu", f"the FMU {model.fmu_path.name} failed: {_first_line(error)}") from None
     except OSError as error:  # the samples' temporary files: a full or unwritable $TMPDIR
         import tempfile
 
         raise InputError(None, f"cannot write the run's temporary files in {tempfile.gettempdir()}: "
                                f"{error.strerror or error}; nothing was written") from None
-    raw.warnings[:0] = [*scenario.warnings, *tire_warnings]
+    raw.warnings[:0] = [*scenario.warnings, *model.warnings, *_speed_warnings(model, options.speed, scenario.units)]
     result = Result(raw, scenario)
     if out is not None:
         result.write(out, plot=plot)
     return result
 
 
-# --- the vehicle test pack ---------------------------------------------------------------------------------
+# run's options that are values (not files)
+RUN_OPTIONS = ("speed", "seed", "step", "driver_period", "until_distance", "until_time", "driver", "on_collision")
+
+
+def run_options(scenario: Scenario, *, speed: float | None = None, seed: int = 1, step: float | None = None,
+                driver_period: float | None = None, until_distance: float | None = None,
+                until_time: float | None = None, driver: str = "lane",
+                on_collision: str = "continue") -> master.RunOptions:
+    """run's value options (RUN_OPTIONS) checked, as run takes them (speed and until_distance in the scenario's
+    units), and in SI: InputError naming the first bad one. The sweep checks its fixed options with it."""
+    units = scenario.units
+    return master.RunOptions(
+        driver=checked_choice("driver", driver, DRIVERS),
+        on_collision=checked_choice("on_collision", on_collision, ON_COLLISION),
+        seed=checked_seed(seed), step=DEFAULT_STEP if step is None else checked_option("step", step),
+        driver_period=DEFAULT_DRIVER_PERIOD if driver_period is None else checked_option("driver_period",
+                                                                                         driver_period),
+        until_time=checked_option("until_time", until_time, low_open=True), speed=checked_option("speed", speed, units),
+        until_distance=checked_option("until_distance", until_distance, units, low_open=True))
+
+
+def _speed_warnings(model: EgoModel, speed: float | None, units) -> list[str]:
+    """One warning when the driver's target speed is above the vehicle's top speed (EgoModel.top_speed)."""
+    target = DEFAULT_SPEED if speed is None else speed
+    top = model.top_speed()
+    if not target > top:
+        return []
+    label = speed_label(units)
+    return [f"speed {from_si(target, units):g} {label}: above the top speed of {model.name}, {from_si(top, units):.1f} "
+            f"{label} (where its drive at full throttle, at most {model.drive_power_max / 1000:g} kW, meets its "
+            "rolling resistance and drag): the driver holds full throttle below the target"]
+
+
+# --- the test packs ---------------------------------------------------------------------------------------------
+
+PACKS = ("vehicle", "aeb-ccr")  # verify's packs (docs/verification.md); vehicle is the default
 
 
 @dataclass
 class VerifyResult:
-    """The vehicle test pack's outcome: `outcomes` (verify.Outcome, one per manoeuvre), the vehicle's identity,
-    the printed pass/fail `table`, and the results folder (None without `out`)."""
+    """A test pack's outcome: `outcomes` (verify.Outcome per manoeuvre, or verify.aeb.TestOutcome per test), the
+    vehicle's identity, the printed `table`, the results folder (None without `out`), `passed` (no criterion failed:
+    --strict's test) and the pack's name."""
 
     vehicle: dict
     outcomes: list
     table: str
     folder: Path | None
+    passed: bool = True
+    pack: str = "vehicle"
+
+
+def example_controller() -> tuple[Path, Path]:
+    """(FMU, controller map) of the shipped example AEB: its cached build (built on first use) and its map."""
+    return shipped_controller(EXAMPLE_CONTROLLER)
 
 
 def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
            vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
-           out: str | os.PathLike | None = None) -> VerifyResult:
-    """Runs the vehicle test pack (docs/verification.md) against one vehicle: a shipped model (`dynamics`), or `fmu`
-    driven through the vehicle map `vehicle`. A manoeuvre the vehicle cannot be driven through fails with its
-    reason; only user mistakes (options, FMU, map, results folder) raise InputError."""
-    from . import verify as pack
-    from .results_folder import ResultsFolderError, check_results_folder
+           out: str | os.PathLike | None = None, pack: str = "vehicle", params: dict[str, float] | None = None,
+           controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
+           workers: int | None = None, scheduler: str | None = None) -> VerifyResult:
+    """Runs a test pack (docs/verification.md) against one vehicle: a shipped model (`dynamics`), or `fmu` driven
+    through the vehicle map `vehicle`, with FMU start values `params` (SI, as run's). pack "vehicle": the standard
+    manoeuvres (`only`: some of them); a manoeuvre the vehicle cannot be driven through fails with its reason.
+    pack "aeb-ccr": the Euro NCAP car-to-car rear grid (`only`: some of CCRs, CCRm, CCRb) with the controller
+    `controller` and its map `controller_map` in the loop (`controller="example-aeb"`: the shipped example AEB;
+    none: the vehicle alone), run on Dask as a sweep runs (`workers` processes, default one per core, or
+    `scheduler`'s cluster; workers=0: in this process). Only user mistakes (options, FMU, map, results folder) raise
+    InputError; a test or manoeuvre that fails is a result."""
+    from . import verify as vehicle_pack  # matplotlib for its report: loaded only to verify
+    from .verify.datasheet import datasheet, provenance
 
-    names = list(pack.MANOEUVRES) if only is None else list(only)
-    unknown = [name for name in names if name not in pack.MANOEUVRES]
+    if pack not in PACKS:
+        raise option_error("pack", pack, f"must be one of {', '.join(PACKS)}")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 0):
+        raise option_error("workers", workers, "must be a whole number >= 0")
+    if pack == "vehicle":
+        known = list(vehicle_pack.MANOEUVRES)
+        if controller is not None or controller_map is not None:
+            raise option_error("controller", controller or controller_map,
+                               "applies to the aeb-ccr pack (the vehicle pack drives the vehicle alone)")
+    else:
+        from .verify import aeb
+
+        known = list(aeb.GROUPS)
+    names = known if only is None else list(only)
+    unknown = [name for name in names if name not in known]
     if unknown or not names:
-        raise _option_error("only", ",".join(names), f"must name manoeuvres among {', '.join(pack.MANOEUVRES)}")
+        what = "manoeuvres" if pack == "vehicle" else "test groups"
+        raise option_error("only", ",".join(names), f"must name {what} among {', '.join(known)}")
     model = ego_model(dynamics, fmu, vehicle)
+    tuned = model.with_parameters(params)  # checked by the model; the vehicle the pack drives
+    params = dict(tuned.overrides)
     try:  # an FMU that cannot even be instantiated is a bad --fmu, not a manoeuvre's result
-        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+        tuned.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
     except Exception as error:  # noqa: BLE001 - fmpy reports a binary that cannot be loaded as a plain Exception
         raise InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {_first_line(error)}") from None
     if out is not None:
@@ -657,11 +570,37 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
     identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,
                 "map": None if model.map_path is None else str(model.map_path),
                 "friction": None if model.friction is None else model.friction.meaning}
-    outcomes = pack.run_pack(model, names)
-    folder = None
-    if out is not None:
+    sheet, tool = datasheet(model, params), provenance()
+    try:
+        if pack == "vehicle":
+            outcomes = vehicle_pack.run_pack(tuned, names)
+            folder = None if out is None else vehicle_pack.write(out, identity, outcomes, sheet, tool)
+            return VerifyResult(identity, outcomes, vehicle_pack.table(outcomes), folder,
+                                vehicle_pack.passed(outcomes), pack)
+        controller = controller_model(controller, controller_map)  # checked before anything runs
+        options = {"dynamics": dynamics if vehicle is None else None, "fmu": str(model.fmu_path),
+                   "vehicle": None if vehicle is None else str(Path(vehicle).absolute()), "params": params,
+                   "controller": None if controller is None else str(controller.fmu_path.absolute()),
+                   "controller_map": None if controller is None else str(Path(controller.map_path).absolute())}
+        options = {key: value for key, value in options.items() if value}
         try:
-            folder = pack.write(out, identity, outcomes)
-        except ResultsFolderError as error:
-            raise InputError("out", "", subject=str(error)) from None
-    return VerifyResult(identity, outcomes, pack.table(outcomes), folder)
+            outcomes = aeb.run_grid(aeb.grid(names), options, run, (tuned.length, tuned.width),
+                                    workers=workers, scheduler=scheduler)
+        except ClusterError as error:
+            raise InputError("workers" if scheduler is None else "scheduler", str(error)) from None
+        folder = None if out is None else aeb.write(out, outcomes, identity, sheet, _controller_identity(controller),
+                                                    tool)
+        return VerifyResult(identity, outcomes, aeb.table(outcomes), folder, aeb.passed(outcomes), pack)
+    except ResultsFolderError as error:
+        raise InputError("out", "", subject=str(error)) from None
+
+
+def _controller_identity(controller) -> dict | None:
+    """What the AEB report says of the controller (a ControllerModel): its FMU's identity, its map, period and
+    parameters."""
+    if controller is None:
+        return None
+    from .verify.datasheet import fmu_identity
+
+    return {**fmu_identity(controller.fmu_path, controller.description, controller.map_path, controller.name),
+            "period_s": controller.period, "parameters": dict(controller.parameters)}

@@ -8,26 +8,20 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 from pathlib import Path
 
+from . import __version__, api
+from . import sweep as sweeping
+from .names import SHIPPED
+from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
+from .sdl import ScenarioError, describe
+from .units import length_label, speed_label
+
 EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
 EXIT_TERMINATED = 143  # SIGTERM (`timeout`, `kill`): 128 + 15, as the shell reports it
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, handled as Ctrl-C is (everything sdl-fmu started is ended, nothing half-written is left)."""
-
-
-def _stop(signum, frame):
-    """Ctrl-C or SIGTERM: raised once; a repeat while sdl-fmu cleans up is ignored (`timeout` signals the command and
-    then its whole process group, so the command gets the signal twice), so the clean-up is never cut short."""
-    import signal
-
-    for repeated in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(repeated, signal.SIG_IGN)
-    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
-DYNAMICS = ("simple", "advanced")
+EXIT_CRITERION_FAILED = 1  # verify --strict: a test pack's criterion failed
 FMI_VERSIONS = ("2", "3")
 
 
@@ -43,35 +37,39 @@ class _ArgumentError(Exception):
 
 
 def _build(args) -> int:
-    from .api import InputError
-    from .fmu.package import MODELS, build_fmus
+    """Builds the FMUs into the per-user cache that `run` and `verify` use (what is there already is kept: the cache
+    is keyed by every build input) and copies them to --out."""
+    from .fmu.cache import cached_fmus  # the build side: CasADi and the compilers
+    from .fmu.package import fmu_path
 
-    names = list(MODELS) if args.dynamics == "all" else [args.dynamics]
+    names = list(SHIPPED) if args.dynamics == "all" else [args.dynamics]
     versions = tuple(map(int, FMI_VERSIONS)) if args.fmi_version == "all" else (int(args.fmi_version),)
+    out = Path(args.out)
     try:
-        Path(args.out).mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
+        out.mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
         for dynamics in names:
-            for path in build_fmus(dynamics, Path(args.out), versions):
-                print(path)
+            for version, cached in zip(versions, cached_fmus(dynamics, versions)):
+                target = fmu_path(out, dynamics, version)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                partial = target.with_suffix(".fmu.partial")
+                shutil.copyfile(cached, partial)
+                partial.replace(target)  # atomic: never a half-copied FMU
+                print(target)
     except OSError as error:
         raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
     return 0
 
 
 def _check(args) -> int:
-    from . import api
-    from .sdl import describe
-
-    scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics)
-    print(describe(scenario))
-    for warning in scenario.warnings:
+    checked = api.check(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics,
+                        vehicle=args.vehicle, tires=args.tires)
+    print(describe(checked.scenario))
+    for warning in checked.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 
 def _parse_parameters(assignments: list[str]) -> dict[str, float]:
-    from .api import InputError
-
     parameters = {}
     for assignment in assignments:
         name, separator, value = assignment.partition("=")
@@ -80,23 +78,20 @@ def _parse_parameters(assignments: list[str]) -> dict[str, float]:
                 raise ValueError
             parameters[name.strip()] = float(value)
         except ValueError:
-            raise InputError("param", f"--param {assignment}: expected NAME=VALUE with a number (SI units)") from None
+            raise InputError("params", "", subject=f"{assignment}: expected NAME=VALUE with a number (SI "
+                                                   "units)") from None
     return parameters
 
 
 def _run(args) -> int:
-    from . import api
-    from .units import length_label, speed_label
-
-    scenario = api.load(args.scenario, skip_unsupported=args.skip_unsupported)
-    out = Path(args.out) if args.out is not None else Path("runs") / Path(scenario.path).stem
-    result = api.run(scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
-                     seed=args.seed,
-                     step=args.step, driver_period=args.driver_period,
+    out = Path(args.out) if args.out is not None else Path("runs") / api.resolve_scenario(args.scenario).stem
+    result = api.run(args.scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
+                     seed=args.seed, step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
-                     params=_parse_parameters(args.param), tires=args.tires, progress=None, out=out,
-                     controller=args.controller, controller_map=args.controller_map, driver=args.driver,
-                     on_collision=args.on_collision)
+                     params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,
+                     progress=None, out=out, controller=args.controller, controller_map=args.controller_map,
+                     driver=args.driver, on_collision=args.on_collision)
+    scenario = result.scenario
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
           f"ended at {final['time_s']:.2f} s, distance {final['distance']:.1f} {length_label(units)}, "
@@ -109,9 +104,6 @@ def _run(args) -> int:
 
 
 def _sweep(args) -> int:
-    from . import api
-    from . import sweep as sweeping
-
     varied = sweeping.parse_vary(args.vary, args.sample_seed)
     fixed = {"dynamics": args.dynamics} if args.dynamics else {}
     if args.fmu:
@@ -122,6 +114,9 @@ def _sweep(args) -> int:
         fixed["params"] = _parse_parameters(args.param)
     if args.tires:
         fixed["tires"] = args.tires
+    for option in ("until_time", "until_distance"):
+        if getattr(args, option) is not None:
+            fixed[option] = getattr(args, option)
     for option in ("controller", "controller_map"):
         if getattr(args, option):
             fixed[option] = getattr(args, option)
@@ -163,23 +158,28 @@ def _sweep(args) -> int:
 
 
 def _verify(args) -> int:
-    from . import api
-
     only = None if args.only is None else [name.strip() for name in args.only.split(",") if name.strip()]
     out = Path(args.out) if args.out is not None else Path("verify") / _verify_folder_name(args)
-    result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out)
+    result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out,
+                        pack=args.pack, params=_parse_parameters(args.param), controller=args.controller,
+                        controller_map=args.controller_map, workers=args.workers, scheduler=args.scheduler)
     print(f"{result.vehicle['name']} ({Path(result.vehicle['fmu']).name}, GUID {result.vehicle['guid']})")
     print(result.table)
     print(f"results: {result.folder / 'verify.json'}, {result.folder / 'report.html'}")
+    if args.strict and not result.passed:
+        print(f"sdl-fmu: verify --strict: a criterion failed (see {result.folder / 'verify.json'})", file=sys.stderr)
+        return EXIT_CRITERION_FAILED
     return 0
 
 
 def _verify_folder_name(args) -> str:
     if args.fmu is not None:
-        return Path(args.fmu).stem
-    if args.vehicle is not None:
-        return Path(args.vehicle).stem
-    return args.dynamics or "simple"
+        name = Path(args.fmu).stem
+    elif args.vehicle is not None:
+        name = Path(args.vehicle).stem
+    else:
+        name = args.dynamics or "simple"
+    return name if args.pack == "vehicle" else f"{name}-{args.pack}"
 
 
 def _float_argument(text: str) -> float:
@@ -193,34 +193,32 @@ def _float_argument(text: str) -> float:
 DESCRIPTION = "Vehicle-dynamics FMUs (FMI 2.0 and 3.0) co-simulated with STISIM-style SDL traffic scenarios."
 EPILOG = """\
 'sdl-fmu command --help' shows a command's options. Try: sdl-fmu run demo
-exit codes: 0 done, 1 the scenario file is wrong, 2 another user mistake, 3 a sweep with failed runs,
-            130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
+exit codes: 0 done, 1 the scenario file is wrong (verify --strict: a criterion failed), 2 another user mistake,
+            3 a sweep with failed runs, 130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
 
 
 def _loop_arguments(command, every: str = "") -> None:
     """run's and sweep's options of what drives the ego: a controller in the loop, the built-in driver, collisions."""
     command.add_argument("--controller", metavar="FMU", help=f"controller FMU in the loop{every} (AEB, ACC, ...; "
-                         "default: the controller map's fmu)")
+                         "default: the controller map's fmu), or example-aeb (the shipped example AEB and its map)")
     command.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests, "
                          "period and arbitration (docs/controllers.md)")
-    command.add_argument("--driver", choices=("lane", "follow"), default="lane",
+    command.add_argument("--driver", choices=DRIVERS, default="lane",
                          help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
                               "(also follows the vehicle ahead: Gipps' car-following law)")
-    command.add_argument("--on-collision", choices=("continue", "stop"), default="continue",
+    command.add_argument("--on-collision", choices=ON_COLLISION, default="continue",
                          help="continue (default) or stop: end the run at the first contact")
 
 
 def parser() -> argparse.ArgumentParser:
-    from . import __version__
-
     main = _Parser(prog="sdl-fmu", description=DESCRIPTION, epilog=EPILOG,
                    formatter_class=argparse.RawDescriptionHelpFormatter)
     main.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = main.add_subparsers(dest="command", required=True, parser_class=_Parser, title="commands",
                                    metavar="command")
 
-    build = commands.add_parser("build", help="build the ego-vehicle FMUs (export them to a folder)")
-    build.add_argument("--dynamics", choices=[*DYNAMICS, "all"], default="all",
+    build = commands.add_parser("build", help="build the ego-vehicle FMUs (into the cache run uses; exported)")
+    build.add_argument("--dynamics", choices=[*SHIPPED, "all"], default="all",
                        help="which model's FMUs: simple, advanced or all (default: all)")
     build.add_argument("--fmi-version", choices=[*FMI_VERSIONS, "all"], default="all",
                        help="FMI version of the FMUs: 2, 3 or all (default: all, into OUT/fmi2/ and OUT/fmi3/)")
@@ -229,26 +227,28 @@ def parser() -> argparse.ArgumentParser:
 
     check = commands.add_parser("check", help="parse a scenario and report, run nothing")
     check.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    check.add_argument("--dynamics", choices=DYNAMICS, default="simple",
-                       help="apply this model's rules, as run --dynamics does (advanced: RSA values are whole "
-                            "surface attribute numbers)")
+    check.add_argument("--dynamics", choices=SHIPPED,
+                       help="check for this shipped model, as run --dynamics does (default simple; advanced: RSA "
+                            "values are whole surface attribute numbers, BRK is ignored); not with --vehicle")
+    check.add_argument("--vehicle", help="check for this vehicle map (TOML), as run --vehicle does")
+    check.add_argument("--tires", help="Tire Attribute File, as run --tires (advanced dynamics)")
     check.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
     check.set_defaults(handler=_check)
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
     run.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
-    run.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default; friction "
+    run.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default; friction "
                      "coefficients) or advanced (Magic Formula tires); not with --vehicle")
     run.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics, built on first use)")
     run.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     run.add_argument("--speed", type=_float_argument,
                      help="driver's start and target speed, scenario units (default 88 ft/s)")
     run.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
-    run.add_argument("--step", type=_float_argument, help="longest communication step, s (default 1); triggers are "
-                     "located exactly at any step; driver samples and triggers cut steps shorter")
+    run.add_argument("--step", type=_float_argument, help=f"longest communication step, s (default {DEFAULT_STEP:g}); "
+                     "triggers are located exactly at any step; driver samples and triggers cut steps shorter")
     run.add_argument("--driver-period", type=_float_argument,
-                     help="the driver model's sampling period, s (default 0.05)")
+                     help=f"the driver model's sampling period, s (default {DEFAULT_DRIVER_PERIOD:g})")
     run.add_argument("--until-distance", type=_float_argument, help="end at this distance, scenario units")
     run.add_argument("--until-time", type=_float_argument, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -269,13 +269,16 @@ def parser() -> argparse.ArgumentParser:
     where = sweep.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
-    sweep.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model for every run: simple (default) or "
+    sweep.add_argument("--dynamics", choices=SHIPPED, help="a shipped model for every run: simple (default) or "
                        "advanced; not with --vehicle")
     sweep.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics)")
     sweep.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
     sweep.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                        help="FMU start value for every run, SI (repeatable)")
     sweep.add_argument("--tires", help="Tire Attribute File for every run (advanced dynamics)")
+    sweep.add_argument("--until-distance", type=_float_argument,
+                       help="end every run at this distance, scenario units (or vary until_distance)")
+    sweep.add_argument("--until-time", type=_float_argument, help="end every run at this time, s (or vary until_time)")
     sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
     sweep.add_argument("--timeout", type=_float_argument, default=600.0,
                        help="wall-clock limit per run, s (default 600)")
@@ -286,16 +289,51 @@ def parser() -> argparse.ArgumentParser:
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)
 
-    verify = commands.add_parser("verify", help="the vehicle test pack: standard manoeuvres, pass/fail, report")
-    verify.add_argument("--dynamics", choices=DYNAMICS, help="a shipped model: simple (default) or advanced")
+    verify = commands.add_parser("verify", help="a test pack: vehicle manoeuvres or AEB car-to-car, report")
+    verify.add_argument("--pack", choices=api.PACKS, default="vehicle",
+                        help="vehicle (default): the vehicle test pack; aeb-ccr: the AEB car-to-car rear grid")
+    verify.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default) or advanced")
     verify.add_argument("--fmu", help="vehicle FMU (default: the cached build of --dynamics)")
     verify.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu")
+    verify.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="vehicle FMU start value, SI, within its declared min/max (repeatable)")
+    verify.add_argument("--controller", help="aeb-ccr: controller FMU in the loop, or example-aeb (the shipped "
+                        "example AEB); default: none (the vehicle alone)")
+    verify.add_argument("--controller-map", help="aeb-ccr: controller map (TOML) of --controller")
     verify.add_argument("--only", metavar="NAME,...", help="run only these manoeuvres (braking, "
-                        "steady_state_circular, step_steer, sine_with_dwell, split_mu_braking, double_lane_change)")
+                        "steady_state_circular, step_steer, sine_with_dwell, split_mu_braking, double_lane_change) "
+                        "or, with --pack aeb-ccr, test groups (CCRs, CCRm, CCRb)")
+    where = verify.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="aeb-ccr: worker processes of a local Dask cluster (default: one "
+                       "per core; 0: in this process)")
+    where.add_argument("--scheduler", help="aeb-ccr: address of an existing Dask scheduler (tcp://host:port)")
+    verify.add_argument("--strict", action="store_true", help="exit 1 when a criterion fails (a manoeuvre fails; "
+                        "aeb-ccr: a test scores less than its full points)")
     verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
-                                      "(default: verify/<vehicle>)")
+                                      "(default: verify/<vehicle>, verify/<vehicle>-aeb-ccr)")
     verify.set_defaults(handler=_verify)
     return main
+
+
+def _is_build_error(error: Exception) -> bool:
+    """Whether an FMU could not be built (fmu.package.BuildError: no compiler, a failing compile). The build side
+    (CasADi) is imported only by a command that builds: if it was never imported, nothing was built."""
+    package = sys.modules.get("sdl_fmu.fmu.package")
+    return package is not None and isinstance(error, package.BuildError)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled as Ctrl-C is (everything sdl-fmu started is ended, nothing half-written is left)."""
+
+
+def _stop(signum, frame):
+    """Ctrl-C or SIGTERM: raised once; a repeat while sdl-fmu cleans up is ignored (`timeout` signals the command and
+    then its whole process group, so the command gets the signal twice), so the clean-up is never cut short."""
+    import signal
+
+    for repeated in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(repeated, signal.SIG_IGN)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -326,11 +364,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     try:
-        from .api import InputError
-        from .fmu.package import BuildError
-        from .sdl import ScenarioError
-        from .sweep import SweepError
-
         try:
             args = parser().parse_args(argv)
         except _ArgumentError as error:
@@ -347,7 +380,12 @@ def _main(argv: list[str] | None) -> int:
         except InputError as error:
             print(f"sdl-fmu: {error.command_line()}", file=sys.stderr)
             return EXIT_USAGE
-        except (BuildError, SweepError) as error:
+        except sweeping.SweepError as error:
+            print(f"sdl-fmu: {error}", file=sys.stderr)
+            return EXIT_USAGE
+        except Exception as error:
+            if not _is_build_error(error):
+                raise
             print(f"sdl-fmu: {error}", file=sys.stderr)
             return EXIT_USAGE
         sys.stdout.flush()  # here, so that a closed pipe is caught below rather than at interpreter exit

@@ -18,8 +18,6 @@ from typing import Literal
 
 from .paths import MODEL_DESCRIPTION_DIRECTORY
 
-WHEELS = ("fl", "fr", "rl", "rr")  # the wheels' order everywhere (FMU variables, contact points, results columns)
-
 # as FMPy's model_description.py types them (the values the interfaces use)
 Causality = Literal["parameter", "calculatedParameter", "input", "output", "local", "independent"]
 Variability = Literal["constant", "fixed", "tunable", "discrete", "continuous"]

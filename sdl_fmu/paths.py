@@ -32,5 +32,6 @@ def _data_directory(name: str) -> Path:
 SCENARIO_DIRECTORY = _data_directory("scenarios")  # shipped examples, the vehicle table, tires/, vehicles/
 TIRE_DIRECTORY = SCENARIO_DIRECTORY / "tires"  # Tire Attribute File and the .tir files it names
 VEHICLE_MAP_DIRECTORY = SCENARIO_DIRECTORY / "vehicles"  # the shipped models' vehicle maps, <name>.toml
+CONTROLLER_MAP_DIRECTORY = SCENARIO_DIRECTORY / "controllers"  # the shipped controllers' maps, <name>.toml
 VEHICLE_TABLE = SCENARIO_DIRECTORY / "vehicles.csv"
 MODEL_DESCRIPTION_DIRECTORY = _data_directory("modelDescription")  # <Model>.json and units.json

@@ -22,7 +22,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
 from .units import from_si, length_label, speed_label
-from .vehicle.model import WHEELS
+from .names import WHEELS
 
 if TYPE_CHECKING:
     from .run_result import RunResult

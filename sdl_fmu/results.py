@@ -12,7 +12,7 @@ from .storage import release_pages
 from .results_folder import write_results_folder
 from .run_result import RunResult, VehicleTrack
 from .units import Units, from_si, length_label, speed_label
-from .vehicle.model import WHEELS
+from .names import WHEELS
 
 
 TIME_FORMAT = "%.6f"

@@ -9,8 +9,8 @@ RSA event on that line of the scenario) / `rsa.LINE.LANE` (one lane). VALUES is 
 `--sample-seed`. The runs are every combination of the varied values. Each run goes through sdl_fmu.api.
 
 Every file a run reads (the scenario, the FMU, the Tire Attribute File and the tire files it names: the
-options in SHIPPED) goes to the workers as bytes, through Dask: a future per file bundle, which Dask keeps
-and recomputes if the worker holding it dies. A worker writes each bundle once into its own FMU cache,
+options in SHIPPED) goes to the workers as bytes, through Dask (shipping.py): a future per file bundle, which Dask
+keeps and recomputes if the worker holding it dies. A worker writes each bundle once into its own FMU cache,
 under shipped/<hash of the contents>/, so a worker needs no shared folder and no FMU of its own.
 
 The table (DIR/sweep.parquet and DIR/sweep.csv, one row per run) holds the varied values, the status
@@ -27,23 +27,22 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
-import hashlib
 import itertools
 import json
 import math
 import os
 import random
 import re
-import struct
 import time
-import tempfile
 import traceback
 from pathlib import Path
 from typing import Callable, Literal
 
 import numpy as np
 
+from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
+from .shipping import one_file as _one_file, passed_on as _passed_on
+from .shipping import check_scheduler, check_workers, max_workers  # noqa: F401 (the command line checks with them)
 from .units import Units
 
 Status = Literal["ok", "failed", "timeout"]
@@ -66,8 +65,8 @@ SCHEDULER_PROBE = 10.0  # s for a Dask scheduler to answer a connection with its
 GRACE = 2.0  # x timeout without any run coming back: the runs still processing are given up
 
 
-class SweepError(ValueError):
-    """A mistake in the sweep's arguments or output folder (one line)."""
+class SweepError(ClusterError):
+    """A mistake in the sweep's arguments or output folder, or a cluster it cannot use (one line)."""
 
 
 # ---- what varies ----------------------------------------------------------------------------------
@@ -215,29 +214,10 @@ def _with_rsa(scenario, name: str, value: float):
 
 # ---- the files a run reads, shipped to the workers as bytes -------------------------------------
 
-@dataclasses.dataclass(frozen=True)
-class Bundle:
-    """A file a run reads and the files it names, as bytes: (relative path, content) pairs, the file itself
-    first. The relative paths are the bundle's own layout (the packer rewrites references to match)."""
-
-    files: tuple[tuple[str, bytes], ...]
-
-    @functools.cached_property
-    def digest(self) -> str:
-        hashed = hashlib.sha256()
-        for name, content in self.files:
-            hashed.update(name.encode() + b"\0" + hashlib.sha256(content).digest())
-        return hashed.hexdigest()
-
-
-def _one_file(path: Path) -> Bundle:
-    return Bundle(((path.name, path.read_bytes()),))
-
-
 def _tire_files(path: Path) -> Bundle:
     """The Tire Attribute File and every tire file it names; the shipped attribute file names them by their
     place in the bundle, each on its original line (so line numbers in messages stay the same)."""
-    from .dynamics.tires import read_attribute_file
+    from .tire_files import read_attribute_file
 
     entries = read_attribute_file(path)
     lines = [""] * max((entry.line for entry in entries), default=0)
@@ -256,7 +236,6 @@ def _tire_files(path: Path) -> Bundle:
 # option is one entry here. (The scenario itself always goes, as the bundle "scenario".)
 SHIPPED: dict[str, Callable[[Path], Bundle]] = {"fmu": _one_file, "tires": _tire_files, "vehicle": _one_file,
                                                 "controller": _one_file, "controller_map": _one_file}
-SHIPPED_FOLDER = "shipped"
 
 
 def _pack(scenario_path: str, fixed: dict) -> dict[str, Bundle]:
@@ -265,39 +244,6 @@ def _pack(scenario_path: str, fixed: dict) -> dict[str, Bundle]:
         if fixed.get(option) is not None:
             bundles[option] = pack(Path(fixed[option]))
     return bundles
-
-
-def _passed_on(bundle: Bundle) -> Bundle:
-    """The task whose result is a bundle: Dask holds the bundle in its graph and recomputes it on loss."""
-    return bundle
-
-
-def materialize(bundle: Bundle) -> Path:
-    """The bundle as files in this machine's FMU cache, shipped/<digest>/, written once (atomically: into a
-    temporary folder renamed into place; a concurrent writer's copy is discarded); the first file's path."""
-    from .fmu.cache import _remove_abandoned_builds, cache_directory
-
-    root = cache_directory() / SHIPPED_FOLDER
-    folder = root / bundle.digest[:32]
-    if not (folder / bundle.files[0][0]).is_file():
-        root.mkdir(parents=True, exist_ok=True)
-        _remove_abandoned_builds(root)  # the temporary folders of killed workers
-        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
-        try:
-            for name, content in bundle.files:
-                (work / name).parent.mkdir(parents=True, exist_ok=True)
-                (work / name).write_bytes(content)
-            try:
-                os.rename(work, folder)
-            except OSError:
-                if not (folder / bundle.files[0][0]).is_file():
-                    raise
-        finally:
-            if work.exists():
-                import shutil
-
-                shutil.rmtree(work, ignore_errors=True)
-    return folder / bundle.files[0][0]
 
 
 # ---- one run (on a worker) ------------------------------------------------------------------------
@@ -626,11 +572,15 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
         raise SweepError(f"--vary: {runs} runs, more than the {MAX_RUNS} a sweep may have")
     check_values(varied)
     scenario_path = str(api.resolve_scenario(scenario).absolute())
-    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False))  # a bad file fails now
+    # the scenario checked for the runs' vehicle (a bad file fails now, before any FMU is built or loaded)
+    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False),
+                      dynamics=fixed.get("dynamics"), vehicle=fixed.get("vehicle"))
     if not timeout > 0:
         raise SweepError(f"--timeout {timeout}: must be > 0")
     fixed = dict(fixed)
+    api.run_options(loaded, **{key: fixed[key] for key in api.RUN_OPTIONS if key in fixed})  # bad options fail now
     model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
+    model.with_parameters(fixed.get("params"))  # and bad FMU start values
     try:  # an FMU that cannot even be instantiated is a bad --fmu, not a table of failed runs
         model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
     except Exception as error:  # noqa: BLE001 - whatever the FMU's start raised
@@ -638,14 +588,14 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
                                     f"{str(error).strip().splitlines()[0] if str(error).strip() else error!r}") from None
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
-        api.tire_slot_starts(fixed["tires"], model)  # a bad tire file fails now, naming the local file
+        model.with_tires(fixed["tires"])  # a bad tire file fails now, naming the local file
         fixed["tires"] = str(Path(fixed["tires"]).absolute())
     if fixed.get("vehicle") is not None:
         fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())
     controller = api.controller_model(fixed.get("controller"), fixed.get("controller_map"))  # a bad map fails now
     if controller is not None:  # the map's own `fmu` resolved here: the map travels alone
         fixed["controller"] = str(controller.fmu_path.absolute())
-        fixed["controller_map"] = str(Path(fixed["controller_map"]).absolute())
+        fixed["controller_map"] = str(Path(controller.map_path).absolute())  # example-aeb: the shipped map
     bundles = _pack(scenario_path, fixed)
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
@@ -718,77 +668,13 @@ def _keep_only(journal: Path, rows: list[dict]) -> None:
         partial.unlink(missing_ok=True)
 
 
-def max_workers() -> int:
-    return WORKERS_PER_CORE * (os.cpu_count() or 1)
-
-
-def check_workers(workers: int | None) -> None:
-    if workers is not None and not 1 <= workers <= max_workers():
-        raise SweepError(f"--workers {workers}: must be from 1 to {max_workers()} ({WORKERS_PER_CORE} per core)")
-
-
-def check_scheduler(scheduler: str | None) -> None:
-    """An address a Dask client can be given: [protocol://]host:port."""
-    if scheduler is None:
-        return
-    host_port = r"(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):\d{1,5}"
-    if not (re.fullmatch(rf"(?:tcp://)?{host_port}", scheduler)
-            or re.fullmatch(r"(?!tcp://)[a-z][a-z0-9+.-]*://\S+", scheduler)):  # tls://, inproc://, ucx://, ...
-        raise SweepError(f"--scheduler {scheduler!r}: expected an address such as tcp://host:8786")
-
-
-def _probe_scheduler(scheduler: str) -> None:
-    """A TCP address must answer as a Dask scheduler does: on connection it sends its handshake first, a message
-    whose 8-byte length comes first. An HTTP server (the dashboard, port 8787) sends nothing until asked; another
-    server sends something else. Either is one line, within SCHEDULER_PROBE s (a Dask client would wait for ever)."""
-    import socket
-
-    address = scheduler.split("://", 1)[1] if "://" in scheduler else scheduler
-    if "://" in scheduler and not scheduler.startswith("tcp://"):
-        return  # tls, ucx, ...: only the client itself can speak them
-    host, _, port = address.rpartition(":")
-    try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=SCHEDULER_PROBE) as connection:
-            connection.settimeout(SCHEDULER_PROBE)
-            header = b""
-            while len(header) < 8:
-                chunk = connection.recv(8 - len(header))
-                if not chunk:
-                    break
-                header += chunk
-    except socket.timeout:
-        raise SweepError(f"--scheduler {scheduler}: no Dask scheduler there (it sent nothing in {SCHEDULER_PROBE:g} s: "
-                         "a web server? The dashboard is usually on 8787, the scheduler on 8786)") from None
-    except (OSError, ValueError) as error:
-        raise SweepError(f"--scheduler {scheduler}: cannot connect: {getattr(error, 'strerror', None) or error}") \
-            from None
-    length = struct.unpack("<Q", header)[0] if len(header) == 8 else 0
-    if not 0 < length < 2**20:
-        raise SweepError(f"--scheduler {scheduler}: not a Dask scheduler (what it sent is not Dask's handshake)")
-
-
-def _client(workers: int | None, scheduler: str | None, runs: int):
+def _client(workers: int | None, scheduler: str | None, runs: int | None = None):
     """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes (never more than
-    `runs`); and what to close afterwards."""
-    from distributed import Client, LocalCluster
-
-    if scheduler is not None:
-        check_scheduler(scheduler)
-        _probe_scheduler(scheduler)
-        try:
-            client = Client(scheduler, timeout=10)
-        except Exception as error:  # noqa: BLE001 - OSError, TimeoutError, CommClosedError, a protocol mismatch, ...
-            text = (str(error).strip() or type(error).__name__).splitlines()[0]
-            raise SweepError(f"--scheduler {scheduler}: cannot connect: {text}") from None
-        return client, [client]
-    check_workers(workers)
+    `runs`); and what to close afterwards (shipping.client, its errors as SweepError)."""
     try:
-        cluster = LocalCluster(n_workers=min(workers or os.cpu_count() or 1, runs), threads_per_worker=1,
-                               processes=True, dashboard_address=None)
-    except (OSError, RuntimeError) as error:
-        raise SweepError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
-    client = Client(cluster)
-    return client, [client, cluster]
+        return _cluster_client(workers, scheduler, runs)
+    except ClusterError as error:
+        raise SweepError(str(error)) from None
 
 
 def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> list[dict]:

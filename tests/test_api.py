@@ -104,6 +104,17 @@ def test_user_mistakes_raise_input_error_naming_the_keyword(options, option, mes
     assert caught.value.option == option and message in str(caught.value) and "--" not in str(caught.value)
 
 
+def test_a_target_speed_above_the_vehicles_top_speed_is_one_warning(simple_fmu):
+    # the Simple FMU's top speed is 201.389 ft/s (61.3834 m/s: tests/test_vehicle_model.py derives it in closed form)
+    warning = ("speed 202 ft/s: above the top speed of simple, 201.4 ft/s (where its drive at full throttle, at most "
+               "110 kW, meets its rolling resistance and drag): the driver holds full throttle below the target")
+    assert api.run("head_on", fmu=simple_fmu, speed=202.0, until_time=0.5).warnings == [warning]
+    assert api.run("head_on", fmu=simple_fmu, speed=201.3, until_time=0.5).warnings == []
+    # a 5 kW car (the same cubic: 16.8028 m/s = 55.13 ft/s) cannot reach the default 88 ft/s either
+    weak = api.run("head_on", fmu=simple_fmu, until_time=0.5, params={"drive_power_max": 5e3}).warnings
+    assert weak == [warning.replace("202", "88").replace("201.4", "55.1").replace("110 kW", "5 kW")]
+
+
 def test_the_fmu_itself_refuses_parameters_outside_their_declared_range(simple_fmu):
     # the same ranges as the command line's, enforced by fmi2SetReal in the FMU's own runtime
     from sdl_fmu.cosim.ego import EgoFMU, FmuError

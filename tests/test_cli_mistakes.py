@@ -18,7 +18,7 @@ import pytest
 
 from sdl_fmu.api import HOLD_VARIABLE
 from sdl_fmu.cli import main
-from sdl_fmu.dynamics.tires import DEFAULT_ATTRIBUTE_FILE
+from sdl_fmu.tire_files import DEFAULT_ATTRIBUTE_FILE
 from sdl_fmu.results_folder import MANIFEST_NAME
 
 from helpers import sdl_fmu

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
+from sdl_fmu.vehicle import EgoModel, shipped_map_path
 from sdl_fmu.cosim.traffic import choose_model
 from sdl_fmu.sdl import parse_text
 from sdl_fmu.units import FOOT
@@ -22,8 +23,8 @@ TIME_TOLERANCE = 1e-5  # s
 def run(text, speed_ft=100.0, parameters=NO_RESISTANCES, seed=1, **options):
     scenario = parse_text(text, "test.sdl")
     speed = speed_ft * (FOOT if scenario.units == "English" else 1.0)
-    return run_scenario(scenario, options.pop("fmu"), RunOptions(speed=speed, seed=seed, parameters=dict(parameters),
-                                                                 **options), TABLE)
+    model = EgoModel.open(options.pop("fmu"), shipped_map_path("simple")).with_parameters(parameters)
+    return run_scenario(scenario, model, RunOptions(speed=speed, seed=seed, **options), TABLE)
 
 
 def events(result, code, action=None):

@@ -8,17 +8,18 @@ import pytest
 
 from sdl_fmu.cosim.master import RunOptions, run_scenario
 from sdl_fmu.paths import SCENARIO_DIRECTORY
-from sdl_fmu.dynamics.tires import default_attribute_file, slot_parameters
 from sdl_fmu.sdl import load_scenario, parse_text
 from sdl_fmu.units import FOOT
+from sdl_fmu.vehicle import EgoModel, shipped_map_path
 
 from helpers import NO_RESISTANCES, TABLE
 
 
-def options(**extra):
-    starts, attributes, warnings = slot_parameters(default_attribute_file())
-    assert warnings == []
-    return RunOptions(dynamics="advanced", tire_parameters=starts, known_attributes=set(attributes), **extra)
+def model(fmu, parameters=None):
+    """The Advanced FMU through its shipped map, its tire slots filled from the shipped Tire Attribute File."""
+    model = EgoModel.open(fmu, shipped_map_path("advanced")).with_tires().with_parameters(parameters)
+    assert model.warnings == () and model.known_attributes == {0, 1, 2, 3, 4}
+    return model
 
 
 def test_rsa_example_sets_attribute_numbers_under_each_wheel(advanced_fmu):
@@ -27,7 +28,7 @@ def test_rsa_example_sets_attribute_numbers_under_each_wheel(advanced_fmu):
     # wheel reads attribute 1 while its station is in [1000, 1100) ft, i.e. while the CG station is in
     # [1000 ft - a, 1100 ft - a); the rear wheels while it is in [1000 ft + b, 1100 ft + b).
     scenario = load_scenario(SCENARIO_DIRECTORY / "road_surface_advanced.sdl")
-    result = run_scenario(scenario, advanced_fmu, options(until_distance=1300 * FOOT), TABLE)
+    result = run_scenario(scenario, model(advanced_fmu), RunOptions(until_distance=1300 * FOOT), TABLE)
     assert result.warnings == []
     sets = [(e["lane"], e["value"]) for e in result.events if e["code"] == "RSA"]
     assert sets == [(1, 1), (-5, 2), (101, 3), (1, 0), (-5, 1)]
@@ -46,16 +47,16 @@ def test_rsa_example_sets_attribute_numbers_under_each_wheel(advanced_fmu):
 
 
 def test_brk_is_ignored_with_a_warning(advanced_fmu):
-    result = run_scenario(parse_text("100,BRK,100,0,3", "brk.sdl"), advanced_fmu, options(until_distance=200 * FOOT),
-                          TABLE)
+    result = run_scenario(parse_text("100,BRK,100,0,3", "brk.sdl"), model(advanced_fmu),
+                          RunOptions(until_distance=200 * FOOT), TABLE)
     assert not [e for e in result.events if e["code"] == "BRK"]
     assert result.warnings == ["line 1: BRK ignored: brake events act only with simple dynamics"]
     assert (result.columns["brake"] == 0).all()
 
 
 def test_unknown_attribute_falls_back_with_a_warning(advanced_fmu):
-    result = run_scenario(parse_text("10,RSA,1,9", "rsa.sdl"), advanced_fmu, options(until_distance=100 * FOOT),
-                          TABLE)
+    result = run_scenario(parse_text("10,RSA,1,9", "rsa.sdl"), model(advanced_fmu),
+                          RunOptions(until_distance=100 * FOOT), TABLE)
     assert result.warnings == ["line 1: RSA attribute 9 (lane 1) has no entry in the Tire Attribute File: "
                                "attribute 0 (standard tires) is used"]
 
@@ -65,7 +66,7 @@ def test_approaching_vehicle_example_runs_with_advanced_dynamics(advanced_fmu):
     # the hand computation of the simple-dynamics test holds: closing at 80 ft/s, spawn at 100/60 s,
     # action 1 at gap 800 ft (2.5 s later), action 2 at gap 400 ft (7.5 s after the spawn).
     scenario = load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl")
-    result = run_scenario(scenario, advanced_fmu, options(speed=60 * FOOT, parameters=dict(NO_RESISTANCES)), TABLE)
+    result = run_scenario(scenario, model(advanced_fmu, NO_RESISTANCES), RunOptions(speed=60 * FOOT), TABLE)
     times = {(e["action"], e.get("index")): e["time_s"] for e in result.events if e["code"] == "A"}
     spawn = 100 / 60
     assert times[("spawn", None)] == pytest.approx(spawn, abs=1e-5)

@@ -13,6 +13,7 @@ from sdl_fmu.cosim.master import CRITICALITY_TOLERANCE, Cosimulation, RunOptions
 from sdl_fmu.paths import SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 from sdl_fmu.units import FOOT
+from sdl_fmu.vehicle import EgoModel, shipped_map_path
 
 TABLE = load_vehicle_table(default_vehicle_table_path())
 STEPS = (0.001, 0.01, 1.0, 10.0)
@@ -49,8 +50,8 @@ def run(simple_fmu):
     """(result, the master) of a scenario at a step, each run once per session."""
     def at(name: str, step: float = 0.01):
         if (name, step) not in _runs:
-            cosim = Cosimulation(SCENARIOS[name](), simple_fmu, RunOptions(step=step, until_distance=UNTIL.get(name),
-                                                                 parameters=PARAMETERS.get(name, {})), TABLE)
+            model = EgoModel.open(simple_fmu, shipped_map_path("simple")).with_parameters(PARAMETERS.get(name))
+            cosim = Cosimulation(SCENARIOS[name](), model, RunOptions(step=step, until_distance=UNTIL.get(name)), TABLE)
             _runs[(name, step)] = cosim.run(), cosim
         return _runs[(name, step)]
     return at

@@ -4,6 +4,7 @@ import re
 import shutil
 import subprocess
 import zipfile
+from pathlib import Path
 
 import pytest
 from fmpy.model_description import read_build_description
@@ -69,3 +70,48 @@ def test_build_without_mingw_says_so_in_one_line_and_builds_linux(tmp_path, monk
                     "binary (Debian: apt-get install gcc-mingw-w64-x86-64)"]
     names = zipfile.ZipFile(path).namelist()
     assert "binaries/linux64/EgoVehicleSimple.so" in names and not any("win64" in n for n in names)
+
+
+def test_the_build_progress_shows_on_a_terminal_only(capsys):
+    from sdl_fmu.fmu.package import _Progress
+
+    shown = _Progress("EgoVehicleX", 3, True)
+    shown.stage("compiling the model code (2 compiler runs)")
+    shown.advance()
+    shown.close()
+    said = capsys.readouterr().err
+    assert "EgoVehicleX: compiling the model code (2 compiler runs)" in said and "1/3 steps" in said
+    quiet = _Progress("EgoVehicleX", 3, None)  # None: a bar only when stderr is a terminal (here it is not)
+    quiet.stage("compiling")
+    quiet.advance()
+    quiet.close()
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.slow
+def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its_stages(tmp_path, monkeypatch,
+                                                                                         capsys):
+    # the model code at -O2 (every solver step calls it), the sweeps at -O0 (only the directional and adjoint
+    # derivatives call them), the runtime and links at -O2; on a terminal (progress=True) each stage shows
+    from sdl_fmu.fmu import package
+
+    commands = []
+    original = package._run_compilers
+
+    def recorded(batch, progress=None):
+        commands.extend(batch)
+        return original(batch, progress)
+
+    monkeypatch.setattr(package, "_run_compilers", recorded)
+    package.build_fmus("simple", tmp_path, (2,), progress=True)
+    def level(command) -> str:
+        return next(flag for flag in command if re.fullmatch(r"-O\d", flag))
+
+    objects = {Path(command[command.index("-c") + 1]).name: level(command) for command in commands if "-c" in command}
+    assert objects == {"EgoVehicleSimple_model.c": "-O2", "EgoVehicleSimple_derivatives.c": "-O0"}
+    links = [level(command) for command in commands if "-shared" in command]
+    assert len(links) == 2 and set(links) == {"-O2"}  # the runtime, compiled and linked for Linux and Windows
+    said = capsys.readouterr().err
+    for stage in ("generating the C code", "compiling the model code", "compiling the runtime and linking",
+                  "packaging"):
+        assert f"EgoVehicleSimple: {stage}" in said

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-from sdl_fmu.dynamics.tires import DEFAULT_ATTRIBUTE_FILE, mf_coefficients, read_attribute_file, read_tir
+from sdl_fmu.tire_files import DEFAULT_ATTRIBUTE_FILE, mf_coefficients, read_attribute_file, read_tir
 
 from helpers import NO_RESISTANCES, WHEELS, G
 

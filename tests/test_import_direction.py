@@ -1,6 +1,8 @@
 """Imports flow one way: the output stage (run_result, results, plots, results_folder) never imports the run stage
-(sdl_fmu/cosim/), the low modules (paths, storage, lazy_sequence) import nothing of the package but each other
-(storage's EventLog is a lazy_sequence.LazySequence), and no module of the package imports itself through a circle.
+(sdl_fmu/cosim/, sdl_fmu/vehicle/), the run side's vehicle (vehicle/) never imports the build side (dynamics/, fmu/),
+the low modules (paths, units, names, options, tire_files, storage, lazy_sequence) import nothing of the package but
+each other (storage's EventLog is a lazy_sequence.LazySequence), and no module of the package imports itself through
+a circle.
 
 Read from the source with `ast`, so every import counts: at the top, inside a function, under TYPE_CHECKING."""
 
@@ -11,8 +13,10 @@ import sdl_fmu
 
 PACKAGE = Path(sdl_fmu.__file__).parent
 OUTPUT_STAGE = ("sdl_fmu.run_result", "sdl_fmu.results", "sdl_fmu.plots", "sdl_fmu.results_folder")
-LOW = ("sdl_fmu.paths", "sdl_fmu.storage", "sdl_fmu.lazy_sequence")
-RUN_STAGE = "sdl_fmu.cosim"
+LOW = ("sdl_fmu.paths", "sdl_fmu.units", "sdl_fmu.names", "sdl_fmu.options", "sdl_fmu.tire_files", "sdl_fmu.storage",
+       "sdl_fmu.lazy_sequence")
+RUN_STAGE = ("sdl_fmu.cosim", "sdl_fmu.vehicle")
+BUILD_SIDE = ("sdl_fmu.dynamics", "sdl_fmu.fmu")
 
 
 def modules(package: Path) -> dict[str, Path]:
@@ -92,11 +96,24 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+def inside(module: str, packages: tuple[str, ...]) -> bool:
+    return any(module == package or module.startswith(package + ".") for package in packages)
+
+
 def test_the_output_stage_never_imports_the_run_stage():
     graph = import_graph(PACKAGE)
     assert set(OUTPUT_STAGE) <= set(graph)
     for module in OUTPUT_STAGE:
-        assert not [m for m in reached(graph, module) if m == RUN_STAGE or m.startswith(RUN_STAGE + ".")], module
+        assert not [m for m in reached(graph, module) if inside(m, RUN_STAGE)], module
+
+
+def test_the_vehicle_never_imports_the_build_side():
+    # building a shipped model's FMU on first use lives above both (sdl_fmu/shipped.py)
+    graph = import_graph(PACKAGE)
+    vehicle = [module for module in graph if inside(module, ("sdl_fmu.vehicle",))]
+    assert len(vehicle) >= 4
+    for module in vehicle:
+        assert not [m for m in reached(graph, module) if inside(m, BUILD_SIDE)], module
 
 
 def test_the_low_modules_import_nothing_of_the_package_but_each_other():

@@ -2,6 +2,7 @@
 FMUs come from a per-user cache keyed by everything that goes into them. The top-level scenarios/ and
 modelDescription/ ship as package data: importlib.resources reads them from a wheel and from an editable install."""
 
+import ast
 import os
 import shutil
 import subprocess
@@ -200,7 +201,8 @@ def test_the_cache_key_is_the_same_in_a_checkout_and_installed(monkeypatch, tmp_
                                      "modelDescription/units.json", "sdl_fmu/fmu/runtime/instance.c",
                                      "sdl_fmu/fmu/runtime/model.h", "sdl_fmu/fmu/codegen.py", "sdl_fmu/fmu/package.py",
                                      "scenarios/tires/dry_asphalt.tir", "scenarios/tires/attributes.txt",
-                                     "sdl_fmu/interface.py", "sdl_fmu/units.py", "CC", "fmi"])
+                                     "sdl_fmu/interface.py", "sdl_fmu/units.py", "sdl_fmu/names.py",
+                                     "sdl_fmu/tire_files.py", "CC", "fmi"])
 def test_the_cache_key_changes_with_every_input_of_the_build(changed, monkeypatch, tmp_path):
     root = use_copy_of_build_inputs(tmp_path, monkeypatch)
     before = cache.build_key("simple")
@@ -242,13 +244,53 @@ def test_a_cached_fmu_is_reused(simple_fmu):
     assert cache.cached_fmu("simple") == simple_fmu
 
 
-@pytest.mark.slow
-def test_build_still_exports_to_a_folder(tmp_path, capsys):
+def test_build_exports_the_fmus_of_the_cache_run_uses(tmp_path, capsys, simple_fmus):
+    # the session's cache holds both Simple FMUs (the fixture): build takes them from there, byte for byte
     assert main(["build", "--dynamics", "simple", "--out", str(tmp_path / "export")]) == 0
     exported = [tmp_path / "export" / f"fmi{version}" / "EgoVehicleSimple.fmu" for version in (2, 3)]
     assert capsys.readouterr().out.split() == [str(path) for path in exported]
-    for path in exported:
-        assert "modelDescription.xml" in zipfile.ZipFile(path).namelist()
+    for path, version in zip(exported, (2, 3)):
+        assert path.read_bytes() == simple_fmus[version].read_bytes()
+    assert sorted(p.name for p in (tmp_path / "export").rglob("*") if p.is_file()) == ["EgoVehicleSimple.fmu"] * 2
+
+
+@pytest.mark.slow
+def test_build_fills_the_cache_run_uses(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv(cache.CACHE_VARIABLE, str(tmp_path / "cache"))
+    assert main(["build", "--dynamics", "simple", "--fmi-version", "2", "--out", str(tmp_path / "export")]) == 0
+    (exported,) = capsys.readouterr().out.split()
+    assert main(["run", "head_on", "--until-time", "1", "--out", str(tmp_path / "run")]) == 0
+    assert "building" not in capsys.readouterr().err  # run found the FMU that build made
+    assert api.ego_fmu("simple").read_bytes() == Path(exported).read_bytes()
+
+
+def python_floor() -> tuple[int, int]:
+    floor = tomllib.loads((CHECKOUT / "pyproject.toml").read_text())["project"]["requires-python"]
+    assert floor.startswith(">=") and "," not in floor, floor
+    major, minor = floor[2:].split(".")[:2]
+    return int(major), int(minor)
+
+
+def test_the_oldest_python_advertised_is_the_one_the_tests_run_on_or_imports_the_package():
+    """pyproject's requires-python floor is what is tested: this suite runs on it, or (on a newer Python) the floor's
+    interpreter, if installed, imports every module of the package from this checkout. Every module's syntax is
+    also that of the floor (ast's feature_version)."""
+    floor = python_floor()
+    assert sys.version_info[:2] >= floor
+    for path in sorted((CHECKOUT / "sdl_fmu").rglob("*.py")):
+        ast.parse(path.read_text(encoding="utf-8"), filename=str(path), feature_version=floor)  # a SyntaxError fails
+    if sys.version_info[:2] == floor:
+        return  # this run is the proof: every test imported the package on the floor's Python
+    oldest = shutil.which(f"python{floor[0]}.{floor[1]}")
+    if oldest is None:
+        pytest.fail(f"requires-python says >={floor[0]}.{floor[1]}, but this suite runs on "
+                    f"{sys.version_info[0]}.{sys.version_info[1]} and python{floor[0]}.{floor[1]} is not installed")
+    modules = sorted(".".join(p.relative_to(CHECKOUT).with_suffix("").parts).removesuffix(".__init__")
+                     for p in (CHECKOUT / "sdl_fmu").rglob("*.py"))
+    completed = subprocess.run([oldest, "-c", f"import importlib\nfor m in {modules!r}: importlib.import_module(m)"],
+                               cwd=CHECKOUT, env={**os.environ, "PYTHONPATH": str(CHECKOUT)}, capture_output=True,
+                               text=True)
+    assert completed.returncode == 0, completed.stderr
 
 
 def test_shipped_examples_run_by_short_name_from_any_folder_unless_a_file_has_that_name(tmp_path, monkeypatch,

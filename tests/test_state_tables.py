@@ -60,9 +60,10 @@ FMI3 = {
 FMI3_DEVIATIONS = {"GetFMUState": "INECST"}  # as in FMI 2.0
 
 
-def mask_table(version: int) -> dict:
-    """{function without prefix: allowed state letters} from the MASK_ lines, and the check of every use."""
-    source = (RUNTIME / f"fmi{version}Functions.c").read_text()
+def mask_table(version: int, path: Path | None = None) -> dict:
+    """{function without prefix: allowed state letters} from the MASK_ lines (of the ego FMUs' runtime, or of the
+    file `path`), and the check of every use."""
+    source = (path or RUNTIME / f"fmi{version}Functions.c").read_text()
     table = {}
     for name, expression in re.findall(rf"^#define MASK_fmi{version}(\w+)\s+(.*)$", source, re.M):
         expression = re.sub(r"/\*.*?\*/", "", expression).strip()

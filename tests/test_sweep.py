@@ -165,6 +165,20 @@ def test_the_command_line_exits_3_with_one_line_when_runs_failed(cluster, scenar
     assert capsys.readouterr().err == ""
 
 
+def test_the_command_line_ends_every_run_at_until_time(cluster, scenario, tmp_path, capsys):
+    from sdl_fmu.cli import main
+
+    out = tmp_path / "timed"
+    assert main(["sweep", scenario, "--scheduler", cluster.scheduler_address, "--vary", "seed=1,2",
+                 "--until-time", "1.5", "--out", str(out)]) == 0
+    rows = [json.loads(line) for line in (out / sweeping.JOURNAL_NAME).read_text().splitlines()]
+    assert [(row["status"], row["final_time_s"]) for row in rows] == [("ok", 1.5), ("ok", 1.5)]
+    assert main(["sweep", scenario, "--scheduler", cluster.scheduler_address, "--vary", "seed=1",
+                 "--until-time", "-1", "--out", str(tmp_path / "refused")]) == 2
+    assert capsys.readouterr().err.splitlines()[-1] == "sdl-fmu: --until-time -1: must be > 0 and <= 3600 s"
+    assert not (tmp_path / "refused").exists()
+
+
 def test_interrupted_sweep_resumes_from_its_journal(client, scenario, tmp_path):
     out = tmp_path / "sweep"
     varied = {"speed": [60.0, 80.0, 100.0], "until_distance": [600.0]}
@@ -209,7 +223,8 @@ def test_a_folder_with_other_files_or_another_sweep_is_refused(client, scenario,
 def test_the_tire_files_travel_with_the_attribute_file(tmp_path, monkeypatch):
     # an attribute file naming one tire by a relative path and one by an absolute path, shipped as a bundle and
     # written elsewhere: the slot start values read from the copy equal those read from the originals
-    from sdl_fmu.dynamics.tires import TIRE_DIRECTORY, slot_parameters
+    from sdl_fmu.dynamics.tires import slot_parameters
+    from sdl_fmu.tire_files import TIRE_DIRECTORY
 
     # a cache of its own: in the session's cache (kept between sessions with SDL_FMU_TEST_CACHE) the bundle may
     # already exist from an earlier session, and then nothing is written and nothing cleaned up
@@ -240,7 +255,7 @@ def test_a_sweep_with_a_tire_attribute_file_runs_as_a_single_run_does(client, sc
     # The attribute file sits in the user's folder beside its own tire, named by a relative path; the workers
     # read the shipped copies. Its attribute 9 is beyond the FMU's 8 slots: one warning, which only a run that
     # read this file gives. The sweep's row and a direct api.run agree exactly.
-    from sdl_fmu.dynamics.tires import TIRE_DIRECTORY
+    from sdl_fmu.tire_files import TIRE_DIRECTORY
 
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "slippery.tir").write_bytes((TIRE_DIRECTORY / "ice.tir").read_bytes())

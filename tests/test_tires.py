@@ -5,8 +5,9 @@ import re
 
 import pytest
 
-from sdl_fmu.dynamics.tires import (DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, TireFileError, mf_coefficients,
-                                    parse_attribute_file, parse_tir, read_tir, slot_of, slot_parameters)
+from sdl_fmu.dynamics.tires import SLOT_COUNT, slot_of, slot_parameters
+from sdl_fmu.tire_files import (DEFAULT_ATTRIBUTE_FILE, SLOT_KEYS, TireFileError, mf_coefficients, parse_attribute_file,
+                                parse_tir, read_tir)
 from sdl_fmu.paths import MODEL_DESCRIPTION_DIRECTORY
 
 DRY = DEFAULT_ATTRIBUTE_FILE.parent / "dry_asphalt.tir"

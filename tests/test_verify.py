@@ -174,10 +174,84 @@ def test_weak_vehicle_fails_what_it_cannot_reach_and_the_pack_goes_on(tmp_path, 
 
 def test_an_fmu_error_fails_the_manoeuvre_with_one_line(simple_fmu):
     """The real FMU refuses a steer outside its declared range (fmi2Error): the manoeuvre fails with one line."""
-    from sdl_fmu.vehicle import shipped_model
+    from sdl_fmu.shipped import shipped_model
     from sdl_fmu.verify.drive import ManoeuvreFailed, drive
 
     with pytest.raises(ManoeuvreFailed) as failure:
         drive(shipped_model("simple"), 20.0, lambda t, state: (0.0, 0.0, 2.0 if t >= 0.5 else 0.0), 2.0)
     assert str(failure.value).startswith("the vehicle FMU failed at t = 0.50 s: ")
     assert "\n" not in str(failure.value)
+
+
+# ---- for CI and for reports: --param, --strict, the data sheet, the tool and the date, rounded numbers ----------
+
+
+def test_param_reaches_the_fmu_and_the_data_sheet(tmp_path, simple_fmu, defaults_simple):
+    # brake_decel_max 5 m/s2 (below 0.8 g: the wheels roll) with the default drag and rolling resistance: the stop
+    # from the entry speed v0 obeys dv/dt = -(A + K v^2), A = 5 + f_r g, K = rho CdA / (2 m), so its distance is
+    # ln(1 + K v0^2 / A) / (2K) (docs/verification.md, the closed-form braking distances), to the solver's 1e-9; its
+    # MFDD (about 5.2 m/s2) is below R13-H's 6.43: the manoeuvre fails
+    out = tmp_path / "out"
+    result = api.verify(dynamics="simple", only=["braking"], params={"brake_decel_max": 5.0}, out=out)
+    entry = json.loads((out / "verify.json").read_text())["manoeuvres"]["braking"]
+    rows = [row for row in csv.DictReader((out / "braking.csv").open()) if float(row["time_s"]) >= 0]
+    v0 = float(rows[0]["speed_mps"])
+    expected = helpers.braking_distance(v0, 5.0, defaults_simple["rolling_resistance"],
+                                        defaults_simple["air_density"] * defaults_simple["drag_area"]
+                                        / (2 * defaults_simple["mass"]))
+    assert entry["stopping_distance_m"] == pytest.approx(expected, rel=1e-9)
+    assert entry["passed"] is False and result.passed is False
+    document = json.loads((out / "verify.json").read_text())
+    assert document["passed"] is False
+    assert document["datasheet"]["drive_and_brakes"]["brake_decel_max_mps2"] == 5.0
+    assert document["datasheet"]["parameters_set"] == {"brake_decel_max": 5.0}
+
+
+def test_the_report_holds_the_data_sheet_the_tool_and_the_date_and_rounded_numbers(tmp_path, simple_fmu):
+    from sdl_fmu import __version__
+
+    out = tmp_path / "out"
+    api.verify(dynamics="simple", only=["braking"], out=out)
+    document = json.loads((out / "verify.json").read_text())
+    assert document["tool"]["tool"] == "sdl-fmu" and document["tool"]["version"] == __version__
+    date = document["tool"]["date"]
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00", date)
+    sheet = document["datasheet"]
+    assert sheet["identity"]["guid"] == document["vehicle"]["guid"]
+    assert len(sheet["identity"]["fmu_sha256"]) == 64
+    assert sheet["mass_and_geometry"]["mass_kg"] == 1500.0 and sheet["mass_and_geometry"]["wheelbase_m"] == 2.7
+    assert sheet["tires"] == {"friction_input": "mu", "friction_coefficient": 0.8,
+                              "cornering_stiffness_front_N": 40000.0, "cornering_stiffness_rear_N": 70000.0}
+    page = (out / "report.html").read_text()
+    for shown in (f"sdl-fmu {__version__}", date, "Vehicle data sheet", "1500 kg", "2.70 m", "40000 N", "110.0 kW",
+                  sheet["identity"]["fmu_sha256"]):
+        assert shown in page, shown
+    # the metrics rounded to their meaning, with units: the stopping distance to the cm, the MFDD to 0.01 m/s2
+    entry = document["manoeuvres"]["braking"]
+    assert f"{entry['stopping_distance_m']:.2f} m" in page and f"{entry['mfdd_mps2']:.2f} m/s2" in page
+    assert repr(entry["stopping_distance_m"]) not in page
+
+
+def test_strict_exits_1_when_a_criterion_fails(tmp_path, simple_fmu):
+    failing = ["verify", "--only", "braking", "--param", "brake_decel_max=5", "--out", tmp_path / "weak"]
+    assert sdl_fmu(*failing, cwd=tmp_path).returncode == 0  # a failed criterion is a result...
+    completed = sdl_fmu(*failing, "--strict", cwd=tmp_path)
+    assert completed.returncode == 1  # ...and with --strict, exit 1 and one line
+    assert completed.stderr.strip().splitlines() == [
+        f"sdl-fmu: verify --strict: a criterion failed (see {tmp_path / 'weak' / 'verify.json'})"]
+    passing = sdl_fmu("verify", "--only", "braking,split_mu_braking", "--strict", "--out", tmp_path / "ok",
+                      cwd=tmp_path)
+    assert passing.returncode == 0, passing.stderr  # braking passes, split-mu has no criterion
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--param", "mass=0"], "--param mass=0.0: below the declared minimum"),
+    (["--param", "nope=1"], "--param nope=1.0: EgoVehicleSimple.fmu has no parameter 'nope'"),
+    (["--param", "mass"], "--param mass: expected NAME=VALUE"),
+    (["--controller", "example-aeb"], "--controller example-aeb: applies to the aeb-ccr pack"),
+])
+def test_param_and_controller_mistakes_are_one_line(tmp_path, argv, needle, simple_fmu):
+    completed = sdl_fmu("verify", "--only", "braking", *argv, "--out", tmp_path / "out", cwd=tmp_path)
+    assert completed.returncode == 2 and completed.stdout == "", completed.stderr
+    assert len(completed.stderr.strip().splitlines()) == 1 and needle in completed.stderr, completed.stderr
+    assert not (tmp_path / "out").exists()

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sdl_fmu.units import KILOMETRE_PER_HOUR, STANDARD_GRAVITY as G
-from sdl_fmu.vehicle import shipped_model
+from sdl_fmu.shipped import shipped_model
 from sdl_fmu.verify import circular, closed_forms, split_mu, step_steer
 from sdl_fmu.verify.drive import SAMPLE_PERIOD, drive
 

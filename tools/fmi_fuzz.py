@@ -14,6 +14,10 @@ worker whose current call takes longer than the hang timeout. Every sequence is 
 
     python tools/fmi_fuzz.py dist/fmi2/EgoVehicleSimple.fmu dist/fmi3/EgoVehicleSimple.fmu --sequences 20000
 
+It fuzzes the scenario FMU (sdl_fmu/export: co-simulation only, its scenario read from resources/) the same way: an
+FMU without a model-exchange interface gets co-simulation instances only, and an FMU with resources/ gets their
+location (FMI 2.0: a file: URI; FMI 3.0: the folder's path).
+
 A development tool of the repository, not part of the installed package (the wheel does not contain it). It needs
 fmpy, and for --sanitize the sdl_fmu package (installed, or this checkout's, found beside tools/).
 """
@@ -40,6 +44,8 @@ from pathlib import Path
 
 # cosimulation.c: MAX_INTERNAL_STEPS, the internal steps one doStep may take
 INTERNAL_STEP_BUDGET = 50000
+# the scenario FMU (sdl_fmu/export/runtime/scenario.h): MAX_SAMPLES_PER_STEP, the driver samples one doStep may hold
+SAMPLE_BUDGET = 100000
 # cosimulation.c accepts a communication point within 1e-9 relative of the FMU's time; clearly wrong is more
 TIME_MISMATCH = 1e-6
 HANG_TIMEOUT = 5.0  # s
@@ -263,6 +269,9 @@ class Worker:
         self.nx, self.nz = config["nx"], config["nz"]
         self.unknown_vr = max(self.by_vr) + 1000
         self.solver_step = next((v for v in self.variables if v.name == "solver_step"), None)
+        self.driver_period = next((v for v in self.variables if v.name == "driver_period"), None)
+        self.model_exchange = config.get("model_exchange", True)
+        self.resources = config.get("resources", "").encode()
         self.seed = config["seed"]
         self.log_non_ok = 0  # messages of any non-OK status during the current call
         self.last_message = ""
@@ -420,6 +429,8 @@ class Worker:
                            (ctypes.c_uint * len(vrs))(*vrs), len(vrs), array)
         if status == OK and self.solver_step is not None and self.solver_step.vr in vrs:
             self.current_solver_step = float(values[vrs.index(self.solver_step.vr)])
+        if status == OK and self.driver_period is not None and self.driver_period.vr in vrs:
+            self.current_driver_period = float(values[vrs.index(self.driver_period.vr)])
 
     def do_get(self) -> None:
         r = self.rng
@@ -478,6 +489,7 @@ class Worker:
             if name == "fmi2Reset":
                 self.time, self.stop = 0.0, math.inf
                 self.current_solver_step = self.solver_step.start if self.solver_step else 1e-3
+                self.current_driver_period = self.driver_period.start if self.driver_period else 0.05
 
     def do_step(self, progress: bool) -> None:
         r = self.rng
@@ -487,7 +499,8 @@ class Worker:
             roll = r.random()
             if roll < 0.35:
                 h = r.choice([0.0, -0.01, math.nan, math.inf, 1e300, 5e-12, 1e-300, 1.0, 2.0,
-                              self.current_solver_step * (INTERNAL_STEP_BUDGET + 10)])
+                              self.current_solver_step * (INTERNAL_STEP_BUDGET + 10)
+                              if self.driver_period is None else self.current_driver_period * (SAMPLE_BUDGET + 10)])
             elif roll < 0.5:
                 t = r.choice([t + 1.0, t - 0.5, math.nan, math.inf, t + 1e-12])
         must, uncertain = self.state_rule("fmi2DoStep")
@@ -497,9 +510,13 @@ class Worker:
             must, self.why = True, f"doStep({t}, {h})"
         elif abs(t - self.time) > TIME_MISMATCH * max(1.0, abs(t)):
             must, self.why = True, f"doStep at {t}, FMU at {self.time}"
-        elif h > 0 and not t + h / max(1.0, math.ceil(h / ss - 1e-9)) > t:
+        elif self.driver_period is not None and not t + h > t:  # the scenario FMU: one step, no internal ones
+            must, self.why = True, f"time cannot advance: {t} + {h}"
+        elif self.driver_period is not None and h / self.current_driver_period > SAMPLE_BUDGET:
+            must, self.why = True, f"step {h} holds more than {SAMPLE_BUDGET} driver samples"
+        elif self.driver_period is None and h > 0 and not t + h / max(1.0, math.ceil(h / ss - 1e-9)) > t:
             must, self.why = True, f"time cannot advance: {t} + internal steps of {h} split by {ss}"
-        elif h / ss > INTERNAL_STEP_BUDGET:
+        elif self.driver_period is None and h / ss > INTERNAL_STEP_BUDGET:
             must, self.why = True, f"step {h} needs more than {INTERNAL_STEP_BUDGET} internal steps of {ss}"
         elif t + h > self.stop:
             may = True  # past the stop time: the FMU may refuse
@@ -569,12 +586,13 @@ class Worker:
             handle = ctypes.c_void_p()
             if self.call("fmi2GetFMUstate", False, True, c, ctypes.byref(handle)) == OK:
                 self.issued(handle)
-                self.handles.append((handle, (self.state, self.time, self.stop, self.current_solver_step)))
+                self.handles.append((handle, (self.state, self.time, self.stop, self.current_solver_step,
+                                              self.current_driver_period)))
         elif choice == "set":
             handle, saved = r.choice(self.handles)
             if self.call("fmi2SetFMUstate", False, True, c, handle) == OK:
                 # the stop time belongs to the experiment, not to the FMU state: it stays
-                self.state, self.time, _, self.current_solver_step = saved
+                self.state, self.time, _, self.current_solver_step, self.current_driver_period = saved
         elif choice == "free":
             handle, _ = self.handles.pop(r.randrange(len(self.handles)))
             value = handle.value
@@ -672,18 +690,19 @@ class Worker:
     def sequence(self, index: int) -> None:
         self.rng = r = random.Random(self.seed * 1_000_003 + index)
         self.index, self.count = index, 0
-        self.kind = CS if r.random() < 0.6 else ME
+        self.kind = CS if r.random() < 0.6 or not self.model_exchange else ME
         guid = self.guid if r.random() > 0.02 else b"{00000000-0000-0000-0000-000000000000}"
         self.emit("c", index, -1, "fmi2Instantiate")
         if self.version == 2:
-            self.component = self.library.fmi2Instantiate(b"fuzz", self.kind, guid, b"", ctypes.byref(self.callbacks),
-                                                          0, 0)
+            self.component = self.library.fmi2Instantiate(b"fuzz", self.kind, guid, self.resources,
+                                                          ctypes.byref(self.callbacks), 0, 0)
         elif self.kind == CS:
-            self.component = self.library.fmi3InstantiateCoSimulation(b"fuzz", guid, b"", False, False, False, False,
-                                                                      None, 0, None, self.log_message3, None)
+            self.component = self.library.fmi3InstantiateCoSimulation(b"fuzz", guid, self.resources, False, False,
+                                                                      False, False, None, 0, None, self.log_message3,
+                                                                      None)
         else:
-            self.component = self.library.fmi3InstantiateModelExchange(b"fuzz", guid, b"", False, False, None,
-                                                                       self.log_message3)
+            self.component = self.library.fmi3InstantiateModelExchange(b"fuzz", guid, self.resources, False, False,
+                                                                       None, self.log_message3)
         if guid != self.guid:
             if self.component:
                 self.emit("V", index, -1, "fmi2Instantiate", "accepted a wrong GUID")
@@ -694,6 +713,7 @@ class Worker:
             return
         self.state, self.time, self.stop = "instantiated", 0.0, math.inf
         self.current_solver_step = self.solver_step.start if self.solver_step else 1e-3
+        self.current_driver_period = self.driver_period.start if self.driver_period else 0.05
         self.handles, self.blobs, self.freed = [], [], set()
         self.pending_times = (0.0, False, 0.0)
         for _ in range(r.randint(5, 40)):
@@ -747,8 +767,12 @@ def model_config(unzipped: Path, library: Path, seed: int) -> dict:
                       variability=v.variability, min=bound(v.min, -math.inf), max=bound(v.max, math.inf),
                       start=None if v.start is None or v.type == "Boolean" else float(v.start))
                  for v in description.modelVariables]
+    resources = unzipped / "resources"
+    location = "" if not resources.is_dir() else (
+        resources.as_uri() if description.fmiVersion.startswith("2") else str(resources) + os.sep)
     return {"library": str(library), "guid": description.guid, "variables": variables,
-            "fmi_version": int(description.fmiVersion[0]),
+            "fmi_version": int(description.fmiVersion[0]), "model_exchange": description.modelExchange is not None,
+            "resources": location,
             "nx": description.numberOfContinuousStates, "nz": description.numberOfEventIndicators, "seed": seed}
 
 

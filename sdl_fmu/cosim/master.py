@@ -28,12 +28,14 @@ from __future__ import annotations
 import math
 import random
 import time as wall_clock
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Callable, Literal
 
+from ..options import DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, MAX_TIME
 from ..run_result import RunResult
+from ..sdl.checks import attribute_without_tire, brk_ignored, rsa_without_effect
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
 from ..storage import EventLog
@@ -41,6 +43,7 @@ from ..units import FOOT, from_si
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from ..vehicle.controller import ControllerModel
 from .brake import BrakeHold
+from .closing import ClosingEnd
 from .clocks import SampleClocks
 from .driver import MAX_STEER, make_driver
 from .ego import step_until_time
@@ -55,19 +58,15 @@ from .signals import lead_of
 from .traffic import Traffic, choose_model
 from .triggers import EgoKinematics, ego_bounds
 
-DEFAULT_SPEED = 88 * FOOT  # m/s: 60 mph, the driver's start speed unless --speed says otherwise
 RUNOUT = 1000 * FOOT  # m driven past the last event when neither ES nor --until ends the run
-MAX_TIME = 3600.0  # s, a run never goes beyond
 # s: closer than this to a possible trigger the master steps this far from a saved state and bisects;
 # a trigger cannot become true and false again within it (contacts last > 0.1 s, margins move smoothly).
 # An FMU that cannot roll back is stepped this far and checked: its triggers are located within it.
 MIN_LOOKAHEAD = 1e-3
 # summary.json's ES reason
-EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision"]
+EndReason = Literal["scenario", "until_distance", "until_time", "runout", "time_limit", "collision", "not_closing"]
 DriverName = Literal["lane", "follow"]  # the built-in driver (docs/controllers.md)
 OnCollision = Literal["continue", "stop"]  # what the first contact does
-DEFAULT_DRIVER_PERIOD = 0.05  # s, the driver model's sampling period (20 Hz)
-DEFAULT_STEP = 1.0  # s, longest communication step (the driver's samples and the triggers cut it shorter)
 
 
 @dataclass
@@ -79,9 +78,7 @@ class RunOptions:
     driver_period: float = DEFAULT_DRIVER_PERIOD  # s, the driver model's sampling period
     until_distance: float | None = None  # m
     until_time: float | None = None  # s
-    parameters: dict[str, float] = field(default_factory=dict)  # FMU start values, SI
-    tire_parameters: dict[str, float] = field(default_factory=dict)  # tire slot start values (advanced)
-    known_attributes: set[int] | None = None  # attribute numbers with a tire file (advanced)
+    until_not_closing: int | None = None  # end once the ego, having closed on this vehicle (id), no longer does
     progress: Callable[[Cosimulation, EgoState], None] | None = None  # called after every recorded sample
     driver: DriverName = "lane"  # lane: holds its lane and speed; follow: also follows the vehicle ahead
     controller: ControllerModel | None = None  # a controller in the loop (docs/controllers.md)
@@ -89,8 +86,8 @@ class RunOptions:
 
 
 class Cosimulation:
-    """One run of a scenario against one ego vehicle (an EgoModel, or an FMU driven through the shipped map
-    of options.dynamics)."""
+    """One run of a scenario against one ego vehicle: an EgoModel with the run's FMU start values and tires
+    (EgoModel.with_parameters, with_tires), or an FMU driven through the shipped map of options.dynamics."""
 
     def __init__(self, scenario: Scenario, model: EgoModel | Path, options: RunOptions,
                  vehicle_table: dict[int, VehicleModel]):
@@ -103,7 +100,7 @@ class Cosimulation:
         self.rng = random.Random(options.seed)
         if not isinstance(model, EgoModel):
             model = EgoModel.open(model, shipped_map_path(options.dynamics))
-        self.model = model = model.with_parameters({**options.tire_parameters, **options.parameters})
+        self.model = model
         self.exact = model.can_roll_back  # triggers bisected to TIME_TOLERANCE, else located within MIN_LOOKAHEAD
         self.time_uncertainty = 0.0  # s, how exactly the instant of what fires now is known
         self.surfaces = surface_map(scenario, model.default_surface)
@@ -118,8 +115,10 @@ class Cosimulation:
         self.controller = None
         self.clocks, self.inputs = self._sampled(options, make_driver(speed, start_lateral, model), geometry)
         self.end_distance, self.end_reason = self._end_distance()
+        closing = None if options.until_not_closing is None else ClosingEnd(options.until_not_closing, self.traffic,
+                                                                             self.bounds)
         self.schedule = TriggerSchedule(scenario.events, self.end_distance, self.road, self.surfaces, geometry,
-                                        self.bounds, self.traffic, self.inputs)
+                                        self.bounds, self.traffic, self.inputs, closing)
         self.recorder = Recorder(model.wheel_columns, () if self.controller is None else CONTROLLER_COLUMNS)
         self.events = EventLog()  # summary.json's events, streamed to a file: memory stays bounded
         self.warnings: list[str] = list(self.ego.warnings)
@@ -128,8 +127,7 @@ class Cosimulation:
                                  f"within a communication step of at most {MIN_LOOKAHEAD:g} s, not bisected to "
                                  f"{TIME_TOLERANCE:g} s (time_uncertainty_s on each event)")
         if model.friction is None:
-            self.warnings += [f"line {event.line}: RSA has no effect: the vehicle map of {model.name} has no friction "
-                              "input, so the road surface cannot act on the vehicle"
+            self.warnings += [rsa_without_effect(event.line, model.name)
                               for event in scenario.events if isinstance(event, SurfaceAttribute)]
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
@@ -290,6 +288,8 @@ class Cosimulation:
                 self.release_brakes(state, reason)
         if len(self.traffic.active):
             self.fire_traffic(state)
+        if schedule.closing is not None and not self.finished and schedule.closing.fire(state):
+            self.finish(state, "not_closing")
         if state.s >= self.end_distance:
             self.finish(state, self.end_reason)
 
@@ -338,7 +338,7 @@ class Cosimulation:
         elif isinstance(event, Brake):
             brake_hold = self.inputs.brake_hold
             if not self.model.brk_acts:
-                self.warnings.append(f"line {event.line}: BRK ignored: brake events act only with simple dynamics")
+                self.warnings.append(brk_ignored(event.line))
             elif brake_hold is not None:
                 self.warnings.append(f"line {event.line}: BRK ignored: the brake event of line "
                                      f"{brake_hold.event.line} is still on")
@@ -350,9 +350,9 @@ class Cosimulation:
         elif isinstance(event, SurfaceAttribute):
             for lane, value in event.settings:
                 self.log("RSA", "set", state, lane=lane, value=value, line=event.line)
-                if self.options.known_attributes is not None and int(value) not in self.options.known_attributes:
-                    self.warnings.append(f"line {event.line}: RSA attribute {int(value)} (lane {lane}) has no entry "
-                                         "in the Tire Attribute File: attribute 0 (standard tires) is used")
+                known = self.model.known_attributes
+                if known is not None and int(value) not in known:
+                    self.warnings.append(attribute_without_tire(event.line, int(value), lane))
         elif isinstance(event, EndOfScenario):
             self.finish(state, "scenario")
 
@@ -362,8 +362,8 @@ class Cosimulation:
         self.inputs.release_brakes(state)
 
     def finish(self, state: EgoState, reason: EndReason) -> None:
-        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit or collision
-        (--on-collision stop)."""
+        """Ends the run; reason: scenario (ES), until_distance, until_time, runout, time_limit, collision
+        (--on-collision stop) or not_closing."""
         if self.finished:
             return
         if self.inputs.brake_hold is not None:

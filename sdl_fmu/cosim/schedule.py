@@ -16,6 +16,7 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoState
+from .closing import ClosingEnd
 from .inputs import Inputs
 from .geometry import SCALAR_VEHICLES, reach_time_scalar
 from .road import SurfaceMap, WheelGeometry
@@ -23,7 +24,7 @@ from .traffic import Traffic
 from .triggers import (EgoBounds, EgoKinematics, vehicle_condition, vehicle_conditions, vehicle_horizon,
                        vehicle_horizons, vehicle_triggered)
 
-TriggerKind = Literal["event", "end", "brake", "surface", "traffic"]
+TriggerKind = Literal["event", "end", "brake", "surface", "traffic", "closing"]
 
 SURFACE_WINDOW = 1.0  # s, how far ahead lane edges between differing surfaces are looked for
 
@@ -32,8 +33,9 @@ class TriggerSchedule:
     """The events still to fire (in distance order), the end distance, and the kept bounds on every trigger."""
 
     def __init__(self, events: list, end_distance: float, road: Road, surfaces: SurfaceMap, geometry: WheelGeometry,
-                 bounds: EgoBounds, traffic: Traffic, inputs: Inputs):
+                 bounds: EgoBounds, traffic: Traffic, inputs: Inputs, closing: ClosingEnd | None = None):
         self.events = events
+        self.closing = closing  # the end when the ego no longer closes on a vehicle (closing.py), if asked for
         self.next_event = 0  # index of the first event not yet fired
         self.end_distance = end_distance
         self.road, self.surfaces, self.geometry = road, surfaces, geometry
@@ -107,6 +109,11 @@ class TriggerSchedule:
             near["surface"] = self.surface_next
         if len(self.traffic.active):
             near["traffic"] = self.traffic_horizon(state, limit)
+        if self.closing is not None:
+            bound = cached.get("closing", -math.inf)
+            if bound < limit:
+                bound = cached["closing"] = self.closing.horizon(state)
+            near["closing"] = bound
         return near
 
     def surface_horizon(self, state: EgoState) -> float:
@@ -200,6 +207,8 @@ class TriggerSchedule:
         if "brake" in kinds and self.inputs.brake_hold.release_reason(state):
             return True
         if "surface" in kinds and self.inputs.surfaces_under_wheels(state) != self.inputs.applied_surfaces:
+            return True
+        if "closing" in kinds and self.closing.triggered(state):
             return True
         if "traffic" in kinds:
             traffic = self.traffic

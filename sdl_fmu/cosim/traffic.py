@@ -22,6 +22,15 @@ def choose_model(event: ApproachingVehicle, rng: random.Random) -> int:
     return rng.randint(event.model.low, event.model.high) if event.model.is_random else event.model.low
 
 
+def _initial_transition(event: ApproachingVehicle, lateral: float, speed: float, ego_lateral: float,
+                        ego_speed: float) -> tuple[float, float, float]:
+    """(lateral1, speed1, duration) of a vehicle's motion from its spawn: its `initial` transition, else holding."""
+    if event.initial is None:
+        return lateral, speed, 0.0
+    return (event.initial.lateral.resolve(ego_lateral), event.initial.speed.resolve(ego_speed),
+            event.initial.duration)
+
+
 WHERE_CODES = {None: 0, "F": 1, "B": 2}
 
 
@@ -60,17 +69,18 @@ class Traffic:
 
     def add(self, event: ApproachingVehicle, model: VehicleModel, t: float, ego_station: float, ego_lateral: float,
             ego_speed: float) -> int:
-        """Spawns a vehicle (docs/scenarios.md: gap and lateral from the event, starred values from the ego); its
-        index."""
+        """Spawns a vehicle (docs/scenarios.md: gap and lateral from the event, starred values from the ego; a
+        generated event's `initial` transition starts at once); its index."""
         if self.size == len(self.t0):
             self._grow()
         i = self.size
         self.size += 1
         speed = event.speed.resolve(ego_speed)
         lateral = event.lateral.resolve(ego_lateral)
-        self.t0[i], self.station0[i], self.duration[i] = t, ego_station + event.gap, 0.0
-        self.lateral0[i] = self.lateral1[i] = lateral
-        self.speed0[i] = self.speed1[i] = speed
+        self.t0[i], self.station0[i] = t, ego_station + event.gap
+        self.lateral0[i], self.speed0[i] = lateral, speed
+        self.lateral1[i], self.speed1[i], self.duration[i] = _initial_transition(event, lateral, speed, ego_lateral,
+                                                                                  ego_speed)
         self.length[i], self.width[i] = model.length, model.width
         self.next_action[i], self.in_contact[i], self.present[i] = 0, False, True
         self.next_check[i] = t

@@ -84,13 +84,15 @@ from dataclasses import replace
 
 import casadi as ca
 
-from ..interface import DISCRETE, STATE, WHEELS, Interface, load_interface
+from ..interface import DISCRETE, STATE, Interface, load_interface
+from ..names import SHIPPED_MODELS, WHEELS
+from ..tire_files import DEFAULT_ATTRIBUTE_FILE, SLOT_KEYS
 from ..units import STANDARD_GRAVITY
 from .equations import MODEL_EXCHANGE, Equations, make_symbols
 from .planar import body_derivatives
-from .tires import DEFAULT_ATTRIBUTE_FILE, SLOT_COUNT, SLOT_KEYS, slot_parameter_name, slot_parameters
+from .tires import SLOT_COUNT, slot_parameter_name, slot_parameters
 
-MODEL_NAME = "EgoVehicleAdvanced"
+MODEL_NAME = SHIPPED_MODELS["advanced"]
 LEFT_SIDE = {"fl": 1, "fr": -1, "rl": 1, "rr": -1}  # +1 left wheel, -1 right wheel
 SLIP_SPEED_FLOOR = 0.1  # m/s, v_low of the slip definitions
 SPIN_SMOOTHING = 0.1  # rad/s, w_s of the rolling-resistance torque

@@ -32,12 +32,13 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..interface import DISCRETE, STATE, WHEELS, load_interface
+from ..interface import DISCRETE, STATE, load_interface
+from ..names import SHIPPED_MODELS, WHEELS
 from ..units import STANDARD_GRAVITY
 from .equations import Equations, make_symbols
 from .planar import body_derivatives
 
-MODEL_NAME = "EgoVehicleSimple"
+MODEL_NAME = SHIPPED_MODELS["simple"]
 # Holding margin: the net tire force must exceed the holding forces by this much (m/s2) to start moving;
 # it keeps the at-rest event indicator strictly negative when nothing pushes.
 START_MARGIN = 1e-6

@@ -17,13 +17,10 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from .. import __version__, paths
-from .package import MODELS, FmiVersion, build_fmus, fmu_path, mingw_compiler
-
-if TYPE_CHECKING:
-    from ..vehicle.vehicle_map import Dynamics
+from ..names import BUILT, SHIPPED_CONTROLLERS, Dynamics
+from .package import FmiVersion, build_fmus, fmu_path, mingw_compiler
 
 CACHE_VARIABLE = "SDL_FMU_CACHE"
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
@@ -47,23 +44,29 @@ def _compiler_identity(compiler: str) -> str:
         return f"unavailable: {error}"  # build_fmu reports the missing compiler itself
 
 
-def build_inputs() -> dict[str, Path]:
-    """Everything a build reads, by its place in the checkout (the same in any install): the model and build
-    code, the interface data, the tire files the Advanced FMU's start values come from, the C runtime."""
+def build_inputs(dynamics: Dynamics = "simple") -> dict[str, Path]:
+    """Everything a build of `dynamics` reads, by its place in the checkout (the same in any install): the model and
+    build code, the interface data, the tire files the Advanced FMU's start values come from, the C runtime; for a
+    controller (sdl_fmu/controllers/) its module too."""
     package = paths.PACKAGE_DIRECTORY
-    return {"sdl_fmu/interface.py": package / "interface.py", "sdl_fmu/units.py": package / "units.py",
-            "sdl_fmu/dynamics": package / "dynamics", "sdl_fmu/fmu": package / "fmu",
-            "modelDescription": paths.MODEL_DESCRIPTION_DIRECTORY, "scenarios/tires": paths.TIRE_DIRECTORY}
+    inputs = {"sdl_fmu/interface.py": package / "interface.py", "sdl_fmu/units.py": package / "units.py",
+              "sdl_fmu/names.py": package / "names.py", "sdl_fmu/tire_files.py": package / "tire_files.py",
+              "sdl_fmu/dynamics": package / "dynamics", "sdl_fmu/fmu": package / "fmu",
+              "modelDescription": paths.MODEL_DESCRIPTION_DIRECTORY, "scenarios/tires": paths.TIRE_DIRECTORY}
+    if dynamics in SHIPPED_CONTROLLERS:
+        inputs["sdl_fmu/controllers"] = package / "controllers"
+    return inputs
 
 
-def _input_files() -> list[tuple[str, Path]]:
-    """(name in the key, file) of every build input."""
+def _input_files(dynamics: Dynamics = "simple") -> list[tuple[str, Path]]:
+    """(name in the key, file) of every build input; another model's interface data is not one."""
+    others = {f"modelDescription/{model}.json" for name, model in BUILT.items() if name != dynamics}
     files = []
-    for name, path in build_inputs().items():
+    for name, path in build_inputs(dynamics).items():
         candidates = sorted(path.rglob("*")) if path.is_dir() else [path]
         files += [(f"{name}/{f.relative_to(path).as_posix()}" if path.is_dir() else name, f) for f in candidates
                   if f.is_file() and f.suffix in BUILD_SUFFIXES and "__pycache__" not in f.parts]
-    return files
+    return [(name, f) for name, f in files if name not in others]
 
 
 def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
@@ -74,12 +77,12 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     digest = hashlib.sha256()
     compiler = os.environ.get("CC", "gcc")
     cross_compiler = mingw_compiler()  # None: the FMU gets no Windows binary, a different FMU
-    for part in (f"sdl-fmu {__version__}", f"model {MODELS[dynamics][0]}", f"fmi {fmi_version}",
+    for part in (f"sdl-fmu {__version__}", f"model {BUILT[dynamics]}", f"fmi {fmi_version}",
                  f"casadi {casadi.__version__}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
                  _compiler_identity(compiler), f"mingw {cross_compiler}",
                  _compiler_identity(cross_compiler) if cross_compiler else ""):
         digest.update(part.encode() + b"\0")
-    for name, path in _input_files():
+    for name, path in _input_files(dynamics):
         digest.update(name.encode() + b"\0")
         digest.update(hashlib.sha256(path.read_bytes()).digest())
     return digest.hexdigest()
@@ -100,7 +103,8 @@ def _remove_abandoned_builds(root: Path) -> None:
 
 
 def _cache_folder(dynamics: Dynamics, fmi_version: FmiVersion) -> Path:
-    return cache_directory() / f"{MODELS[dynamics][0]}-fmi{fmi_version}-{build_key(dynamics, fmi_version)[:24]}"
+    key = build_key(dynamics, fmi_version)
+    return cache_directory() / f"{BUILT[dynamics]}-fmi{fmi_version}-{key[:24]}"
 
 
 def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, ...] = (2,),

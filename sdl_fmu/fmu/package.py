@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import concurrent.futures
 import importlib
 import inspect
 import os
@@ -12,25 +13,25 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
+from ..names import BUILT, Dynamics, equations_module
 from .codegen import (RUNTIME_DIRECTORY, RUNTIME_HEADERS, generate_casadi, generate_derivatives_source,
                       generate_model_source, model_guid, runtime_sources, variable_table)
 from .documentation import DOCUMENTATION, LICENSE_ENTRY, index_html, license_text
 from .structure import declared_dependencies, reinitialized_states
 from .xml import build_description, model_description, model_description_fmi3
 
-if TYPE_CHECKING:
-    from ..vehicle.vehicle_map import Dynamics
-
 FmiVersion = Literal[2, 3]  # the FMI standard's major version an FMU is built for
 
-# dynamics name -> (model name, module with equations())
-MODELS = {
-    "simple": ("EgoVehicleSimple", "sdl_fmu.dynamics.simple"),
-    "advanced": ("EgoVehicleAdvanced", "sdl_fmu.dynamics.advanced"),
-}
 WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
+# Optimisation: -O2 for the runtime and the model functions the solver calls every step; -O0 for the derivative
+# sweeps (<Model>_derivatives.c), which only fmi2GetDirectionalDerivative / fmi3GetDirectionalDerivative /
+# fmi3GetAdjointDerivative call. The Advanced FMU's 1.2 MB of generated sweeps cost 28 s of gcc and 31 s of mingw-w64
+# CPU at -O2, 3.3 s and 3.4 s at -O0; a directional derivative then takes 31 instead of 20 us (docs/fmu-runtime.md,
+# The FMU cache).
+OPTIMIZATION = "-O2"
+DERIVATIVES_OPTIMIZATION = "-O0"
 # only the fmi* functions are exported: CasADi's generated functions stay internal to the library
 EXPORT_FLAGS = ["-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
 # mingw-w64 cross compiler (Debian gcc-mingw-w64-x86-64); override with SDL_FMU_MINGW_CC
@@ -56,7 +57,7 @@ def fmi_headers() -> Path:
 
 
 def fmu_path(out_dir: Path, dynamics: Dynamics, fmi_version: FmiVersion = 2) -> Path:
-    return Path(out_dir) / f"fmi{fmi_version}" / f"{MODELS[dynamics][0]}.fmu"
+    return Path(out_dir) / f"fmi{fmi_version}" / f"{BUILT[dynamics]}.fmu"
 
 
 def mingw_compiler() -> str | None:
@@ -72,17 +73,19 @@ def _compiler(compiler: str | None) -> str:
     return compiler
 
 
-def _compile_flags(sources_dir: Path, windows: bool, extra_flags: tuple[str, ...]) -> list[str]:
+def _compile_flags(sources_dir: Path, windows: bool, extra_flags: tuple[str, ...],
+                   optimization: str = OPTIMIZATION) -> list[str]:
     position_independent = [] if windows else ["-fPIC"]  # Windows code is always position independent
-    return ["-std=c99", "-O2", *position_independent, *EXPORT_FLAGS, *WARNING_FLAGS, *extra_flags,
+    return ["-std=c99", optimization, *position_independent, *EXPORT_FLAGS, *WARNING_FLAGS, *extra_flags,
             f"-I{fmi_headers()}", f"-I{sources_dir}"]
 
 
 def _object_command(sources_dir: Path, source: str, output: Path, compiler: str | None = None,
-                    windows: bool = False, extra_flags: tuple[str, ...] = ()) -> list[str]:
+                    windows: bool = False, extra_flags: tuple[str, ...] = (),
+                    optimization: str = OPTIMIZATION) -> list[str]:
     output.parent.mkdir(parents=True, exist_ok=True)
-    return [_compiler(compiler), *_compile_flags(sources_dir, windows, extra_flags), "-c", str(sources_dir / source),
-            "-o", str(output)]
+    return [_compiler(compiler), *_compile_flags(sources_dir, windows, extra_flags, optimization), "-c",
+            str(sources_dir / source), "-o", str(output)]
 
 
 def _binary_command(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
@@ -95,17 +98,51 @@ def _binary_command(sources_dir: Path, sources: list[str], output: Path, compile
             *[str(sources_dir / s) for s in sources], *map(str, objects), "-o", str(output), "-lm"]
 
 
-def _run_compilers(commands: list[list[str]]) -> None:
-    """Runs compiler commands side by side (gcc and mingw-w64 at once); raises BuildError naming each failure."""
-    running = [(command, subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
-               for command in commands]
+def _run_compilers(commands: list[list[str]], progress: _Progress | None = None) -> None:
+    """Runs compiler commands side by side (gcc and mingw-w64 at once, each file its own process); raises
+    BuildError naming each failure. `progress` advances as each command ends."""
     failures = []
-    for command, process in running:
-        _, stderr = process.communicate()
-        if process.returncode != 0:
-            failures.append(f"compiling {Path(command[-1]).name} failed:\n{' '.join(command)}\n{stderr}")
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(len(commands), 1)) as pool:
+        running = {pool.submit(subprocess.run, command, capture_output=True, text=True): command
+                   for command in commands}
+        for done in concurrent.futures.as_completed(running):
+            command, completed = running[done], done.result()
+            if completed.returncode != 0:
+                failures.append(f"compiling {Path(command[-1]).name} failed:\n{' '.join(command)}\n{completed.stderr}")
+            if progress is not None:
+                progress.advance()
     if failures:
         raise BuildError("\n".join(failures))
+
+
+class _Progress:
+    """The build's progress on stderr, on a terminal only (elsewhere nothing, so that what tests read from stderr
+    stays the same): a tqdm bar over the build's steps (the code generation, each compiler run, each FMU's zip),
+    labelled with the stage and its elapsed time. A compiler run is one step whatever its length: the bar shows
+    that the build is alive and how far it is, not a time estimate."""
+
+    def __init__(self, model: str, total: int, enabled: bool | None):
+        self.model = model
+        self.bar = None
+        if enabled if enabled is not None else sys.stderr.isatty():
+            from tqdm import tqdm
+
+            # every step drawn (a few dozen at most); the terminal's width, 80 where it reports none
+            self.bar = tqdm(total=total, file=sys.stderr, leave=False, unit="step", mininterval=0,
+                            ncols=shutil.get_terminal_size().columns,
+                            bar_format="{desc}: {bar} {n_fmt}/{total_fmt} steps, {elapsed}")
+
+    def stage(self, text: str) -> None:
+        if self.bar is not None:
+            self.bar.set_description_str(f"{self.model}: {text}")
+
+    def advance(self) -> None:
+        if self.bar is not None:
+            self.bar.update()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
@@ -121,23 +158,35 @@ def build_fmu(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"), fmi_v
 
 
 def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
-               fmi_versions: tuple[FmiVersion, ...] = FMI_VERSIONS) -> list[Path]:
+               fmi_versions: tuple[FmiVersion, ...] = FMI_VERSIONS, progress: bool | None = None) -> list[Path]:
     """Builds the FMUs of one dynamics model in several FMI versions from one code generation; the model
     code (CasADi's C and the variable table) is compiled once per platform and linked into each version's
-    binaries. Without mingw-w64, one line on stderr says so and the FMUs carry the Linux binary only."""
+    binaries. Without mingw-w64, one line on stderr says so and the FMUs carry the Linux binary only.
+    progress: a bar on stderr while building (None: only when stderr is a terminal)."""
     for version in fmi_versions:
         if version not in FMI_VERSIONS:
             raise BuildError(f"FMI version {version!r} is not supported: choose one of "
                              f"{', '.join(map(str, FMI_VERSIONS))}")
-    model, module = MODELS[dynamics]
-    equations = importlib.import_module(module).equations()
+    model = BUILT[dynamics]
+    equations = importlib.import_module(equations_module(dynamics)).equations()
     cross = mingw_compiler()
     if cross is None:
         wanted = os.environ.get("SDL_FMU_MINGW_CC", MINGW_COMPILER)
         print(f"sdl-fmu: {wanted} not found: the {model} FMUs get no Windows binary (Debian: apt-get install "
               f"gcc-mingw-w64-x86-64)", file=sys.stderr)
-    targets = []
+    platforms = 2 if cross else 1
+    shown = _Progress(model, 1 + 2 * platforms + len(fmi_versions) * (platforms + 1), progress)
+    try:
+        return _build(dynamics, equations, out_dir, fmi_versions, cross, shown)
+    finally:
+        shown.close()
+
+
+def _build(dynamics: Dynamics, equations, out_dir: Path, fmi_versions: tuple[FmiVersion, ...], cross: str | None,
+           shown: _Progress) -> list[Path]:
+    model, module = BUILT[dynamics], equations_module(dynamics)
     with tempfile.TemporaryDirectory(prefix=f"{model}-") as work:
+        shown.stage("generating the C code")
         generated = Path(work) / "generated"
         generated.mkdir()
         functions, casadi_source = generate_casadi(equations, generated)
@@ -146,14 +195,19 @@ def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
                          generate_derivatives_source(equations, generated).name]
         for name in RUNTIME_HEADERS:
             shutil.copy(RUNTIME_DIRECTORY / name, generated / name)
-        # the model code, compiled once per platform (gcc and mingw-w64 side by side), linked into each version
+        shown.advance()
+        # the model code, compiled once per platform (gcc and mingw-w64 side by side, each file its own
+        # process), linked into each version; the derivative sweeps at DERIVATIVES_OPTIMIZATION
+        levels = [OPTIMIZATION, DERIVATIVES_OPTIMIZATION]
         linux_objects = [Path(work) / "linux" / (Path(source).stem + ".o") for source in model_sources]
         windows_objects = [Path(work) / "windows" / (Path(source).stem + ".o") for source in model_sources]
-        commands = [_object_command(generated, source, output) for source, output in zip(model_sources, linux_objects)]
+        commands = [_object_command(generated, source, output, optimization=level)
+                    for source, output, level in zip(model_sources, linux_objects, levels)]
         if cross:
-            commands += [_object_command(generated, source, output, cross, windows=True)
-                         for source, output in zip(model_sources, windows_objects)]
-        _run_compilers(commands)
+            commands += [_object_command(generated, source, output, cross, windows=True, optimization=level)
+                         for source, output, level in zip(model_sources, windows_objects, levels)]
+        shown.stage(f"compiling the model code ({len(commands)} compiler runs)")
+        _run_compilers(commands, shown)
         nz = functions["event_indicators"].size1_out(0)
         table = variable_table(equations.interface, nz)
         dependencies = declared_dependencies(equations, table)
@@ -185,8 +239,13 @@ def build_fmus(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"),
                                              root / "binaries" / WINDOWS_BINARY_DIRECTORY[version] / f"{model}.dll",
                                              cross, objects=tuple(windows_objects), windows=True))
             roots.append((root, fmu_path(out_dir, dynamics, version)))
-        _run_compilers(links)
-        targets = [_zip_fmu(root, target) for root, target in roots]
+        shown.stage(f"compiling the runtime and linking ({len(links)} binaries)")
+        _run_compilers(links, shown)
+        shown.stage("packaging")
+        targets = []
+        for root, target in roots:
+            targets.append(_zip_fmu(root, target))
+            shown.advance()
     return targets
 
 

@@ -63,7 +63,10 @@ class Action:
 
 @dataclass(frozen=True, slots=True)
 class ApproachingVehicle:
-    """SDL 'A': a traffic vehicle appearing `gap` ahead (behind if negative) with up to 5 actions."""
+    """SDL 'A': a traffic vehicle appearing `gap` ahead (behind if negative) with up to 5 actions.
+
+    `initial`, which SDL text cannot give (the vehicle test packs generate it), is a transition that starts at the
+    spawn itself (its trigger is not used): a target that brakes from the start of a test."""
 
     line: int
     distance: float
@@ -72,6 +75,7 @@ class ApproachingVehicle:
     lateral: Relative
     model: ModelChoice
     actions: tuple[Action, ...]
+    initial: Action | None = None
     code: ClassVar[str] = "A"
 
 

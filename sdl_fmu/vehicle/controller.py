@@ -16,7 +16,7 @@ from .controller_map import (REQUESTS, SIGNALS, ControllerMap, ControllerMapErro
                              load_controller_map)
 from .instance import FmuError
 from .model import INTEGER_TYPES, REAL_TYPES, read_description, si_conversion
-from .vehicle_map import Channel
+from .vehicle_map import Channel, VehicleMapError
 
 
 class ControllerError(FmuError):
@@ -87,23 +87,24 @@ class ControllerModel:
         """The model of a controller FMU driven through a controller map (fmu None: the map's own `fmu` key).
         Raises ControllerMapError (one line naming the map file and key, or the FMU) before anything runs."""
         if controller_map is None:
-            raise ControllerMapError("--controller-map: a controller map is needed to put a controller in the loop "
-                                     "(see docs/controllers.md)")
+            raise ControllerMapError("controller_map", "a controller map is needed to put a controller in the loop "
+                                                       "(see docs/controllers.md)")
         if not isinstance(controller_map, ControllerMap):
             controller_map = load_controller_map(controller_map)
         if fmu is None:
             if controller_map.fmu is None:
-                raise ControllerMapError(f"{controller_map.label}: fmu: missing (give the FMU with --controller or in "
-                                         "the map)")
+                raise ControllerMapError("controller_map", f"{controller_map.label}: fmu: missing (give the FMU as the "
+                                                           "controller option or in the map)")
             fmu = controller_map.fmu
         try:
-            description = read_description(Path(fmu), "--controller")
-        except ValueError as error:  # read_description's VehicleMapError, naming --controller
-            raise ControllerMapError(str(error)) from None
+            description = read_description(Path(fmu), "controller")
+        except VehicleMapError as error:  # naming the controller option
+            raise ControllerMapError(error.option, str(error) if error.subject is None else "",
+                                     subject=error.subject) from None
         return cls(Path(fmu), controller_map, description)
 
     def _fail(self, key: str, reason: str):
-        raise ControllerMapError(f"{self.map.label}: {key}: {reason}")
+        raise ControllerMapError("controller_map", f"{self.map.label}: {key}: {reason}")
 
     def _variable(self, key: str, name: str, causalities: tuple[str, ...]):
         variable = self.variables.get(name)

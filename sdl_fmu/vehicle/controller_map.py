@@ -54,7 +54,8 @@ TOP_LEVEL = ("name", "fmu", "period", "inputs", "outputs", "arbitration", "param
 
 
 class ControllerMapError(VehicleMapError):
-    """A controller map (or the FMU it names) that cannot run: one line naming the file and the key."""
+    """A controller map (or the FMU it names) that cannot run: one line naming the file and the key (option
+    `controller_map`), or the option (`controller_map`, `controller`) and its value (VehicleMapError)."""
 
 
 @dataclass(frozen=True)
@@ -83,15 +84,15 @@ def load_controller_map(path: str | Path) -> ControllerMap:
     try:
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
-        raise ControllerMapError(f"--controller-map {path}: no such file") from None
+        raise ControllerMapError.of("controller_map", path, "no such file") from None
     except IsADirectoryError:
-        raise ControllerMapError(f"--controller-map {path}: is a folder, not a file") from None
+        raise ControllerMapError.of("controller_map", path, "is a folder, not a file") from None
     except UnicodeDecodeError:
-        raise ControllerMapError(f"{path}: not TOML (not UTF-8 text)") from None
+        raise ControllerMapError("controller_map", f"{path}: not TOML (not UTF-8 text)") from None
     except tomllib.TOMLDecodeError as error:
-        raise ControllerMapError(f"{path}: not TOML: {error}") from None
+        raise ControllerMapError("controller_map", f"{path}: not TOML: {error}") from None
     except OSError as error:
-        raise ControllerMapError(f"--controller-map {path}: cannot be read ({error.strerror})") from None
+        raise ControllerMapError.of("controller_map", path, f"cannot be read ({error.strerror})") from None
     return parse_controller_map(data, path)
 
 
@@ -99,7 +100,7 @@ def parse_controller_map(data: dict, path: Path | None = None) -> ControllerMap:
     label = str(path) if path is not None else "<controller map>"
 
     def fail(key: str, reason: str):
-        raise ControllerMapError(f"{label}: {key}: {reason}")
+        raise ControllerMapError("controller_map", f"{label}: {key}: {reason}")
 
     for key in data:
         if key not in TOP_LEVEL:

@@ -8,14 +8,15 @@ import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Literal, NoReturn
+from typing import Callable, Literal, NoReturn
 
-from ..interface import WHEELS
-from .vehicle_map import (Channel, Dynamics, FrictionMeaning, VehicleMap, VehicleMapError, declared_range_problem,
-                          load_vehicle_map, shipped_map_path, vehicle_value_problem)
+import numpy as np
 
-if TYPE_CHECKING:
-    from ..fmu.package import FmiVersion
+from ..names import WHEELS
+from ..tire_files import SLOT_KEYS, TireFileError, default_attribute_file, slot_parameter, slot_values
+from ..units import STANDARD_GRAVITY
+from .vehicle_map import (Channel, FrictionMeaning, VehicleMap, VehicleMapError, declared_range_problem,
+                          load_vehicle_map, vehicle_value_problem)
 
 # surface value of a lane nobody set, per friction meaning: 10 x the nominal mu 0.8, or attribute 0
 DEFAULT_SURFACE = {"mu": 8.0, "attribute": 0.0, None: 8.0}
@@ -25,6 +26,10 @@ VEHICLE_DEFAULTS = {"mass": 1500.0, "drive_accel_max": 3.0, "drive_power_max": 1
 DEFAULT_PEAK_FRICTION = 1.5  # the friction bound of a vehicle whose map gives none: above any road tire's peak
 REAL_TYPES = ("Real", "Float64", "Float32")
 INTEGER_TYPES = ("Integer", "Enumeration", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64")
+# the value range of each FMI 3.0 integer type (a declared min/max narrows it; FMI 2.0's Integer is 32-bit)
+INTEGER_RANGES = {"Integer": (-2**31, 2**31 - 1), "Enumeration": (-2**31, 2**31 - 1),
+                  **{f"Int{bits}": (-2**(bits - 1), 2**(bits - 1) - 1) for bits in (8, 16, 32, 64)},
+                  **{f"UInt{bits}": (0, 2**bits - 1) for bits in (8, 16, 32, 64)}}
 # SI unit each quantity is in inside sdl-fmu (pedals and friction are taken as given, without units)
 SI_UNITS = {"steer": "rad", "x": "m", "y": "m", "distance": "m", "yaw": "rad", "speed": "m/s", "vx": "m/s",
             "vy": "m/s", "yaw_rate": "rad/s", "ax": "m/s**2", "ay": "m/s**2"}
@@ -133,9 +138,10 @@ def parameter_defaults(description) -> dict[str, float]:
 class EgoModel:
     """The ego vehicle of one run: an FMU and its vehicle map, resolved against each other.
 
-    Interface pinned in EGO_MODEL_INTERFACE.md; everything here is in SI."""
+    What the run asks of it: docs/vehicle-maps.md; everything here is in SI."""
 
-    def __init__(self, fmu_path: Path, vehicle_map: VehicleMap, description, overrides: dict[str, float] | None = None):
+    def __init__(self, fmu_path: Path, vehicle_map: VehicleMap, description, overrides: dict[str, float] | None = None,
+                 known_attributes: frozenset[int] | None = None, warnings: tuple[str, ...] = ()):
         self.fmu_path = Path(fmu_path)
         self.map = vehicle_map
         self.map_path = vehicle_map.path
@@ -157,6 +163,10 @@ class EgoModel:
                 self._fail(f"parameters.{name}", problem)
         self.overrides = dict(overrides or {})
         self.parameters = {**parameter_defaults(description), **vehicle_map.parameters, **self.overrides}
+        # the surface attribute numbers the run's Tire Attribute File gives (None: no tire file), and what reading
+        # it warned of
+        self.known_attributes = known_attributes
+        self.warnings = warnings
         self._resolve_vehicle()
 
     # ---- construction -------------------------------------------------------------------------------------
@@ -166,20 +176,108 @@ class EgoModel:
         """The model of an FMU driven through a vehicle map (fmu None: the map's own `fmu` key). Raises
         VehicleMapError (one line naming the map file and key, or the FMU) before anything runs."""
         if vehicle is None:
-            raise VehicleMapError("--vehicle: a vehicle map is needed to drive an FMU (see docs/vehicle-maps.md)")
+            raise VehicleMapError("vehicle", "a vehicle map is needed to drive an FMU (see docs/vehicle-maps.md)")
         vehicle_map = vehicle if isinstance(vehicle, VehicleMap) else load_vehicle_map(vehicle)
         if fmu is None:
             if vehicle_map.fmu is None:
-                raise VehicleMapError(f"{vehicle_map.label}: fmu: missing (give the FMU with --fmu or in the map)")
+                raise VehicleMapError("vehicle", f"{vehicle_map.label}: fmu: missing (give the FMU as the fmu option "
+                                                 "or in the map)")
             fmu = vehicle_map.fmu
         return cls(Path(fmu), vehicle_map, read_description(Path(fmu)))
 
-    def with_parameters(self, overrides: dict[str, float]) -> EgoModel:
-        """This model with these FMU start values (--param, tire slots) for the run: its properties follow."""
-        return EgoModel(self.fmu_path, self.map, self.description, {**self.overrides, **overrides})
+    def _with(self, overrides: dict[str, float], **changes) -> EgoModel:
+        fields = {"known_attributes": self.known_attributes, "warnings": self.warnings, **changes}
+        return EgoModel(self.fmu_path, self.map, self.description, {**self.overrides, **overrides}, **fields)
+
+    def with_parameters(self, values: dict[str, float] | None) -> EgoModel:
+        """This model with these FMU start values for the run (the `params` option, SI), each checked against the
+        FMU: a parameter it declares, Real (a finite number) or Integer (a whole number), within its declared min and
+        max. The model's properties follow them (the [vehicle] values that name a parameter). VehicleMapError
+        naming `params` and the assignment otherwise."""
+        checked = {name: self._checked_parameter(name, value) for name, value in (values or {}).items()}
+        try:
+            return self._with(checked)
+        except VehicleMapError as error:  # a [vehicle] value that follows a parameter, outside its range: that one
+            name = next((name for name in checked if f"parameter {name!r}" in str(error)), None)
+            if name is None:
+                raise
+            raise VehicleMapError.of("params", f"{name}={checked[name]:g}", str(error)) from None
+
+    def with_tires(self, attribute_file: str | Path | None = None) -> EgoModel:
+        """This model with its tire slots (the map's `tire_slots`) filled from a Tire Attribute File (None: the
+        shipped one), each slot's coefficients named by the map's prefix (tire_files.slot_parameter); it then knows
+        the attribute numbers the file gives (`known_attributes`) and carries the file's warnings. VehicleMapError
+        naming `tires` for a bad file, or for a file given to a vehicle without tire slots; without either, the
+        model itself."""
+        prefix = None if self.friction is None else self.friction.tire_slots
+        if prefix is None:
+            if attribute_file is not None:
+                raise VehicleMapError.of("tires", attribute_file, "applies to the advanced dynamics only (a vehicle "
+                                         f"map whose friction input has tire_slots; {self.name}'s has none)")
+            return self
+        path = default_attribute_file() if attribute_file is None else Path(attribute_file)
+        slots = self.tire_slot_numbers()
+        try:
+            values, attributes, warnings = slot_values(path, len(slots))
+        except TireFileError as error:
+            raise VehicleMapError("tires", str(error).strip().splitlines()[0]) from None
+        starts = {}
+        for slot, coefficients in zip(slots, values):
+            for key in SLOT_KEYS:
+                name = slot_parameter(prefix, slot, key)
+                if name not in self.variables:
+                    self._fail(f"{self.friction_key}.tire_slots", f"the FMU {self.fmu_path.name} has no tire slot "
+                                                                  f"parameter {name!r}")
+                starts[name] = coefficients[key]
+        return self._with(starts, known_attributes=frozenset(attributes), warnings=(*self.warnings, *warnings))
+
+    def _checked_parameter(self, name: str, value) -> float | int:
+        shown = f"{name}={value}"
+        variable = self.variables.get(name)
+        if variable is None or variable.causality != "parameter":
+            raise VehicleMapError.of("params", shown, f"{self.fmu_path.name} has no parameter {name!r} "
+                                                      f"(parameters: {', '.join(self.parameter_names())})")
+        if variable.type not in (*REAL_TYPES, *INTEGER_TYPES):
+            raise VehicleMapError.of("params", shown, f"{name} is {variable.type}; only Real and Integer parameters "
+                                                      "can be set")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise VehicleMapError.of("params", shown, "the value must be a number (SI units)")
+        if not math.isfinite(value):
+            raise VehicleMapError.of("params", shown, "the value must be a finite number")
+        unit = f" {variable.unit}" if variable.unit and variable.unit != "1" else ""
+        low = None if variable.min is None else float(variable.min)
+        high = None if variable.max is None else float(variable.max)
+        if variable.type in INTEGER_TYPES:
+            if value != int(value):
+                raise VehicleMapError.of("params", shown,
+                                         f"{name} is {variable.type}: the value must be a whole number")
+            value = int(value)
+            smallest, largest = INTEGER_RANGES[variable.type]
+            low = smallest if low is None else max(low, smallest)
+            high = largest if high is None else min(high, largest)
+        else:
+            value = float(value)
+        if low is not None and value < low:
+            raise VehicleMapError.of("params", shown, f"below the declared minimum {low:g}{unit} of {name}")
+        if high is not None and value > high:
+            raise VehicleMapError.of("params", shown, f"above the declared maximum {high:g}{unit} of {name}")
+        return value
+
+    def parameter_names(self) -> list[str]:
+        """The FMU's parameters, as an error lists them: the tire slots (the map's `tire_slots`) as one pattern
+        (tire<slot>_<KEY>), any other parameter by its name."""
+        prefix = None if self.friction is None else self.friction.tire_slots
+        slots = [prefix.format(slot=k) for k in self.tire_slot_numbers()] if prefix is not None else []
+        names = [v.name for v in self.description.modelVariables
+                 if v.causality == "parameter" and not any(v.name.startswith(slot) for slot in slots)]
+        return [*names, slot_parameter(prefix, "<slot>", "<KEY>")] if slots else names
+
+    @property
+    def friction_key(self) -> str:
+        return self.map.friction.key if self.map.friction is not None else "inputs.friction"
 
     def _fail(self, key: str, reason: str):
-        raise VehicleMapError(f"{self.map.label}: {key}: {reason}")
+        raise VehicleMapError("vehicle", f"{self.map.label}: {key}: {reason}")
 
     def _variable(self, key: str, name: str, causalities: tuple[str, ...]):
         variable = self.variables.get(name)
@@ -321,15 +419,15 @@ class EgoModel:
         if self.friction is not None and self.friction.meaning == "mu":
             return max([self.default_surface, *surface_values]) / 10
         if self.friction is not None and self.friction.tire_slots is not None:
-            slot = self.friction.tire_slots
+            prefix = self.friction.tire_slots
             p = self.parameters
             peaks = []
             for k in self.tire_slot_numbers():
-                prefix = slot.format(slot=k)
                 for axis in "XY":
-                    if f"{prefix}PD{axis}1" in p:
-                        peaks.append((abs(p[f"{prefix}PD{axis}1"]) + abs(p.get(f"{prefix}PD{axis}2", 0.0)))
-                                     * p.get(f"{prefix}LMU{axis}", 1.0))
+                    pd1, pd2, lmu = (slot_parameter(prefix, k, key)
+                                     for key in (f"PD{axis}1", f"PD{axis}2", f"LMU{axis}"))
+                    if pd1 in p:
+                        peaks.append((abs(p[pd1]) + abs(p.get(pd2, 0.0))) * p.get(lmu, 1.0))
             if peaks:
                 return max(peaks)
         return DEFAULT_PEAK_FRICTION
@@ -346,6 +444,32 @@ class EgoModel:
             numbers.append(k)
             k += 1
         return numbers
+
+    def top_speed(self) -> float:
+        """The highest steady speed the vehicle can hold on a level road, m/s, from its [vehicle] properties: where
+        the drive force at full throttle, min(m drive_accel_max, drive_power_max / v), equals the rolling resistance
+        m g f_r and the drag m K v^2 (K = rho CdA / (2 m)); inf without any resistance. Both sides are monotonic in
+        v (the drive falls, the resistance rises), so the crossing is found by bisection to machine precision."""
+        g, f_r, k = STANDARD_GRAVITY, self.rolling_resistance, self.drag_factor
+
+        def surplus(v: float) -> float:  # drive minus resistance per unit mass at full throttle
+            drive = self.drive_accel_max if v <= 0 else min(self.drive_accel_max,
+                                                            self.drive_power_max / (self.mass * v))
+            return drive - g * f_r - k * v * v
+
+        if surplus(0.0) <= 0:
+            return 0.0
+        if k <= 0 and (f_r <= 0 or surplus(1e12) > 0):
+            return math.inf
+        low, high = 0.0, 1.0
+        while surplus(high) > 0:
+            low, high = high, 2 * high
+        for _ in range(200):
+            middle = (low + high) / 2
+            if middle in (low, high):
+                break
+            low, high = (middle, high) if surplus(middle) > 0 else (low, middle)
+        return low
 
     def summary(self) -> dict:
         """What summary.json records about the vehicle."""
@@ -367,37 +491,37 @@ class EgoModel:
         return f"EgoModel({self.name!r}, {self.fmu_path}, FMI {self.fmi_version})"
 
 
-def read_description(fmu: Path, option: str = "--fmu"):
+def read_description(fmu: Path, option: str = "fmu"):
     """The FMU's model description, checked to be a co-simulation FMI 2.0 or 3.0 FMU with a binary for this
-    platform; VehicleMapError naming the FMU (as `option` FMU: ...) otherwise."""
+    platform; VehicleMapError naming the option it came through (`option`: fmu, controller) and the FMU otherwise."""
     import fmpy
 
     from .unpack import UnpackError, check_archive, check_identifier
 
     if not fmu.is_file():
-        raise VehicleMapError(f"{option} {fmu}: no such file" if not fmu.exists() else f"{option} {fmu}: not a file")
+        raise VehicleMapError.of(option, fmu, "no such file" if not fmu.exists() else "not a file")
     try:  # member names and sizes, before anything is read from it
         names = [member.filename for member in check_archive(fmu)]
     except UnpackError as error:
-        raise VehicleMapError(f"{option} {error}") from None
+        raise VehicleMapError(option, "", subject=str(error)) from None
     try:
         description = _read_description(str(fmu.resolve()), fmu.stat().st_mtime_ns, fmu.stat().st_size)
     except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
         text = (str(error).strip() or type(error).__name__).splitlines()[0]
-        raise VehicleMapError(f"{option} {fmu}: is not a readable FMU ({text})") from None
+        raise VehicleMapError.of(option, fmu, f"is not a readable FMU ({text})") from None
     if description.fmiVersion not in ("2.0", "3.0"):
-        raise VehicleMapError(f"{option} {fmu}: FMI {description.fmiVersion}; sdl-fmu drives FMI 2.0 and 3.0 FMUs")
+        raise VehicleMapError.of(option, fmu, f"FMI {description.fmiVersion}; sdl-fmu drives FMI 2.0 and 3.0 FMUs")
     if description.coSimulation is None:
-        what = "the vehicle" if option == "--fmu" else "it"
-        raise VehicleMapError(f"{option} {fmu}: has no co-simulation interface (sdl-fmu co-simulates {what})")
+        what = "the vehicle" if option == "fmu" else "it"
+        raise VehicleMapError.of(option, fmu, f"has no co-simulation interface (sdl-fmu co-simulates {what})")
     try:  # it names the binary's file
         check_identifier(fmu, description.coSimulation.modelIdentifier)
     except UnpackError as error:
-        raise VehicleMapError(f"{option} {error}") from None
+        raise VehicleMapError(option, "", subject=str(error)) from None
     binary = f"binaries/{_platform(description.fmiVersion)}/{description.coSimulation.modelIdentifier}" \
              f"{fmpy.sharedLibraryExtension}"
     if binary not in names:
-        raise VehicleMapError(f"{option} {fmu}: has no binary for this platform ({binary})")
+        raise VehicleMapError.of(option, fmu, f"has no binary for this platform ({binary})")
     return description
 
 
@@ -412,11 +536,3 @@ def _read_description(path: str, mtime: int, size: int):
     from fmpy import read_model_description
 
     return read_model_description(path, validate=False)
-
-
-def shipped_model(name: Dynamics = "simple", fmi_version: FmiVersion = 2, announce=None) -> EgoModel:
-    """A shipped model: its cached build (built on first use) driven through its shipped map."""
-    from ..fmu.cache import cached_fmu
-
-    map_path = shipped_map_path(name)
-    return EgoModel.open(cached_fmu(name, fmi_version, announce=announce), map_path)

@@ -1,6 +1,6 @@
 """The vehicle map (docs/vehicle-maps.md): a TOML file telling sdl-fmu how to drive a vehicle FMU, read with tomllib and
 checked for its shape here (against the FMU in model.py). Every mistake is one VehicleMapError line naming the
-file and the key."""
+file and the key, or the option (`vehicle`, `fmu`) and its value."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from ..paths import VEHICLE_MAP_DIRECTORY
+from ..names import Dynamics, shipped_map_path  # noqa: F401 (re-exported by vehicle/: the shipped maps)
+from ..options import InputError
 
 FrictionMeaning = Literal["mu", "attribute"]
-Dynamics = Literal["simple", "advanced"]  # the shipped vehicles, each a map scenarios/vehicles/<name>.toml
 
 INPUTS = ("throttle", "brake", "steer")  # required; `friction` is optional
 OUTPUTS_REQUIRED = ("x", "y", "yaw", "speed")
@@ -42,11 +42,18 @@ SCALE_RANGE = (1e-6, 1e6)  # |scale| of a channel or the friction input
 MAX_OFFSET = 1e6  # |offset|
 MAX_MAP_BYTES = 1 << 20  # a map is a small text
 TOP_LEVEL = ("name", "fmu", "inputs", "outputs", "start", "parameters", "vehicle")
-SHIPPED: tuple[Dynamics, ...] = ("simple", "advanced")  # the shipped maps, scenarios/vehicles/<name>.toml
 
 
-class VehicleMapError(ValueError):
-    """A vehicle map (or the FMU it names) that cannot drive a run: one line naming the file and the key."""
+class VehicleMapError(InputError):
+    """A vehicle map (or the FMU it names, or a value set on it) that cannot drive a run: one line, its `option` the
+    keyword it came through (`vehicle`, `fmu`, `params`, `tires`, `dynamics`); either a message naming the map file and
+    the key, or (`subject`) the option's value and the reason, which the API and the command line word their way
+    (api.InputError)."""
+
+    @classmethod
+    def of(cls, option: str, value, reason: str) -> VehicleMapError:
+        """`option value: reason`."""
+        return cls(option, "", subject=f"{value}: {reason}")
 
 
 def declared_range_problem(variable, value: float) -> str | None:
@@ -90,7 +97,7 @@ class FrictionEntry:
     meaning: FrictionMeaning
     scale: float = 1.0
     offset: float = 0.0
-    tire_slots: str | None = None  # e.g. "tire{slot}_": the FMU takes Magic Formula tire slots (--tires fills them)
+    tire_slots: str | None = None  # e.g. "tire{slot}_": the FMU takes Magic Formula tire slots (`tires` fills them)
 
 
 @dataclass(frozen=True)
@@ -111,13 +118,6 @@ class VehicleMap:
         return str(self.path) if self.path is not None else "<vehicle map>"
 
 
-def shipped_map_path(name: Dynamics) -> Path:
-    """The shipped map of the shipped model `name` ("simple" or "advanced")."""
-    if name not in SHIPPED:
-        raise VehicleMapError(f"--dynamics {name}: must be one of {', '.join(SHIPPED)}")
-    return VEHICLE_MAP_DIRECTORY / f"{name}.toml"
-
-
 def load_vehicle_map(path: str | Path) -> VehicleMap:
     """Reads and checks a vehicle map's shape (not yet against an FMU)."""
     path = Path(path)
@@ -125,21 +125,21 @@ def load_vehicle_map(path: str | Path) -> VehicleMap:
         with open(path, "rb") as file:
             raw = file.read(MAX_MAP_BYTES + 1)
         if len(raw) > MAX_MAP_BYTES:
-            raise VehicleMapError(f"--vehicle {path}: larger than {MAX_MAP_BYTES // 1024} KB; a vehicle map is a "
-                                  "small text")
+            raise VehicleMapError.of("vehicle", path, f"larger than {MAX_MAP_BYTES // 1024} KB; a vehicle map is a "
+                                                      "small text")
         data = tomllib.loads(raw.decode("utf-8"))
     except RecursionError:  # tomllib reads nested arrays and tables recursively; a map nests three deep
-        raise VehicleMapError(f"{path}: not TOML sdl-fmu reads (nested too deeply)") from None
+        raise VehicleMapError("vehicle", f"{path}: not TOML sdl-fmu reads (nested too deeply)") from None
     except FileNotFoundError:
-        raise VehicleMapError(f"--vehicle {path}: no such file") from None
+        raise VehicleMapError.of("vehicle", path, "no such file") from None
     except IsADirectoryError:
-        raise VehicleMapError(f"--vehicle {path}: is a folder, not a file") from None
+        raise VehicleMapError.of("vehicle", path, "is a folder, not a file") from None
     except UnicodeDecodeError:
-        raise VehicleMapError(f"{path}: not TOML (not UTF-8 text)") from None
+        raise VehicleMapError("vehicle", f"{path}: not TOML (not UTF-8 text)") from None
     except tomllib.TOMLDecodeError as error:
-        raise VehicleMapError(f"{path}: not TOML: {error}") from None
+        raise VehicleMapError("vehicle", f"{path}: not TOML: {error}") from None
     except OSError as error:
-        raise VehicleMapError(f"--vehicle {path}: cannot be read ({error.strerror})") from None
+        raise VehicleMapError.of("vehicle", path, f"cannot be read ({error.strerror})") from None
     return parse_vehicle_map(data, path)
 
 
@@ -148,7 +148,7 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
     label = str(path) if path is not None else "<vehicle map>"
 
     def fail(key: str, reason: str):
-        raise VehicleMapError(f"{label}: {key}: {reason}")
+        raise VehicleMapError("vehicle", f"{label}: {key}: {reason}")
 
     for key in data:
         if key not in TOP_LEVEL:

@@ -10,7 +10,7 @@ from pathlib import Path
 from fmpy import read_model_description
 
 from ..cosim.ego import EgoFMU, parameter_defaults, step_until
-from ..interface import WHEELS
+from ..names import WHEELS
 from ..units import STANDARD_GRAVITY
 
 

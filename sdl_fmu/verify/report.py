@@ -15,9 +15,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
+from matplotlib.lines import Line2D
+
 from ..results_folder import write_results_folder
 from .drive import COLUMNS
 from .outcome import Outcome
+from .quantities import label, shown
 
 JSON_NAME, HTML_NAME = "verify.json", "report.html"
 FORMAT = "sdl-fmu verify 1"
@@ -51,20 +54,25 @@ def _json_ready(value):
     return value
 
 
-def document(vehicle: dict, outcomes: list[Outcome]) -> dict:
-    return _json_ready({"format": FORMAT, "vehicle": vehicle,
-                        "manoeuvres": {o.name: o.to_json() for o in outcomes}})
+def passed(outcomes: list[Outcome]) -> bool:
+    """Whether no criterion failed (--strict's test): every manoeuvre passed or has no criterion."""
+    return all(o.passed is not False for o in outcomes)
+
+
+def document(vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None, tool: dict | None = None) -> dict:
+    return _json_ready({"format": FORMAT, "pack": "vehicle", "tool": tool, "vehicle": vehicle, "datasheet": sheet,
+                        "passed": passed(outcomes), "manoeuvres": {o.name: o.to_json() for o in outcomes}})
 
 
 def table(outcomes: list[Outcome]) -> str:
     lines = [f"{'manoeuvre':<22} {'result':<7} metrics", "-" * 78]
     for o in outcomes:
-        shown = []
+        values = []
         for key in HEADLINE.get(o.name, ()):
             value = o.metrics.get(key)
             if isinstance(value, float):
-                shown.append(f"{key} {value:.3g}")
-        text = ", ".join(shown) if shown else ""
+                values.append(f"{label(key)} {shown(key, value)}")
+        text = ", ".join(values) if values else ""
         if o.reason:
             text = o.reason if not text else f"{text}; {o.reason}"
         lines.append(f"{o.name:<22} {verdict(o.passed, o.reason):<7} {text}")
@@ -74,9 +82,9 @@ def table(outcomes: list[Outcome]) -> str:
 def write_csv(path: Path, outcome: Outcome) -> None:
     with path.open("w", encoding="utf-8", newline="\n") as stream:
         stream.write("run," + ",".join(COLUMNS) + "\n")
-        for label, trace in outcome.runs:
+        for run, trace in outcome.runs:
             block = np.column_stack([trace[c] for c in COLUMNS])
-            name = label.replace(",", ";")
+            name = run.replace(",", ";")
             for row in block:
                 stream.write(name + "," + ",".join(f"{v:.9g}" for v in row) + "\n")
 
@@ -86,9 +94,9 @@ def write_csv(path: Path, outcome: Outcome) -> None:
 
 def _braking(fig, o):
     ax = fig.add_subplot()
-    for label, t in o.runs:
+    for run, t in o.runs:
         after = t["time_s"] >= 0
-        ax.plot(t["distance_m"][after] - t["distance_m"][after][0], t["speed_mps"][after] * 3.6, label=label)
+        ax.plot(t["distance_m"][after] - t["distance_m"][after][0], t["speed_mps"][after] * 3.6, label=run)
     if "stopping_distance_limit_m" in o.metrics:
         ax.axvline(o.metrics["stopping_distance_limit_m"], color="tab:red", ls="--", label="R13-H limit")
     ax.set(xlabel="distance since brake application (m)", ylabel="speed (km/h)", title="Type-0 stop")
@@ -142,29 +150,34 @@ def _sine(fig, o):
                     xytext=(4, 6), fontsize=8)
     ax.axvline(cosi, color="black", ls="--", lw=0.8)
     ax.set(xlabel="time from beginning of steer (s)", ylabel="yaw rate / its peak",
-           title="sine with dwell: yaw rate (blue: left first, orange: right first)", ylim=(-1.5, 1.5))
+           title="sine with dwell: yaw rate of each run", ylim=(-1.5, 1.5))
+    ax.legend(handles=[Line2D([], [], color="tab:blue", lw=0.8, label="left first"),
+                       Line2D([], [], color="tab:orange", lw=0.8, label="right first"),
+                       Line2D([], [], color="black", ls="--", lw=0.8, label="completion of steer (COSI)"),
+                       Line2D([], [], color="tab:red", lw=2, label="S5.2 limits on the ratio")], fontsize=8)
 
 
 def _split(fig, o):
     ax, path = fig.subplots(1, 2)
-    for label, t in o.runs:
+    for _, t in o.runs:
         after = t["time_s"] >= 0
-        ax.plot(t["time_s"][after], np.degrees(t["yaw_rad"][after]), label="yaw angle")
+        ax.plot(t["time_s"][after], np.degrees(t["yaw_rad"][after]))
         path.plot(t["x_m"][after], t["y_m"][after])
-    ax.set(xlabel="time since brake application (s)", ylabel="yaw angle (deg)", title="split-mu braking")
-    path.set(xlabel="x (m)", ylabel="y (m)", title="path (mu 0.8 left, 0.2 right)")
+    ax.set(xlabel="time since brake application (s)", ylabel="yaw angle (deg)", title="split-mu braking: yaw angle")
+    path.set(xlabel="x (m)", ylabel="y (m)", title="path of the centre of gravity (mu 0.8 left, 0.2 right)")
 
 
 def _lane_change(fig, o):
     ax = fig.add_subplot()
-    for lane in o.plot.get("lanes", []):
-        for y in (lane["right"], lane["left"]):
-            ax.plot([lane["start"], lane["end"]], [y, y], color="tab:orange", marker="^", ms=6, lw=0.8)
+    for k, lane in enumerate(o.plot.get("lanes", [])):
+        for j, y in enumerate((lane["right"], lane["left"])):
+            ax.plot([lane["start"], lane["end"]], [y, y], color="tab:orange", marker="^", ms=6, lw=0.8,
+                    label="cones (lane limits)" if k == j == 0 else None)
     if "path" in o.plot:
         ax.plot(*o.plot["path"], color="gray", ls=":", lw=1, label="driver's path")
     length, width = o.plot.get("length", 4.5), o.plot.get("width", 1.8)
-    for (label, t), color in zip(o.runs, ("tab:green", "tab:red")):
-        ax.plot(t["x_m"], t["y_m"], color=color, label=label)
+    for (run, t), color in zip(o.runs, ("tab:green", "tab:red")):
+        ax.plot(t["x_m"], t["y_m"], color=color, label=run)
         for k in range(0, len(t["x_m"]), 25):
             c, s = math.cos(t["yaw_rad"][k]), math.sin(t["yaw_rad"][k])
             corners = [(t["x_m"][k] + lx * c - ly * s, t["y_m"][k] + lx * s + ly * c)
@@ -194,7 +207,48 @@ def png(outcome: Outcome) -> bytes | None:
     return buffer.getvalue()
 
 
-def report_html(vehicle: dict, outcomes: list[Outcome]) -> str:
+STYLE = """body{font-family:sans-serif;max-width:1000px;margin:auto} td,th{border:1px solid #ccc;padding:3px 6px;
+text-align:left;vertical-align:top} table{border-collapse:collapse;margin-bottom:8px} td.n{text-align:right}
+.pass{color:#070} .FAIL{color:#b00;font-weight:bold} .reason{color:#b00} img{max-width:100%} .small{color:#555;
+font-size:90%}"""
+SHEET_TITLES = {"identity": "FMU", "mass_and_geometry": "Mass and geometry", "drive_and_brakes": "Drive and brakes",
+                "tires": "Tires", "parameters_set": "Parameters set for this report (--param, SI)"}
+
+
+def values_table(values: dict) -> str:
+    """A table of key, value rows, each value rounded to its meaning with its unit; a list of records as a table of
+    its own (sine-with-dwell runs, tire slots)."""
+    e = html.escape
+    rows = []
+    for key, value in values.items():
+        if isinstance(value, list) and value and all(isinstance(item, dict) for item in value):
+            columns = list(value[0])
+            head = "".join(f"<th>{e(label(c))}</th>" for c in columns)
+            body = "".join("<tr>" + "".join(f"<td class='n'>{e(shown(c, item.get(c)))}</td>" for c in columns)
+                           + "</tr>" for item in value)
+            rows.append(f"<tr><th>{e(label(key))}</th><td><table><tr>{head}</tr>{body}</table></td></tr>")
+        else:
+            rows.append(f"<tr><th>{e(label(key))}</th><td class='n'>{e(shown(key, value))}</td></tr>")
+    return f"<table>{''.join(rows)}</table>"
+
+
+def datasheet_html(sheet: dict | None) -> str:
+    """The vehicle data sheet (datasheet.py) as one table per section."""
+    if not sheet:
+        return ""
+    parts = [f"<h3>{html.escape(SHEET_TITLES.get(section, section))}</h3>{values_table(values)}"
+             for section, values in sheet.items() if values]
+    return "<h2>Vehicle data sheet</h2>" + "".join(parts)
+
+
+def provenance_html(tool: dict | None) -> str:
+    if not tool:
+        return ""
+    return (f"<p class='small'>Made by {html.escape(tool['tool'])} {html.escape(tool['version'])} on "
+            f"{html.escape(tool['date'])} (UTC).</p>")
+
+
+def report_html(vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None, tool: dict | None = None) -> str:
     e = html.escape
     rows = "".join(f"<tr><td>{e(o.name)}</td><td>{e(o.standard)}</td><td class='{verdict(o.passed, o.reason)}'>"
                    f"{verdict(o.passed, o.reason)}</td><td>{'<br>'.join(e(c) for c in o.criteria)}</td></tr>"
@@ -202,32 +256,31 @@ def report_html(vehicle: dict, outcomes: list[Outcome]) -> str:
     identity = "".join(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in vehicle.items())
     sections = []
     for o in outcomes:
-        metrics = {k: v for k, v in o.metrics.items() if k != "runs"}
         image = png(o)
         figure = (f"<img alt='{e(o.name)} plot' src='data:image/png;base64,{base64.b64encode(image).decode()}'>"
                   if image else "")
         reason = f"<p class='reason'>{e(o.reason)}</p>" if o.reason else ""
         sections.append(f"<h2>{e(o.name)}: {verdict(o.passed, o.reason)}</h2><p>{e(o.standard)}</p>{reason}"
-                        f"<pre>{e(json.dumps(_json_ready(metrics), indent=1))}</pre>{figure}")
+                        f"{values_table(_json_ready(o.metrics))}{figure}")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>sdl-fmu vehicle test pack: {e(str(vehicle.get('name')))}</title>
-<style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} td,th{{border:1px solid #ccc;padding:3px 6px;
-text-align:left;vertical-align:top}} table{{border-collapse:collapse}} .pass{{color:#070}} .FAIL{{color:#b00;
-font-weight:bold}} .reason{{color:#b00}} img{{max-width:100%}} pre{{background:#f6f6f6;padding:6px}}</style>
-</head><body><h1>Vehicle test pack</h1><table>{identity}</table>
+<style>{STYLE}</style>
+</head><body><h1>Vehicle test pack</h1>{provenance_html(tool)}<table>{identity}</table>
 <h2>Results</h2><table><tr><th>manoeuvre</th><th>source</th><th>result</th><th>criteria</th></tr>{rows}</table>
+{datasheet_html(sheet)}
 {''.join(sections)}</body></html>
 """
 
 
-def write(out, vehicle: dict, outcomes: list[Outcome]) -> Path:
+def write(out, vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None, tool: dict | None = None) -> Path:
     """Writes the results folder atomically (results_folder's rules); returns it."""
 
     def contents(folder: Path) -> None:
-        (folder / JSON_NAME).write_text(json.dumps(document(vehicle, outcomes), indent=2) + "\n", encoding="utf-8")
+        (folder / JSON_NAME).write_text(json.dumps(document(vehicle, outcomes, sheet, tool), indent=2) + "\n",
+                                        encoding="utf-8")
         for o in outcomes:
             if o.runs:
                 write_csv(folder / f"{o.name}.csv", o)
-        (folder / HTML_NAME).write_text(report_html(vehicle, outcomes), encoding="utf-8")
+        (folder / HTML_NAME).write_text(report_html(vehicle, outcomes, sheet, tool), encoding="utf-8")
 
     return write_results_folder(out, contents)

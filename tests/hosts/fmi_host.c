@@ -7,12 +7,13 @@
  * misuse must return an error (the FMU logs why) and the instance must go on.
  *
  *   fmi_host [--fmi3] LIBRARY TOKEN STEP STOP_TIME [--every N] [--repeat N] [--misuse-states]
- *            [r:VR=VALUE | i:VR=VALUE]... [o:VR | b:VR]...
+ *            [--resources LOCATION] [r:VR=VALUE | i:VR=VALUE]... [o:VR | b:VR]...
  *
  * TOKEN is the GUID (FMI 2.0) or instantiation token (FMI 3.0). r:/i: set a Real/Integer start value before
  * initialization; o:/b: a Real/Boolean output to print. Output lines start with the marker "RESULT", then time
  * and the outputs, each as the 16 hex digits of its IEEE 754 bits (exact, independent of the C library's
- * printf). Exit status 0 only if every call was OK. */
+ * printf). --resources: the resource location passed to instantiate (FMI 2.0: a file: URI; FMI 3.0: a path; default
+ * none). Exit status 0 only if every call was OK. */
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -39,6 +40,7 @@ static void close_library(Library library) { dlclose(library); }
 
 static Library library;
 static int symbols_missing;
+static const char *resources = "";
 
 static void *load(const char *name) {
     void *function = symbol(library, name);
@@ -263,9 +265,9 @@ static int simulate(const Api *api, const char *token, double step, double stop_
     long steps = (long)(stop_time / step + 0.5), k;
     int i, ok = 0, v3 = api->version == 3;
     for (i = 0; i < v->n_integer; i++) integers3[i] = v->integer_values[i];
-    c = v3 ? api->instantiate3("host", token, "", fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0, NULL, logger3,
-                               NULL)
-           : api->instantiate2("host", fmi2CoSimulation, token, "", &callbacks2, fmi2False, fmi2False);
+    c = v3 ? api->instantiate3("host", token, resources, fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0, NULL,
+                               logger3, NULL)
+           : api->instantiate2("host", fmi2CoSimulation, token, resources, &callbacks2, fmi2False, fmi2False);
     if (!c) {
         fprintf(stderr, "fmi_host: instantiation failed\n");
         return 1;
@@ -283,9 +285,10 @@ static int simulate(const Api *api, const char *token, double step, double stop_
         CALL("fmi2ExitInitializationMode", api->exit2(c));
     }
     if (misuse) {
-        other = v3 ? api->instantiate3("other", token, "", fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0, NULL,
-                                       logger3, NULL)
-                   : api->instantiate2("other", fmi2CoSimulation, token, "", &callbacks2, fmi2False, fmi2False);
+        other = v3 ? api->instantiate3("other", token, resources, fmi3False, fmi3False, fmi3False, fmi3False, NULL,
+                                       0, NULL, logger3, NULL)
+                   : api->instantiate2("other", fmi2CoSimulation, token, resources, &callbacks2, fmi2False,
+                                       fmi2False);
         if (!other || misuse_states(api, c, other)) goto fail;
     }
     for (k = 0; k <= steps; k++) {
@@ -356,6 +359,8 @@ int main(int argc, char **argv) {
             every = atoi(argv[++i]);
         } else if (!strcmp(a, "--misuse-states")) {
             misuse = 1;
+        } else if (!strcmp(a, "--resources") && i + 1 < argc) {
+            resources = argv[++i];
         } else if (!strcmp(a, "--repeat") && i + 1 < argc) {
             repeat = atoi(argv[++i]);
         } else if (a[0] == 'r' && a[1] == ':' && values.n_real < MAX_VALUES && sscanf(a + 2, "%u=", &vr) == 1) {

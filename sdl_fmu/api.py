@@ -19,6 +19,7 @@ import math
 import os
 import shutil
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,10 +40,12 @@ from .sdl import Scenario, ScenarioError, SdlError, default_vehicle_table_path, 
 from .sdl.checks import check_scenario, vehicle_warnings
 from .shipped import shipped_controller, shipped_fmu
 from .shipping import ClusterError
+from .text import unescaped
 from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
 from .units import from_si, length_label, speed_label
 from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
 from .vehicle.controller import ControllerError, ControllerModel
+from .vehicle.isolated import FmuTimeout, deadline
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
            "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "LIMITS",
@@ -319,8 +322,6 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
         return None
     from tqdm import tqdm  # loaded only for a bar
 
-    from .text import unescaped  # the bar's own carriage returns, not escaped
-
     state_of = {}
 
     def update(cosimulation, state) -> None:
@@ -440,8 +441,6 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         options.progress = _with_deadline(options.progress, timeout)
     if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
         options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
-    from .vehicle.isolated import FmuTimeout, deadline
-
     try:
         with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
             raw = master.run_scenario(scenario, model, options, _vehicle_table())
@@ -453,8 +452,6 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     except FmuError as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {model.fmu_path.name} failed: {_first_line(error)}") from None
     except OSError as error:  # the samples' temporary files: a full or unwritable $TMPDIR
-        import tempfile
-
         raise InputError(None, f"cannot write the run's temporary files in {tempfile.gettempdir()}: "
                                f"{error.strerror or error}; nothing was written") from None
     raw.warnings[:0] = [*scenario.warnings, *model.warnings, *_speed_warnings(model, options.speed, scenario.units)]

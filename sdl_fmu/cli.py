@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import sys
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from . import sweep as sweeping
 from .names import SHIPPED
 from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
 from .sdl import ScenarioError, describe
+from .text import EscapingStream
 from .units import length_label, speed_label
 
 EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
@@ -329,8 +331,6 @@ class Terminated(KeyboardInterrupt):
 def _stop(signum, frame):
     """Ctrl-C or SIGTERM: raised once; a repeat while sdl-fmu cleans up is ignored (`timeout` signals the command and
     then its whole process group, so the command gets the signal twice), so the clean-up is never cut short."""
-    import signal
-
     for repeated in (signal.SIGINT, signal.SIGTERM):
         signal.signal(repeated, signal.SIG_IGN)
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
@@ -340,10 +340,6 @@ def main(argv: list[str] | None = None) -> int:
     """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 3 a sweep with failed
     runs, 130 Ctrl-C, 141 closed output pipe, 143 SIGTERM). Everything it prints has its terminal control
     characters escaped (names come from files and FMUs)."""
-    import signal
-
-    from .text import EscapingStream
-
     streams = sys.stdout, sys.stderr
     sys.stdout, sys.stderr = EscapingStream(sys.stdout), EscapingStream(sys.stderr)
     previous = {}

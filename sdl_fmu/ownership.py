@@ -54,7 +54,7 @@ def _key(root: str) -> bytes | None:
 
 def key() -> bytes | None:
     """This user's signing key (None when the cache folder can be neither read nor written: nothing is proved)."""
-    from .fmu.cache import cache_directory
+    from .paths import cache_directory
 
     return _key(str(cache_directory()))
 

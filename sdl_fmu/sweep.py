@@ -135,7 +135,7 @@ def parse_values(name: str, text: str, rng: random.Random) -> list:
     except ValueError:
         raise SweepError(f"--vary {shown}: every value must be a finite number") from None
     if name == "seed":
-        from .api import LIMITS
+        from .options import LIMITS
 
         low, high = LIMITS["seed"]
         if any(v != int(v) or not low <= v <= high for v in values):
@@ -168,18 +168,15 @@ def check_values(varied: dict[str, list]) -> None:
     """What the table could not hold, before any run starts: every value a finite number, every seed a whole number
     in 0 .. 2^63 - 1 (a 64-bit column). A value a run refuses (outside an option's range or an FMU parameter's
     declared min/max) is that run's failed row, as any run's failure (docs/sweeps.md)."""
-    from . import api
+    from .options import LIMITS
 
+    low, high = LIMITS["seed"]
     for name, values in varied.items():
         for value in values:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise SweepError(f"--vary {name}={value!r}: every value must be a finite number")
-            if name == "seed":
-                try:
-                    api._seed(value)
-                except api.InputError:
-                    low, high = api.LIMITS["seed"]
-                    raise SweepError(f"--vary seed={value!r}: seeds are whole numbers from {low} to {high}") from None
+            if name == "seed" and (value != int(value) or not low <= value <= high):
+                raise SweepError(f"--vary seed={value!r}: seeds are whole numbers from {low} to {high}")
 
 
 def combinations(varied: dict[str, list]) -> list[dict]:

@@ -79,7 +79,7 @@ def _file_digest(path: Path) -> str:
 def built_digests(size: int | None = None) -> set[str]:
     """SHA-256 of every FMU sdl-fmu built into its FMU cache (<Model>-fmi<version>-<key>/fmi<version>/<Model>.fmu),
     of those `size` bytes long if given (only those are read)."""
-    from ..fmu.cache import cache_directory
+    from ..paths import cache_directory
 
     digests = set()
     for path in cache_directory().glob("*-fmi*-*/fmi*/*.fmu"):

@@ -376,7 +376,7 @@ def _main(argv: list[str] | None) -> int:
         except InputError as error:
             print(f"sdl-fmu: {error.command_line()}", file=sys.stderr)
             return EXIT_USAGE
-        except sweeping.SweepError as error:
+        except sweeping.ClusterError as error:  # a SweepError, or the cluster options (--workers, --scheduler)
             print(f"sdl-fmu: {error}", file=sys.stderr)
             return EXIT_USAGE
         except Exception as error:

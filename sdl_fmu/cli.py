@@ -1,5 +1,5 @@
-"""The `sdl-fmu` command line: build, check, run, sweep, verify. It only parses arguments, calls sdl_fmu.api and
-prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
+"""The `sdl-fmu` command line: build, check, run, sweep, verify, export. It only parses arguments, calls sdl_fmu.api
+and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
 line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
@@ -174,6 +174,21 @@ def _verify(args) -> int:
     return 0
 
 
+def _export(args) -> int:
+    result = api.export(args.scenario, out=args.out, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle,
+                        speed=args.speed, seed=args.seed, until_distance=args.until_distance,
+                        until_time=args.until_time, step=args.step, fmi_version=int(args.fmi_version),
+                        skip_unsupported=args.skip_unsupported, controller=args.controller,
+                        controller_map=args.controller_map, driver=args.driver, on_collision=args.on_collision)
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    fmus = ", ".join(f"{component} {path.name}" for component, path in result.fmus.items())
+    print(f"{result.ssp}: {fmus} (also beside it); FMI {result.fmi_version}.0, step {result.step:g} s, stop time "
+          f"{result.stop_time:g} s, parameter set '{result.parameter_set}'")
+    print("run it in libcosim, ecos or fmpy: docs/export.md")
+    return 0
+
+
 def _verify_folder_name(args) -> str:
     if args.fmu is not None:
         name = Path(args.fmu).stem
@@ -314,6 +329,36 @@ def parser() -> argparse.ArgumentParser:
     verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
                                       "(default: verify/<vehicle>, verify/<vehicle>-aeb-ccr)")
     verify.set_defaults(handler=_verify)
+
+    export = commands.add_parser("export", help="the scenario as an FMU and an SSP that FMI masters run")
+    export.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    export.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default) or advanced; not "
+                        "with --vehicle")
+    export.add_argument("--fmu", help="ego FMU (default: the cached build of --dynamics)")
+    export.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
+    export.add_argument("--controller", metavar="FMU", help="controller FMU between the scenario and the ego, a third "
+                        "component of the SSP (default: the controller map's fmu)")
+    export.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests and "
+                        "arbitration (docs/controllers.md)")
+    export.add_argument("--driver", choices=DRIVERS, default="lane",
+                        help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
+                             "(also follows the vehicle ahead: Gipps' car-following law)")
+    export.add_argument("--on-collision", choices=ON_COLLISION, default="continue",
+                        help="continue (default) or stop: the scenario ends at the first contact")
+    export.add_argument("--speed", type=_float_argument,
+                        help="driver's start and target speed, scenario units (default 88 ft/s)")
+    export.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
+    end = export.add_mutually_exclusive_group()
+    end.add_argument("--until-distance", type=_float_argument, help="end at this distance, scenario units")
+    end.add_argument("--until-time", type=_float_argument, help="end at this time, s")
+    export.add_argument("--step", type=_float_argument, help="the system's communication step, s (default 0.01)")
+    export.add_argument("--fmi-version", choices=FMI_VERSIONS, default="2",
+                        help="FMI version of the scenario FMU and of a shipped ego FMU (default 2: libcosim and fmpy "
+                             "run FMI 2.0 only)")
+    export.add_argument("--skip-unsupported", action="store_true",
+                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    export.add_argument("--out", required=True, help="export folder: new, empty, or an earlier export folder")
+    export.set_defaults(handler=_export)
     return main
 
 

@@ -56,11 +56,11 @@ class EgoInstance:
         self.warnings: list[str] = []
         self.fmi3 = model.fmi_version == "3.0"
         from .fmu_log import FmuLog
-        from .unpack import UnpackError, unpacked
+        from .unpack import UnpackError
 
         name = model.fmu_path.name
         try:
-            self._unzipped = str(unpacked(model.fmu_path))  # once per process, removed at its end
+            self._unzipped = model.unzipped()  # once per process, shared by the FMU's instances, removed at its end
         except UnpackError as error:
             raise FmuError(str(error)) from None
         try:

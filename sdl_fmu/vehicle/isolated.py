@@ -244,14 +244,14 @@ class IsolatedInstance:
     restore, discard, close, `time`, `warnings`."""
 
     def __init__(self, model, start: dict[str, float], parameters: dict[str, float], instance_name: str = "ego"):
-        from .unpack import UnpackError, unpacked
+        from .unpack import UnpackError
 
         self.model = model
         self.time = 0.0
         self._prefix = "fmi3" if model.fmi_version == "3.0" else "fmi2"
         self._controls = self._friction = None
         try:
-            folder = unpacked(model.fmu_path)  # here, once per process: the host uses the folder
+            folder = model.unzipped()  # here, once per process: the host uses the folder
         except UnpackError as error:
             raise FmuError(str(error)) from None
         self._key = (threading.get_ident(), str(Path(model.fmu_path).resolve()))

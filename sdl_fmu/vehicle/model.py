@@ -168,6 +168,7 @@ class EgoModel:
         self.known_attributes = known_attributes
         self.warnings = warnings
         self._resolve_vehicle()
+        self._unzipped: str | None = None
 
     # ---- construction -------------------------------------------------------------------------------------
 
@@ -476,6 +477,16 @@ class EgoModel:
         return {"name": self.name, "fmu": str(self.fmu_path.name), "fmi_version": self.fmi_version,
                 "map": None if self.map_path is None else str(self.map_path), "can_roll_back": self.can_roll_back,
                 "friction": self.surface_meaning, "brk_acts": self.brk_acts}
+
+    def unzipped(self) -> str:
+        """The FMU unpacked once for all of this process's instances of it (vehicle/unpack.py: checked, what an
+        instance on this platform loads, removed at the process's end on every path); UnpackError (one line naming
+        the FMU) when it cannot be."""
+        if self._unzipped is None:
+            from .unpack import unpacked
+
+            self._unzipped = str(unpacked(self.fmu_path))
+        return self._unzipped
 
     def instantiate(self, start: dict[str, float] | None = None, parameters: dict[str, float] | None = None,
                     instance_name: str = "ego"):

@@ -386,7 +386,9 @@ class EgoInstance:
         if self._set_state(self._component, state) > 1:
             raise FmuError(f"{self._prefix}SetFMUstate to t = {time:.6f} s failed")
         now = self._outputs_now()
-        changed = next((i for i, (a, b) in enumerate(zip(now, outputs)) if a != b and not (a != a and b != b)), None)
+        # equal tuples: restored (one comparison in C); otherwise which output differs, a nan in both being equal
+        changed = None if now == outputs else \
+            next((i for i, (a, b) in enumerate(zip(now, outputs)) if a != b and not (a != a and b != b)), None)
         if changed is not None:
             quantity = self._real_outputs[changed]
             raise FmuError(f"it declares canGetAndSetFMUstate, but {self._prefix}SetFMUstate did not restore its state "

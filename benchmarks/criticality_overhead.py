@@ -14,17 +14,21 @@ pairwise ratios - 1 (`overhead_median`, `overhead_q1`, `overhead_q3`, `overhead_
 With --instructions, also the instructions each kind of run executes (`instructions_plain`, `instructions_measured`,
 their ratio - 1 `overhead_instructions`), counted by valgrind's cachegrind: unlike CPU time they do not depend on
 the machine's load (each kind runs INSTRUCTION_RUNS times in a process of its own after a warm-up run of both, less
-the same process running neither).
+the same process running neither). Runs use a private FMU cache holding only the Simple FMU's build
+(`private_cache`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -33,7 +37,7 @@ from provenance import stamp
 from sdl_fmu.cosim.follower import CriticalityFollower
 from sdl_fmu.cosim.master import Cosimulation, RunOptions
 from sdl_fmu.fmu.cache import cached_fmus
-from sdl_fmu.paths import SCENARIO_DIRECTORY
+from sdl_fmu.paths import CACHE_VARIABLE, SCENARIO_DIRECTORY
 from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_table, parse_text
 
 RESULT = Path(__file__).parent / "results" / "criticality_overhead.json"
@@ -110,6 +114,16 @@ def instructions(case: str) -> dict:
             "overhead_instructions": measured / plain - 1}
 
 
+def private_cache(fmu: Path, folder: str) -> Path:
+    """The FMU's build copied into an FMU cache of its own (`folder`), which this process and the processes it
+    starts use from now on: an instance is made in process after the FMU's bytes are found among the cache's
+    builds (each new build's digest taken once per process), and in a shared cache builds arriving during the
+    measurement would be hashed inside one of the runs measured."""
+    shutil.copytree(fmu.parents[1], Path(folder) / fmu.parents[1].name)
+    os.environ[CACHE_VARIABLE] = folder
+    return cached_fmus("simple", (2,))[0]
+
+
 def one(kind: str, case: str) -> None:
     """The process `instructions` counts: a warm-up run of each kind, then INSTRUCTION_RUNS runs of `kind`."""
     table = load_vehicle_table(default_vehicle_table_path())
@@ -134,7 +148,8 @@ def main() -> None:
     arguments.add_argument("--instructions", action="store_true", help="also count instructions (valgrind)")
     args = arguments.parse_args()
     table = load_vehicle_table(default_vehicle_table_path())
-    fmu = cached_fmus("simple", (2,))[0]
+    private = tempfile.TemporaryDirectory(prefix="criticality-overhead-")
+    fmu = private_cache(cached_fmus("simple", (2,))[0], private.name)
     cases = [("demo", load_scenario(SCENARIO_DIRECTORY / "demo.sdl"), args.repeat)]
     cases += [(f"{n} oncoming", traffic_scenario(n), args.vehicle_repeat) for n in map(int, args.vehicles.split(","))]
     report = {"repeat": args.repeat, "cases": []}

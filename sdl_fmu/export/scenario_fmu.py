@@ -16,12 +16,11 @@ import math
 import os
 import shutil
 import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..fmu.documentation import LICENSE_ENTRY, license_text
-from ..fmu.package import LINUX_BINARY_DIRECTORY, WINDOWS_BINARY_DIRECTORY, FmiVersion
+from ..fmu.package import LINUX_BINARY_DIRECTORY, WINDOWS_BINARY_DIRECTORY, FmiVersion, zip_fmu
 from ..sdl.events import Scenario
 from ..sdl.parser import decode_text, describe
 from ..sdl.vehicles import VehicleModel, default_vehicle_table_path, load_vehicle_table
@@ -138,13 +137,7 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
             encoding="utf-8")
         (root / LICENSE_ENTRY).parent.mkdir(parents=True)
         (root / LICENSE_ENTRY).write_text(license_text(), encoding="utf-8")
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        partial = out_path.with_name(out_path.name + ".partial")
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            for path in sorted(root.rglob("*")):
-                if path.is_file():
-                    archive.write(path, path.relative_to(root).as_posix())
-        partial.replace(out_path)  # atomic: a failed export never leaves a half-written FMU
+        zip_fmu(root, out_path)  # atomic, and the same scenario and options give the same bytes (no dates)
     return ScenarioFmu(out_path, {name: starts[name] for name in interface.names("parameter")}, guid)
 
 

@@ -40,6 +40,8 @@ FMI_VERSIONS: tuple[FmiVersion, ...] = (2, 3)
 # binaries/<platform>/ of each binary, as each FMI version names the platform
 LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
 WINDOWS_BINARY_DIRECTORY = {2: "win64", 3: "x86_64-windows"}
+# the date of every entry of an FMU's zip (the zip format's earliest): an FMU does not change with the clock
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 # the standard's headers (BSD-2-Clause, shipped with fmpy), copied into sources/ so that one compiler line
 # rebuilds the binary anywhere, without an FMI SDK
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -253,7 +255,7 @@ def _build(dynamics: Dynamics, equations, out_dir: Path, fmi_versions: tuple[Fmi
         shown.stage("packaging")
         targets = []
         for root, target in roots:
-            targets.append(_zip_fmu(root, target))
+            targets.append(zip_fmu(root, target))
             shown.advance()
     return targets
 
@@ -271,12 +273,19 @@ def _write_documentation(root: Path, equations, table, version: int, sources: li
     licence.write_text(license_text(), encoding="utf-8")
 
 
-def _zip_fmu(root: Path, target: Path) -> Path:
+def zip_fmu(root: Path, target: Path) -> Path:
+    """Zips the FMU's folder `root` into `target`, written aside and renamed into place (a failed write never leaves
+    a half-written FMU). The same files give the same bytes: entries in sorted order, each dated ZIP_DATE and with
+    a fixed mode (binaries/ 0755, the rest 0644), whatever the files' own dates and modes."""
     target.parent.mkdir(parents=True, exist_ok=True)
-    partial = target.with_suffix(".fmu.partial")
+    partial = target.with_name(target.name + ".partial")
     with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
         for path in sorted(root.rglob("*")):
             if path.is_file():
-                archive.write(path, path.relative_to(root).as_posix())
-    partial.replace(target)  # atomic: a failed build never leaves a half-written FMU
+                name = path.relative_to(root).as_posix()
+                entry = zipfile.ZipInfo(name, ZIP_DATE)
+                entry.compress_type = zipfile.ZIP_DEFLATED
+                entry.external_attr = (0o755 if name.startswith("binaries/") else 0o644) << 16
+                archive.writestr(entry, path.read_bytes())
+    partial.replace(target)
     return target

@@ -218,16 +218,21 @@ def test_the_models_are_drawn_from_the_seed_as_the_run_draws_them(tmp_path, simp
 
 
 @pytest.mark.parametrize("version", [2, 3])
-def test_non_finite_and_out_of_range_inputs_are_refused_with_a_message(demo_fmus, version, tmp_path):
+def test_non_finite_inputs_are_refused_with_a_message(demo_fmus, version, tmp_path):
     instance = ScenarioInstance(demo_fmus[version].path, tmp_path)
     instance.initialize({}, {"ego_v": 26.8, "ego_y": -1.8288})
     for name, value in (("ego_x", float("nan")), ("ego_v", float("inf")), ("ego_ax", float("-inf")),
-                        ("request_brake", 1.5), ("request_throttle", -0.1)):
+                        ("request_brake", float("nan")), ("request_deceleration", float("inf"))):
         instance.messages.clear()
         assert instance.set(**{name: value}) == fmi_fuzz.ERROR
         assert any(status == fmi_fuzz.ERROR and name in text for status, _, text in instance.messages), name
     # the instance goes on: nothing was changed
     assert instance.step(0.0, 0.01)[0] == fmi_fuzz.OK and instance.get("throttle") >= 0.0
+    # a controller's requests beyond the pedals' and the steer's range are taken (sdl-fmu run takes them and limits
+    # them in the arbitration: test_the_controller_requests_are_arbitrated_as_the_run_arbitrates)
+    assert instance.set(request_active=True, request_brake=1.5, request_throttle=-0.1, request_steer=-4.0,
+                        request_deceleration=-3.0) == fmi_fuzz.OK
+    assert (instance.get("throttle"), instance.get("brake")) == (0.0, 1.0)  # the defaults: override, max
     assert instance.set(speed=10.0) == fmi_fuzz.ERROR  # a fixed parameter after initialization
     instance.free()
 
@@ -480,8 +485,9 @@ def test_each_event_is_a_log_line_and_the_last_one_is_in_the_outputs(demo_fmus, 
 
 def test_the_controller_requests_are_arbitrated_as_the_run_arbitrates(demo_fmus, tmp_path):
     """arbitration.arbitrate (the run's) and the FMU's outputs, bit for bit, for every rule of every channel and 40
-    random requests each (pedals, steer beyond the driver's limit, decelerations beyond brake_decel_max, inactive
-    requests), against the driver's commands of the moment."""
+    random requests each (pedals inside and outside 0..1, steer beyond the driver's limit and beyond +-pi/2,
+    decelerations negative and beyond brake_decel_max, inactive requests), against the driver's commands of the
+    moment: the FMU takes every finite request, as the run does, and limits it as arbitrate does."""
     import itertools
 
     from sdl_fmu.cosim.arbitration import arbitrate
@@ -497,9 +503,10 @@ def test_the_controller_requests_are_arbitrated_as_the_run_arbitrates(demo_fmus,
                              "arbitration_steer": steer_rule}, {"ego_v": speed, "ego_vx": speed, "ego_y": -1.0})
         driver = tuple(instance.get(name) for name in ("driver_throttle", "driver_brake", "driver_steer"))
         for _ in range(40):
-            request = Request(rng.random() < 0.8, rng.choice([0.0, rng.random(), 1.0]),
-                              rng.choice([0.0, rng.random(), 1.0]), rng.uniform(-1.5, 1.5),
-                              rng.choice([0.0, rng.uniform(0, 15)]))
+            request = Request(rng.random() < 0.8, rng.choice([0.0, rng.random(), 1.0, rng.uniform(-3, 4)]),
+                              rng.choice([0.0, rng.random(), 1.0, rng.uniform(-3, 4)]),
+                              rng.choice([rng.uniform(-1.5, 1.5), rng.uniform(-10, 10)]),
+                              rng.choice([0.0, rng.uniform(0, 15), rng.uniform(-15, 40)]))
             assert instance.set(request_active=request.active, request_throttle=request.throttle,
                                 request_brake=request.brake, request_steer=request.steer,
                                 request_deceleration=request.deceleration) == 0

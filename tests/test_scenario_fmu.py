@@ -384,6 +384,45 @@ def drive(instance, seconds: float, h: float = 0.01, speed: float = 26.8224, lat
 
 
 @pytest.mark.parametrize("version", [2, 3])
+def test_inputs_changed_after_initialization_give_the_start_of_the_first_step(version, tmp_path, simple_model):
+    """Masters (libcosim, ecos) pass the ego's outputs on in initialization mode; a vehicle FMU that fills them only
+    when it leaves initialization hands over an ego at rest at the origin there, and its start only before the first
+    step. The first doStep takes the start again from its inputs (docs/scenario-fmu.md, Wiring): from its outputs on,
+    everything is bit for bit as if the inputs had been right in initialization mode (here a car spawned at distance
+    0 in the ego's lane, *0: beside the ego's start, not on the dividing line; the driver's first sample), the start's
+    events are logged once, and a warning says that the start was taken again. Unchanged inputs: no warning."""
+    path = tmp_path / "spawn_at_start.sdl"
+    path.write_text("English\n0,A,40,300,*0,2\n1600,ES\n")
+    fmu = write_scenario_fmu(api.load(path), tmp_path / "spawn.fmu", ego=simple_model, fmi_version=version)
+    speed, lateral = 26.8224, -1.8288
+    start = {"ego_v": speed, "ego_vx": speed, "ego_y": lateral}
+    outputs = ("throttle", "brake", "steer", "events", "tv1_present", "tv1_x", "tv1_y", "tv1_v", "lead_gap",
+               "last_event_time")
+    runs = {}
+    for name, initial in (("given in initialization", start), ("given after it", {"ego_y": 0.0, "ego_v": 0.0})):
+        instance = ScenarioInstance(fmu.path, tmp_path / name.replace(" ", "-"))
+        instance.debug_logging(True)
+        instance.initialize({}, initial)
+        read_then = (instance.get("tv1_y"), instance.get("throttle"))  # what a master passes on before the step
+        if initial is not start:
+            assert read_then[0] == 0.0 and read_then[1] == 1.0  # from the ego at rest on the dividing line
+            assert instance.set(**start) == 0
+        rows = []
+        for k in range(10):
+            t = k * 0.01
+            assert instance.set(ego_x=speed * t, ego_s=speed * t) == 0
+            assert instance.step(t, 0.01)[0] == 0, instance.messages[-3:]
+            rows.append(tuple(instance.get(name) for name in outputs))
+        warnings = [text for status, category, text in instance.messages if category == "logStatusWarning"]
+        runs[name] = rows, [(e.code, e.action, e.time, e.detail) for e in instance.events()], warnings
+        instance.free()
+    right, late = runs["given in initialization"], runs["given after it"]
+    assert late[0] == right[0] and late[1] == right[1]
+    assert right[0][0][6] == lateral and [e[:2] for e in right[1]] == [("A", "spawn")]  # beside the ego, logged once
+    assert right[2] == [] and len(late[2]) == 1 and "changed between initialization and the first step" in late[2][0]
+
+
+@pytest.mark.parametrize("version", [2, 3])
 def test_the_end_is_reported_as_termination_and_nothing_fires_after_it(version, tmp_path, simple_model):
     """head_on: a car in the ego's lane from 200 ft on, ES at 1600 ft (18.2 s at 88 ft/s): a contact, then the end."""
     fmu = write_scenario_fmu(api.load("head_on"), tmp_path / "head_on.fmu", ego=simple_model, fmi_version=version)

@@ -32,6 +32,15 @@ DATA_ENTRY = "resources/scenario.sdlfmu"
 TEXT_ENTRY = "resources/scenario.sdl"
 DOCUMENTATION_ENTRY = "documentation/index.html"
 MAX_SLOTS = 64
+# relative (of max(1 s, |t|)): an instant this close after a communication point t belongs to the step that ends at
+# t (runtime/scenario.h, TIE_TOLERANCE; docs/scenario-fmu.md, Stepping, ties)
+TIE_TOLERANCE = 1e-9
+
+
+def tie_tolerance(t: float) -> float:
+    """How far after the communication point t (s) an instant still shows at t: a driver sample, a trigger's located
+    instant (`last_event_time`), an end by time."""
+    return TIE_TOLERANCE * max(1.0, abs(t))
 
 
 class ScenarioFmuError(ValueError):
@@ -141,4 +150,4 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
     return ScenarioFmu(out_path, {name: starts[name] for name in interface.names("parameter")}, guid)
 
 
-__all__ = ["MODEL_IDENTIFIER", "ScenarioFmu", "ScenarioFmuError", "write_scenario_fmu"]
+__all__ = ["MODEL_IDENTIFIER", "TIE_TOLERANCE", "ScenarioFmu", "ScenarioFmuError", "tie_tolerance", "write_scenario_fmu"]

@@ -325,8 +325,32 @@ def export_speed(results: Path) -> list[str]:
         f"- libcosim ≥ {EXPORT_LIBCOSIM_RTF:g}× real time at 10 ms: {_met(libcosim >= EXPORT_LIBCOSIM_RTF)}", ""]
 
 
+def isolation(results: Path) -> list[str]:
+    data = _load("isolation", results)
+    rows = []
+    for key in ("simple_fmi2", "simple_fmi3", "advanced_fmi2", "advanced_fmi3"):
+        if key not in data:
+            continue
+        a, b, extra = data[key]["in_process"], data[key]["isolated"], data[key]["extra"]
+        model, version = key.split("_")
+        rows.append([f"{model.capitalize()} FMI {version[-1]}.0", f"{b['first_instance_s']:.2f}",
+                     f"{a['step_us']:.0f} / **{b['step_us']:.0f}**",
+                     f"{a['run_s']:.2f} / **{b['run_s']:.2f}**", f"{extra['loop_per_step_us']:.0f}"])
+    return [
+        "## 11. A foreign FMU in its host process", "", "Script: `benchmarks/isolation.py`.", "",
+        "An FMU sdl-fmu did not build runs in a host process (`sdl_fmu/vehicle/isolated.py`; the decision: "
+        "[docs/decisions.md](docs/decisions.md)). Measured on the shipped FMUs, in process and in a host "
+        "(`SDL_FMU_ISOLATION=always`), side by side in one process, wall clock (the work is split over two "
+        "processes), medians: the host's start (once per FMU and process; a later instance reuses it), one "
+        "50 ms communication step with the controls set and the outputs read, the demo through `api.run` "
+        "(Simple: demo, Advanced: demo_advanced; no plot), and the master loop's extra time per step.", "",
+        *_table(["FMU", "host start s", "step µs (in process / host)", "demo run s (in process / host)",
+                 "loop, extra µs per step"], rows), "",
+        _measured(data["measured"]), ""]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, scenario_step, export_speed)
+            aeb_ccr, scenario_step, export_speed, isolation)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -352,6 +376,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
         "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
         "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
+        "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

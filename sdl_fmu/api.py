@@ -45,10 +45,12 @@ from .shipped import shipped_controller, shipped_fmu
 from .shipping import ClusterError
 from .ssp.folder import check_export_folder, write_export
 from .ssp.system import ExportError, build_system
+from .text import unescaped
 from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
 from .units import from_si, length_label, speed_label
 from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
 from .vehicle.controller import ControllerError, ControllerModel
+from .vehicle.isolated import FmuTimeout, deadline
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
            "export", "Export", "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model",
@@ -337,7 +339,7 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
             # the terminal's size, 80 x 24 where it reports none (a fresh pseudo-terminal says 0 x 0, which
             # makes tqdm print nothing)
             size = shutil.get_terminal_size()
-            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=sys.stderr, leave=False,
+            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=unescaped(sys.stderr), leave=False,
                                          ncols=size.columns, nrows=size.lines,
                                          bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} {unit}")
             state_of["key"] = key
@@ -445,11 +447,18 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
         options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
     try:
-        raw = master.run_scenario(scenario, model, options, _vehicle_table())
+        with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
+            raw = master.run_scenario(scenario, model, options, _vehicle_table())
+    except FmuTimeout as error:
+        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU "
+                         f"{model.fmu_path.name} {_first_line(error)}") from None  # "did not answer in fmi2DoStep ..."
     except ControllerError as error:  # the controller's binary, or values it refused or returned
         raise InputError("controller", _first_line(error)) from None
-    except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
+    except FmuError as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {model.fmu_path.name} failed: {_first_line(error)}") from None
+    except OSError as error:  # the samples' temporary files: a full or unwritable $TMPDIR
+        raise InputError(None, f"cannot write the run's temporary files in {tempfile.gettempdir()}: "
+                               f"{error.strerror or error}; nothing was written") from None
     raw.warnings[:0] = [*scenario.warnings, *model.warnings, *_speed_warnings(model, options.speed, scenario.units)]
     result = Result(raw, scenario)
     if out is not None:

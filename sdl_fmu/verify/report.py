@@ -200,11 +200,14 @@ PLOTS = {"braking": _braking, "steady_state_circular": _circular, "step_steer": 
 def png(outcome: Outcome) -> bytes | None:
     if not outcome.runs:
         return None
-    fig = Figure(figsize=(9, 4.2), dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
-    PLOTS[outcome.name](fig, outcome)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png")
+    from ..text import plain_text  # the vehicle's name and any other text drawn as written (no mathtext)
+
+    with plain_text():
+        fig = Figure(figsize=(9, 4.2), dpi=100, layout="constrained")
+        FigureCanvasAgg(fig)
+        PLOTS[outcome.name](fig, outcome)
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png")
     return buffer.getvalue()
 
 

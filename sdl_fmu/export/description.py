@@ -278,8 +278,8 @@ distance, a BRK threshold or stop, a closure time, a contact, a departure, the r
 (to 1e-9 s) and fires there; <code>last_event_time</code> is its instant, and the outputs at t + h show what fired.
 In a master stepping at a fixed h, an event thus takes effect at the first communication point at or after its
 instant; an instant within 1e-9 relative after a communication point (rounding: masters form their clocks
-differently) counts as that point's. The prediction's error over one step is at most (a jump of the ego's acceleration inside the step) x
-h<sup>2</sup> / 2 in position, so an instant is located within that distance divided by the closing speed of the
+differently) counts as that point's. The prediction's error over one step is at most (a jump of the ego's
+acceleration inside the step) x h<sup>2</sup> / 2 in position, so an instant is located within that distance divided by the closing speed of the
 trigger; only an event whose true instant lies that close to a communication point can fall on the neighbouring
 one. FMI 3.0: an importer that allows early return gets <code>fmi3DoStep</code> back at the instant of the first
 event (<code>earlyReturn</code>, <code>lastSuccessfulTime</code>) and can synchronise every FMU there. Without

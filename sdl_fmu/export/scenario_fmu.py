@@ -150,4 +150,5 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
     return ScenarioFmu(out_path, {name: starts[name] for name in interface.names("parameter")}, guid)
 
 
-__all__ = ["MODEL_IDENTIFIER", "TIE_TOLERANCE", "ScenarioFmu", "ScenarioFmuError", "tie_tolerance", "write_scenario_fmu"]
+__all__ = ["MODEL_IDENTIFIER", "TIE_TOLERANCE", "ScenarioFmu", "ScenarioFmuError", "tie_tolerance",
+           "write_scenario_fmu"]

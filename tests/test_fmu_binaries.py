@@ -96,13 +96,13 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
     from sdl_fmu.fmu import package
 
     commands = []
-    original = package._run_compilers
+    original = package.run_compilers
 
     def recorded(batch, progress=None):
         commands.extend(batch)
         return original(batch, progress)
 
-    monkeypatch.setattr(package, "_run_compilers", recorded)
+    monkeypatch.setattr(package, "run_compilers", recorded)
     package.build_fmus("simple", tmp_path, (2,), progress=True)
     def level(command) -> str:
         return next(flag for flag in command if re.fullmatch(r"-O\d", flag))
@@ -115,3 +115,17 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
     for stage in ("generating the C code", "compiling the model code", "compiling the runtime and linking",
                   "packaging"):
         assert f"EgoVehicleSimple: {stage}" in said
+
+
+def test_a_failed_compile_names_the_file_it_was_to_write(tmp_path):
+    # a link line ends with -lm: the message names the output (its -o argument), not the last argument
+    from sdl_fmu.fmu.package import BuildError, binary_command, run_compilers
+
+    (tmp_path / "broken.c").write_text("int broken(void) { return }\n")
+    command = binary_command(tmp_path, ["broken.c"], tmp_path / "out" / "Broken.so")
+    assert command[-1] == "-lm"
+    with pytest.raises(BuildError) as raised:
+        run_compilers([command])
+    first = str(raised.value).splitlines()[0]
+    assert first == "compiling Broken.so failed:", first
+    assert "broken.c" in str(raised.value)  # the compiler's own message follows

@@ -28,7 +28,7 @@ BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
 
 
 @functools.lru_cache(maxsize=None)
-def _compiler_identity(compiler: str) -> str:
+def compiler_identity(compiler: str) -> str:
     """The compiler's own version banner (a different gcc builds a different binary)."""
     try:
         completed = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
@@ -72,8 +72,8 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     cross_compiler = mingw_compiler()  # None: the FMU gets no Windows binary, a different FMU
     for part in (f"sdl-fmu {__version__}", f"model {BUILT[dynamics]}", f"fmi {fmi_version}",
                  f"casadi {casadi.__version__}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
-                 _compiler_identity(compiler), f"mingw {cross_compiler}",
-                 _compiler_identity(cross_compiler) if cross_compiler else ""):
+                 compiler_identity(compiler), f"mingw {cross_compiler}",
+                 compiler_identity(cross_compiler) if cross_compiler else ""):
         digest.update(part.encode() + b"\0")
     for name, path in _input_files(dynamics):
         digest.update(name.encode() + b"\0")
@@ -81,7 +81,7 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     return digest.hexdigest()
 
 
-def _remove_abandoned_builds(root: Path) -> None:
+def remove_abandoned_builds(root: Path) -> None:
     """Temporary build folders of processes that no longer exist (killed during a build)."""
     for folder in root.glob(".building-*-*"):
         pid = folder.name.split("-")[1]
@@ -110,7 +110,7 @@ def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, .
     if missing:
         root = cache_directory()
         root.mkdir(parents=True, exist_ok=True)
-        _remove_abandoned_builds(root)
+        remove_abandoned_builds(root)
         if announce is not None:
             announce(targets[missing[0]])
         work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))

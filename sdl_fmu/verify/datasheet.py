@@ -62,7 +62,7 @@ def _tires(model) -> dict:
             tires[key] = model.parameters[name]
     slots = model.tire_slot_numbers()
     if slots:
-        from ..dynamics.tires import default_attribute_file, read_attribute_file
+        from ..tire_files import default_attribute_file, read_attribute_file
 
         files = {entry.attribute: entry.tire_file.name for entry in read_attribute_file(default_attribute_file())}
         prefix = friction.tire_slots

@@ -24,6 +24,7 @@ SWEEP_SPEEDUP = 1.8  # 2 workers against 1
 CRITICALITY_OVERHEAD = 0.15  # on the demo
 VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
 AEB_CCR_CPU_S = 60.0  # the whole CCR grid, Simple vehicle, example AEB, one core
+EXPORT_LIBCOSIM_RTF = 100.0  # the exported demo (Simple ego, step 10 ms) in libcosim
 
 
 def _load(name: str, results: Path) -> dict:
@@ -246,13 +247,19 @@ def verify_pack(results: Path) -> list[str]:
         r = data[model]
         rows.append([model.capitalize(), f"**{r['cpu_s']:.1f}**", f"{r['wall_s']:.1f}",
                      ", ".join(f"{name} {s:g}" for name, s in r["manoeuvres_wall_s"].items())])
+        if "reference" in r:
+            ref = r["reference"]
+            rows.append([f"{model.capitalize()}, reference checkout", f"{ref['cpu_s']:.1f} (new / reference "
+                         f"{r['cpu_ratio_new_over_reference']:.2f})", f"{ref['wall_s']:.1f}",
+                         ", ".join(f"{name} {s:g}" for name, s in ref["manoeuvres_wall_s"].items())])
         verdicts.append(f"{model.capitalize()} < {VERIFY_CPU_S[model]:g} s CPU on one core: "
                         f"{_met(r['cpu_s'] < VERIFY_CPU_S[model])}")
     return [
         "## 7. The vehicle test pack", "", "Script: `benchmarks/verify_pack.py`.", "",
         "`api.verify` of the whole pack (six manoeuvres, results folder with report.html written) per shipped "
         "model, in one process on one core, the manoeuvres one after the other; the Simple pack includes the 60 "
-        "closed-form stops. CPU time (`time.process_time`) is the figure that counts on a shared machine.", "",
+        "closed-form stops. CPU time (`time.process_time`) is the figure that counts on a shared machine. A "
+        "reference checkout's pack (`--reference`), where measured, ran side by side in the same process.", "",
         *_table(["model", "pack CPU s", "pack wall s", "per manoeuvre, wall s"], rows), "",
         _measured(data["measured"]), "",
         *[f"- {v}" for v in verdicts], ""]
@@ -297,8 +304,53 @@ def scenario_step(results: Path) -> list[str]:
         f"{_met(ratio <= 1.0)}", ""]
 
 
+def export_speed(results: Path) -> list[str]:
+    data = _load("export_speed", results)
+    names = {"libcosim": "libcosim (libcosimpy), `simulate_until`", "ecos": "ecos (ecospy), `step`",
+             "fmpy": "fmpy, `simulate_ssp`"}
+    rows = [[names[master], f"**{r['real_time_factor']:.0f}×**", f"{r['wall_s']:.3f}", f"{r['cpu_s']:.3f}",
+             f"{r['us_per_step']:g}", f"{r['load_s']:.3f}" if master != "fmpy" else "in the run"]
+            for master, r in data["masters"].items()]
+    libcosim = data["masters"]["libcosim"]["real_time_factor"]
+    return [
+        "## 10. The exported demo in SSP masters", "", "Script: `benchmarks/export_speed.py`.", "",
+        f"`api.export(\"demo\")` (the Simple ego, FMI 2.0, step {data['step_s'] * 1000:g} ms: "
+        f"{data['steps']} steps to the stop time {data['stop_time_s']:g} s), the SSP run whole by each master in a "
+        f"fresh process of its own, best of {data['repeat']} by wall time of the simulation alone (loading the SSP, "
+        "unzipping and instantiating the FMUs are apart; fmpy's `simulate_ssp` does all in one call). The scenario "
+        "FMU and the ego FMU are stepped by the master on its "
+        "fixed grid ([docs/export.md](docs/export.md)).", "",
+        *_table(["master", "real-time factor", "wall s", "CPU s", "µs / step", "load s"], rows), "",
+        _measured(data["measured"]), "",
+        f"- libcosim ≥ {EXPORT_LIBCOSIM_RTF:g}× real time at 10 ms: {_met(libcosim >= EXPORT_LIBCOSIM_RTF)}", ""]
+
+
+def isolation(results: Path) -> list[str]:
+    data = _load("isolation", results)
+    rows = []
+    for key in ("simple_fmi2", "simple_fmi3", "advanced_fmi2", "advanced_fmi3"):
+        if key not in data:
+            continue
+        a, b, extra = data[key]["in_process"], data[key]["isolated"], data[key]["extra"]
+        model, version = key.split("_")
+        rows.append([f"{model.capitalize()} FMI {version[-1]}.0", f"{b['first_instance_s']:.2f}",
+                     f"{a['step_us']:.0f} / **{b['step_us']:.0f}**",
+                     f"{a['run_s']:.2f} / **{b['run_s']:.2f}**", f"{extra['loop_per_step_us']:.0f}"])
+    return [
+        "## 11. A foreign FMU in its host process", "", "Script: `benchmarks/isolation.py`.", "",
+        "An FMU sdl-fmu did not build runs in a host process (`sdl_fmu/vehicle/isolated.py`; the decision: "
+        "[docs/decisions.md](docs/decisions.md)). Measured on the shipped FMUs, in process and in a host "
+        "(`SDL_FMU_ISOLATION=always`), side by side in one process, wall clock (the work is split over two "
+        "processes), medians: the host's start (once per FMU and process; a later instance reuses it), one "
+        "50 ms communication step with the controls set and the outputs read, the demo through `api.run` "
+        "(Simple: demo, Advanced: demo_advanced; no plot), and the master loop's extra time per step.", "",
+        *_table(["FMU", "host start s", "step µs (in process / host)", "demo run s (in process / host)",
+                 "loop, extra µs per step"], rows), "",
+        _measured(data["measured"]), ""]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, scenario_step)
+            aeb_ccr, scenario_step, export_speed, isolation)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -320,9 +372,11 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/sweep_workers.py --runs 24 --json benchmarks/results/sweep_workers.json",
         "python benchmarks/criticality_overhead.py --repeat 25 --json benchmarks/results/criticality_overhead.json",
         "python benchmarks/vehicle_path_speed.py --reference CHECKOUT --json benchmarks/results/vehicle_path_speed.json",
-        "python benchmarks/verify_pack.py --json benchmarks/results/verify_pack.json",
+        "python benchmarks/verify_pack.py --reference CHECKOUT --json benchmarks/results/verify_pack.json",
         "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
         "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
+        "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
+        "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

@@ -14,18 +14,22 @@ file, line and field). Anything else is a bug.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
 import shutil
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
+from fmpy import read_model_description
 
+from . import __version__
 from .cosim import master
 from .cosim.ego import FmuError
 from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
@@ -39,14 +43,18 @@ from .sdl import Scenario, ScenarioError, SdlError, default_vehicle_table_path, 
 from .sdl.checks import check_scenario, vehicle_warnings
 from .shipped import shipped_controller, shipped_fmu
 from .shipping import ClusterError
+from .ssp.folder import check_export_folder, write_export
+from .ssp.system import ExportError, build_system
+from .text import unescaped
 from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
 from .units import from_si, length_label, speed_label
 from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
 from .vehicle.controller import ControllerError, ControllerModel
+from .vehicle.isolated import FmuTimeout, deadline
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
-           "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model", "LIMITS",
-           "RUN_OPTIONS", "DRIVERS", "ON_COLLISION"]
+           "export", "Export", "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model",
+           "LIMITS", "RUN_OPTIONS", "DRIVERS", "ON_COLLISION"]
 
 
 class RunTimeout(RuntimeError):
@@ -186,16 +194,16 @@ def _tire_file_check(tires: str | os.PathLike | None) -> tuple[frozenset[int], l
 
 
 def ego_model(dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = None,
-              vehicle: str | os.PathLike | VehicleMap | None = None) -> EgoModel:
+              vehicle: str | os.PathLike | VehicleMap | None = None, fmi_version: int = 2) -> EgoModel:
     """The run's EgoModel: `fmu` (or the map's own `fmu`) driven through the vehicle map `vehicle`; without a map,
-    the shipped map of `dynamics` (default simple) with `fmu` or the cached build (built on first use, with one line
-    on stderr). Raises InputError naming the map file and key, or the FMU."""
+    the shipped map of `dynamics` (default simple) with `fmu` or the cached build of that FMI version (built on first
+    use, with one line on stderr). Raises InputError naming the map file and key, or the FMU."""
     vehicle_map = _vehicle_map(dynamics, vehicle)
     if vehicle is not None:
         return EgoModel.open(None if fmu is None else regular_file("fmu", fmu), vehicle_map)
     dynamics = "simple" if dynamics is None else dynamics
     if fmu is None:
-        return EgoModel.open(shipped_fmu(dynamics), vehicle_map)
+        return EgoModel.open(shipped_fmu(dynamics, fmi_version), vehicle_map)
     try:
         return EgoModel.open(regular_file("fmu", fmu), vehicle_map)
     except VehicleMapError as error:
@@ -331,7 +339,7 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
             # the terminal's size, 80 x 24 where it reports none (a fresh pseudo-terminal says 0 x 0, which
             # makes tqdm print nothing)
             size = shutil.get_terminal_size()
-            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=sys.stderr, leave=False,
+            bar = state_of["bar"] = tqdm(total=round(total, 1), unit=unit, file=unescaped(sys.stderr), leave=False,
                                          ncols=size.columns, nrows=size.lines,
                                          bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} {unit}")
             state_of["key"] = key
@@ -439,11 +447,18 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
         options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
     try:
-        raw = master.run_scenario(scenario, model, options, _vehicle_table())
+        with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
+            raw = master.run_scenario(scenario, model, options, _vehicle_table())
+    except FmuTimeout as error:
+        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU "
+                         f"{model.fmu_path.name} {_first_line(error)}") from None  # "did not answer in fmi2DoStep ..."
     except ControllerError as error:  # the controller's binary, or values it refused or returned
         raise InputError("controller", _first_line(error)) from None
-    except (FmuError, OSError) as error:  # a broken binary, or values the model cannot simulate
+    except FmuError as error:  # a broken binary, or values the model cannot simulate
         raise InputError("fmu", f"the FMU {model.fmu_path.name} failed: {_first_line(error)}") from None
+    except OSError as error:  # the samples' temporary files: a full or unwritable $TMPDIR
+        raise InputError(None, f"cannot write the run's temporary files in {tempfile.gettempdir()}: "
+                               f"{error.strerror or error}; nothing was written") from None
     raw.warnings[:0] = [*scenario.warnings, *model.warnings, *_speed_warnings(model, options.speed, scenario.units)]
     result = Result(raw, scenario)
     if out is not None:
@@ -591,3 +606,140 @@ def _controller_identity(controller) -> dict | None:
 
     return {**fmu_identity(controller.fmu_path, controller.description, controller.map_path, controller.name),
             "period_s": controller.period, "parameters": dict(controller.parameters)}
+
+
+# --- the scenario as a co-simulation unit ------------------------------------------------------------------
+
+
+@dataclass
+class Export:
+    """What `export` wrote (docs/export.md): the export folder, the SSP, the FMUs beside it (by component), the
+    system's stop time and step (s), the parameter set's name and values (by component), and `reference`, the
+    `sdl-fmu run` of the same options whose end gives the stop time."""
+
+    folder: Path
+    ssp: Path
+    fmus: dict[str, Path]
+    stop_time: float
+    step: float
+    fmi_version: int
+    parameter_set: str
+    parameters: dict[str, dict[str, float | int | bool]]
+    reference: Result
+    warnings: list[str]
+
+
+DEFAULT_EXPORT_STEP = 0.01  # s, the exported system's communication step (the OSP annotation)
+
+
+STOP_MARGIN = (1.0, 0.01)  # s and a share of the end: how far past `run`'s end an exported system's stop time lies
+
+
+def _stop_time(reference: Result, step: float, until_time: float | None) -> float:
+    """The exported system's stop time, on the step grid: `until_time` and one step (a master whose clock is a
+    running sum of steps arrives a hair before a time on the grid), else the end of `sdl-fmu run` of the same options
+    plus one second or one per cent of it, whichever is more: a master's ego runs a little behind run's (it gets each
+    command a step later: docs/export.md), so its end comes later than run's (0.04 s in the demo); past the end
+    nothing fires."""
+    if until_time is not None:
+        steps = math.ceil(until_time / step - 1e-9) + 1
+    else:
+        end = float(reference.final["time_s"])
+        steps = math.ceil((end + max(STOP_MARGIN[0], STOP_MARGIN[1] * end)) / step - 1e-9)
+    return float(f"{steps * step:.15g}")  # 2.01, not 2.0100000000000002: the product's last bits are noise
+
+
+@contextlib.contextmanager
+def _scenario_fmu(scenario: Scenario, model, **options):
+    """The scenario FMU of these options (docs/export.md), written into a temporary folder as <scenario>.fmu."""
+    from .export.scenario_fmu import ScenarioFmuError, write_scenario_fmu  # the build side: its writer and runtime
+
+    with tempfile.TemporaryDirectory(prefix="sdl-fmu-export-") as folder:
+        try:
+            unit = write_scenario_fmu(scenario, Path(folder) / f"{Path(scenario.path).stem}.fmu", ego=model, **options)
+        except ScenarioFmuError as error:
+            raise InputError(None, f"the scenario FMU cannot be written: {error}") from None
+        yield unit
+
+
+def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dynamics: Dynamics | None = None,
+           fmu: str | os.PathLike | None = None, vehicle: str | os.PathLike | None = None,
+           speed: float | None = None, seed: int = 1, until_distance: float | None = None,
+           until_time: float | None = None, step: float | None = None, fmi_version: int = 2,
+           skip_unsupported: bool = False, controller: str | os.PathLike | None = None,
+           controller_map: str | os.PathLike | None = None, driver: str = "lane",
+           on_collision: str = "continue") -> Export:
+    """Writes the scenario as a co-simulation unit into the export folder `out` (docs/export.md): `<scenario>.ssp`,
+    an SSP 1.0 system of the scenario FMU and the ego FMU connected through the vehicle map, and the FMUs beside it.
+
+    The options mean what `run`'s do (speed and until_distance in the scenario's units; until_distance and
+    until_time exclusive); step is the system's communication step (s, default 0.01); fmi_version (2 or 3) that of
+    the scenario FMU and of a shipped ego (a user's FMU goes in as it is). controller and controller_map: a
+    controller between the scenario and the ego (docs/controllers.md), a third component of the system; driver
+    ("lane" or "follow") and on_collision ("continue" or "stop") as run's. `out` is a
+    new or empty folder or an earlier export folder. Raises InputError or ScenarioError for user mistakes; nothing is
+    written then."""
+    step = DEFAULT_EXPORT_STEP if step is None else checked_option("step", step)
+    if isinstance(fmi_version, bool) or fmi_version not in (2, 3):
+        raise option_error("fmi_version", fmi_version, "must be 2 or 3")
+    if until_time is not None and until_distance is not None:
+        raise option_error("until_time", until_time, "give until_distance or until_time, not both")
+    vehicle_map = _vehicle_map(dynamics, vehicle)
+    scenario = _checked(scenario, vehicle_map, skip_unsupported)
+    options = run_options(scenario, speed=speed, seed=seed, until_distance=until_distance, until_time=until_time,
+                          driver=driver, on_collision=on_collision)
+    in_the_loop = controller_model(controller, controller_map)
+    try:
+        check_export_folder(out)
+    except ResultsFolderError as error:
+        raise InputError("out", "", subject=str(error)) from None
+    model = ego_model(dynamics, fmu, vehicle_map if vehicle is not None else None, fmi_version).with_tires(None)
+    # what a run of this scenario with this vehicle warns of (`sdl-fmu check`'s warnings): the scenario FMU does the same
+    warnings = [*scenario.warnings, *model.warnings,
+                *vehicle_warnings(scenario, model.name, model.surface_meaning, model.brk_acts, model.known_attributes)]
+    if model.fmi_version != f"{fmi_version}.0":
+        warnings.append(f"the ego FMU {model.fmu_path.name} is FMI {model.fmi_version} and the scenario FMU FMI "
+                        f"{fmi_version}.0: " + ("libcosim and fmpy's simulate_ssp load FMI 2.0 FMUs only"
+                                                if model.fmi_version == "3.0" else "only ecos runs FMI 3.0"))
+    if in_the_loop is not None and abs(in_the_loop.period - step) > 1e-12 * step:
+        warnings.append(f"the controller {in_the_loop.name} is stepped at the system's step {step:g} s, not at its "
+                        f"map's period {in_the_loop.period:g} s: an SSP master steps every FMU on one grid")
+    start = {"speed": DEFAULT_SPEED if options.speed is None else options.speed, "x": 0.0,
+             "y": -scenario.road.lane_center(1), "yaw": 0.0}  # where run starts the ego (cosim/master.py)
+    name = Path(scenario.path).stem
+    arbitration = None if in_the_loop is None else dict(in_the_loop.rules)
+    with _scenario_fmu(scenario, model, fmi_version=fmi_version, speed=options.speed, seed=options.seed,
+                       until_distance=options.until_distance, until_time=options.until_time, step=step,
+                       arbitration=arbitration, driver=options.driver, on_collision=options.on_collision) as unit:
+        description = read_model_description(str(unit.path), validate=False)
+
+        def system_until(stop_time: float):
+            try:
+                return build_system(name, unit.path, description, model, start=start,
+                                    scenario_parameters=unit.parameters, stop_time=stop_time, step=step,
+                                    description=f"the SDL scenario {Path(scenario.path).name} and the ego vehicle "
+                                                f"{model.name}, exported by sdl-fmu",
+                                    generation_tool=f"sdl-fmu {__version__}", controller=in_the_loop)
+            except ExportError as error:
+                text = str(error)
+                option = "controller_map" if in_the_loop is not None and text.startswith(
+                    (in_the_loop.map.label, "--controller")) else "vehicle" if vehicle is not None else "fmu"
+                raise InputError(option, text) from None
+
+        system_until(step)  # every connection checked before anything runs
+        # the reference run: `sdl-fmu run` of the same options; its end gives the system's stop time
+        reference = run(scenario, dynamics=dynamics, fmu=model.fmu_path, vehicle=vehicle, speed=speed, seed=seed,
+                        until_distance=until_distance, until_time=until_time, plot=False,
+                        controller=None if in_the_loop is None else in_the_loop.fmu_path,
+                        controller_map=None if in_the_loop is None else in_the_loop.map_path, driver=driver,
+                        on_collision=on_collision)
+        stop_time = _stop_time(reference, step, options.until_time)
+        system = system_until(stop_time)
+        try:
+            folder = write_export(out, f"{name}.ssp", system)
+        except ResultsFolderError as error:
+            raise InputError("out", "", subject=str(error)) from None
+    fmus = {c.name: folder / c.source.split("/", 1)[1] for c in system.components}
+    parameters = {c.name: {p.name: p.value for p in c.parameters} for c in system.components}
+    return Export(folder, folder / f"{name}.ssp", fmus, stop_time, step, fmi_version, system.parameter_set,
+                  parameters, reference, warnings)

@@ -1,5 +1,5 @@
-"""The `sdl-fmu` command line: build, check, run, sweep, verify. It only parses arguments, calls sdl_fmu.api and
-prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
+"""The `sdl-fmu` command line: build, check, run, sweep, verify, export. It only parses arguments, calls sdl_fmu.api
+and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
 line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import sys
 from pathlib import Path
 
@@ -17,9 +18,11 @@ from . import sweep as sweeping
 from .names import SHIPPED
 from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
 from .sdl import ScenarioError, describe
+from .text import EscapingStream
 from .units import length_label, speed_label
 
 EXIT_SCENARIO, EXIT_USAGE, EXIT_RUNS_FAILED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 1, 2, 3, 130, 141
+EXIT_TERMINATED = 143  # SIGTERM (`timeout`, `kill`): 128 + 15, as the shell reports it
 EXIT_CRITERION_FAILED = 1  # verify --strict: a test pack's criterion failed
 FMI_VERSIONS = ("2", "3")
 
@@ -127,15 +130,19 @@ def _sweep(args) -> int:
         fixed["skip_unsupported"] = True
     scenario = api.resolve_scenario(args.scenario)
     out = Path(args.out) if args.out is not None else Path("sweeps") / scenario.stem
-    if args.workers is not None and args.workers < 1:
-        raise sweeping.SweepError(f"--workers {args.workers}: must be >= 1")
+    sweeping.check_workers(args.workers)
+    sweeping.check_scheduler(args.scheduler)
     try:
         rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
                               timeout=args.timeout, progress=None, **fixed)
-    except KeyboardInterrupt:
-        print(f"sdl-fmu: sweep interrupted (Ctrl-C); the finished runs are in {out / sweeping.JOURNAL_NAME}: "
-              "the same command resumes the sweep", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as stop:
+        how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
+        if (out / sweeping.JOURNAL_NAME).exists():
+            print(f"sdl-fmu: sweep {how}; the finished runs are in {out / sweeping.JOURNAL_NAME}: "
+                  "the same command resumes the sweep", file=sys.stderr)
+        else:
+            print(f"sdl-fmu: sweep {how}; nothing was written", file=sys.stderr)
+        return EXIT_TERMINATED if isinstance(stop, Terminated) else EXIT_INTERRUPTED
     table = out / sweeping.CSV_NAME
     failures = sweeping.failure_line(rows, table)
     if failures is not None and all(row.get("status") != "ok" for row in rows):
@@ -167,6 +174,21 @@ def _verify(args) -> int:
     return 0
 
 
+def _export(args) -> int:
+    result = api.export(args.scenario, out=args.out, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle,
+                        speed=args.speed, seed=args.seed, until_distance=args.until_distance,
+                        until_time=args.until_time, step=args.step, fmi_version=int(args.fmi_version),
+                        skip_unsupported=args.skip_unsupported, controller=args.controller,
+                        controller_map=args.controller_map, driver=args.driver, on_collision=args.on_collision)
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    fmus = ", ".join(f"{component} {path.name}" for component, path in result.fmus.items())
+    print(f"{result.ssp}: {fmus} (also beside it); FMI {result.fmi_version}.0, step {result.step:g} s, stop time "
+          f"{result.stop_time:g} s, parameter set '{result.parameter_set}'")
+    print("run it in libcosim, ecos or fmpy: docs/export.md")
+    return 0
+
+
 def _verify_folder_name(args) -> str:
     if args.fmu is not None:
         name = Path(args.fmu).stem
@@ -189,7 +211,7 @@ DESCRIPTION = "Vehicle-dynamics FMUs (FMI 2.0 and 3.0) co-simulated with STISIM-
 EPILOG = """\
 'sdl-fmu command --help' shows a command's options. Try: sdl-fmu run demo
 exit codes: 0 done, 1 the scenario file is wrong (verify --strict: a criterion failed), 2 another user mistake,
-            130 Ctrl-C, 141 the output pipe was closed early (e.g. by head)"""
+            3 a sweep with failed runs, 130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
 
 
 def _loop_arguments(command, every: str = "") -> None:
@@ -307,6 +329,36 @@ def parser() -> argparse.ArgumentParser:
     verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
                                       "(default: verify/<vehicle>, verify/<vehicle>-aeb-ccr)")
     verify.set_defaults(handler=_verify)
+
+    export = commands.add_parser("export", help="the scenario as an FMU and an SSP that FMI masters run")
+    export.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    export.add_argument("--dynamics", choices=SHIPPED, help="a shipped model: simple (default) or advanced; not "
+                        "with --vehicle")
+    export.add_argument("--fmu", help="ego FMU (default: the cached build of --dynamics)")
+    export.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
+    export.add_argument("--controller", metavar="FMU", help="controller FMU between the scenario and the ego, a third "
+                        "component of the SSP (default: the controller map's fmu)")
+    export.add_argument("--controller-map", metavar="CMAP", help="controller map (TOML): its signals, requests and "
+                        "arbitration (docs/controllers.md)")
+    export.add_argument("--driver", choices=DRIVERS, default="lane",
+                        help="built-in driver: lane (default: holds its lane and speed, ignores traffic) or follow "
+                             "(also follows the vehicle ahead: Gipps' car-following law)")
+    export.add_argument("--on-collision", choices=ON_COLLISION, default="continue",
+                        help="continue (default) or stop: the scenario ends at the first contact")
+    export.add_argument("--speed", type=_float_argument,
+                        help="driver's start and target speed, scenario units (default 88 ft/s)")
+    export.add_argument("--seed", type=int, default=1, help="seed of the random vehicle models (default 1)")
+    end = export.add_mutually_exclusive_group()
+    end.add_argument("--until-distance", type=_float_argument, help="end at this distance, scenario units")
+    end.add_argument("--until-time", type=_float_argument, help="end at this time, s")
+    export.add_argument("--step", type=_float_argument, help="the system's communication step, s (default 0.01)")
+    export.add_argument("--fmi-version", choices=FMI_VERSIONS, default="2",
+                        help="FMI version of the scenario FMU and of a shipped ego FMU (default 2: libcosim and fmpy "
+                             "run FMI 2.0 only)")
+    export.add_argument("--skip-unsupported", action="store_true",
+                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    export.add_argument("--out", required=True, help="export folder: new, empty, or an earlier export folder")
+    export.set_defaults(handler=_export)
     return main
 
 
@@ -317,9 +369,41 @@ def _is_build_error(error: Exception) -> bool:
     return package is not None and isinstance(error, package.BuildError)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled as Ctrl-C is (everything sdl-fmu started is ended, nothing half-written is left)."""
+
+
+def _stop(signum, frame):
+    """Ctrl-C or SIGTERM: raised once; a repeat while sdl-fmu cleans up is ignored (`timeout` signals the command and
+    then its whole process group, so the command gets the signal twice), so the clean-up is never cut short."""
+    for repeated in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(repeated, signal.SIG_IGN)
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Runs one command; returns the exit code (0 ok, 1 scenario file, 2 other mistakes, 3 a sweep with failed
-    runs, 130 Ctrl-C, 141 closed output pipe)."""
+    runs, 130 Ctrl-C, 141 closed output pipe, 143 SIGTERM). Everything it prints has its terminal control
+    characters escaped (names come from files and FMUs)."""
+    streams = sys.stdout, sys.stderr
+    sys.stdout, sys.stderr = EscapingStream(sys.stdout), EscapingStream(sys.stderr)
+    previous = {}
+    try:
+        for number in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(number) is not signal.SIG_IGN:  # ignored by the caller: stays so
+                previous[number] = signal.signal(number, _stop)
+    except ValueError:  # not the main thread: the signals keep their actions
+        pass
+    try:
+        return _main(argv)
+    finally:
+        sys.stdout, sys.stderr = streams
+        for number, action in previous.items():
+            if signal.getsignal(number) is _stop:  # after a stop they stay ignored, through the exit's clean-up
+                signal.signal(number, action)
+
+
+def _main(argv: list[str] | None) -> int:
     try:
         try:
             args = parser().parse_args(argv)
@@ -337,7 +421,7 @@ def main(argv: list[str] | None = None) -> int:
         except InputError as error:
             print(f"sdl-fmu: {error.command_line()}", file=sys.stderr)
             return EXIT_USAGE
-        except sweeping.SweepError as error:
+        except sweeping.ClusterError as error:  # a SweepError, or the cluster options (--workers, --scheduler)
             print(f"sdl-fmu: {error}", file=sys.stderr)
             return EXIT_USAGE
         except Exception as error:
@@ -347,6 +431,9 @@ def main(argv: list[str] | None = None) -> int:
             return EXIT_USAGE
         sys.stdout.flush()  # here, so that a closed pipe is caught below rather than at interpreter exit
         return code
+    except Terminated:
+        print("sdl-fmu: terminated (SIGTERM); nothing was written", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("sdl-fmu: interrupted (Ctrl-C); nothing was written", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -35,3 +35,17 @@ VEHICLE_MAP_DIRECTORY = SCENARIO_DIRECTORY / "vehicles"  # the shipped models' v
 CONTROLLER_MAP_DIRECTORY = SCENARIO_DIRECTORY / "controllers"  # the shipped controllers' maps, <name>.toml
 VEHICLE_TABLE = SCENARIO_DIRECTORY / "vehicles.csv"
 MODEL_DESCRIPTION_DIRECTORY = _data_directory("modelDescription")  # <Model>.json and units.json
+
+
+CACHE_VARIABLE = "SDL_FMU_CACHE"
+
+
+def cache_directory() -> Path:
+    """Where built FMUs (and the user's other sdl-fmu state: the ownership key) are kept for this user:
+    $SDL_FMU_CACHE, else $XDG_CACHE_HOME/sdl-fmu, else ~/.cache/sdl-fmu."""
+    import os
+
+    if os.environ.get(CACHE_VARIABLE):
+        return Path(os.environ[CACHE_VARIABLE]).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "sdl-fmu"

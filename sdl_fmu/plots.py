@@ -495,7 +495,9 @@ def plot_run(result: RunResult, path: Path) -> None:
     """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above.
     Values at the format's extremes (km-wide views of a lane) make matplotlib's arithmetic overflow harmlessly:
     its RuntimeWarnings are not the user's concern, so they are not printed."""
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
+    from .text import plain_text  # names (scenario, vehicle, map) are drawn as written: `$` is not mathtext
+
+    with warnings.catch_warnings(), np.errstate(all="ignore"), plain_text():
         warnings.simplefilter("ignore", RuntimeWarning)
         _plot_run(result, path)
 

@@ -1,6 +1,9 @@
 """Results folders that never destroy what sdl-fmu did not write.
 
-A results folder carries a manifest, MANIFEST_NAME, listing the files sdl-fmu wrote into it. `--out` may be
+A results folder carries a manifest, MANIFEST_NAME, listing the files sdl-fmu wrote into it, each with its size and
+SHA-256, signed with this user's key (ownership.py): a planted manifest, or a file changed since, proves nothing, and
+what is not proved sdl-fmu's is never deleted or overwritten. The results are put in place under a lock on the
+parent folder, so runs into one folder finish one after the other (the last one's results stay, whole). `--out` may be
 a new folder, an empty folder or an earlier results folder; anything else is refused before a run starts.
 New results are written into a hidden sibling folder and swapped in with renames, so the folder holds
 either the old or the new results, never a mix. An empty folder keeps its identity (it may be the
@@ -21,7 +24,10 @@ from pathlib import Path
 from typing import Callable
 
 MANIFEST_NAME = ".sdl-fmu-results.json"
-MANIFEST_FORMAT = "sdl-fmu results 1"
+MANIFEST_FORMAT = "sdl-fmu results 2"  # 1: names only, unsigned (proves nothing now)
+# the names sdl-fmu writes into results folders (run, verify): one of them held by a file that is not sdl-fmu's is
+# refused before the run (it would have to be overwritten)
+RESULT_NAMES = ("timeseries.csv", "traffic.csv", "summary.json", "plot.png", "verify.json", "report.html")
 _PARTIAL, _OLD = "partial", "old"
 _SIBLING = re.compile(r"\.(?P<name>.+)\.(?P<kind>partial|old)-(?P<pid>\d+)-[A-Za-z0-9_]+")
 
@@ -31,23 +37,37 @@ class ResultsFolderError(Exception):
 
 
 def read_manifest(folder: Path) -> list[str] | None:
-    """The files sdl-fmu wrote into `folder`, or None when it is not a results folder of sdl-fmu."""
+    """The files in `folder` that sdl-fmu provably wrote (its signed manifest lists them and they are unchanged; a
+    listed name with nothing there counts too), or None when it is not a results folder of this user's sdl-fmu."""
+    from . import ownership
+
+    folder = Path(folder)
     try:
-        data = json.loads((Path(folder) / MANIFEST_NAME).read_text(encoding="utf-8"))
+        data = json.loads((folder / MANIFEST_NAME).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT:
         return None
     files = data.get("files")
-    if not isinstance(files, list) or not all(isinstance(f, str) and f and "/" not in f and f not in (".", "..")
-                                              for f in files):
+    if not isinstance(files, dict) or not all(isinstance(f, str) and f and "/" not in f and f not in (".", "..")
+                                              and f != MANIFEST_NAME for f in files):
         return None
-    return files
+    if not ownership.authentic(data):
+        return None
+    def ours(name: str, entry) -> bool:
+        if isinstance(entry, list):  # any of several forms (while files are exchanged); None: absent
+            return any(ours(name, form) for form in entry)
+        return not os.path.lexists(folder / name) if entry is None else ownership.unchanged(folder / name, entry)
+
+    return sorted(name for name, entry in files.items() if ours(name, entry))
 
 
 def _write_manifest(folder: Path, files: list[str], complete: bool) -> None:
-    data = {"format": MANIFEST_FORMAT, "complete": complete, "files": sorted(files)}
-    (folder / MANIFEST_NAME).write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    from . import ownership
+
+    data = {"format": MANIFEST_FORMAT, "complete": complete,
+            "files": {name: ownership.record(folder / name) for name in sorted(files)}}
+    ownership.write_json(folder / MANIFEST_NAME, ownership.signed(data))
 
 
 def _foreign_entries(folder: Path, own: list[str]) -> list[str]:
@@ -94,6 +114,9 @@ def check_results_folder(out: str | os.PathLike) -> Path:
             listed = ", ".join(repr(name) for name in foreign[:3]) + (" ..." if len(foreign) > 3 else "")
             raise ResultsFolderError(f"{shown}: holds files sdl-fmu did not write ({listed}); give a new or empty "
                                      "folder or an earlier results folder")
+        clash = [name for name in foreign if name in RESULT_NAMES]
+        if clash:
+            raise ResultsFolderError(_clash(shown, clash[0]))
         _probe_writable(target, shown)
         _probe_writable(target.parent, shown)
         return target
@@ -102,6 +125,11 @@ def check_results_folder(out: str | os.PathLike) -> Path:
         raise ResultsFolderError(f"{shown}: {existing} is not a folder")
     _probe_writable(existing, shown)
     return target
+
+
+def _clash(shown: str, name: str) -> str:
+    return (f"{shown}: its {name} is not sdl-fmu's (changed since sdl-fmu wrote it, or never written by it) and would "
+            "be overwritten; move it away, or give another folder")
 
 
 def _alive(pid: int) -> bool:
@@ -146,22 +174,39 @@ def _sibling(target: Path, kind: str) -> Path:
 def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None]) -> Path:
     """Runs `write(folder)` into a fresh hidden folder, then puts its files in place at `out`: all of them or
     none, and nothing sdl-fmu did not write is removed. Returns the results folder (absolute)."""
+    from . import ownership
+
+    shown = os.fspath(out)
     target = check_results_folder(out)
-    clean_leftovers(target)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    partial = _sibling(target, _PARTIAL)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = _sibling(target, _PARTIAL)
+    except OSError as error:
+        raise ResultsFolderError(f"{shown}: cannot write: {error.strerror or error}") from None
     try:
         os.chmod(partial, 0o755)  # mkdtemp makes it private; results are ordinary files
         _write_manifest(partial, [], complete=False)  # marks it as ours from the first moment
         write(partial)
         files = sorted(entry.name for entry in partial.iterdir() if entry.name != MANIFEST_NAME)
         _write_manifest(partial, files, complete=True)
-        if not os.path.lexists(target):
-            os.rename(partial, target)
-        elif read_manifest(target) is not None and not _foreign_entries(target, read_manifest(target)):
-            _swap(partial, target)  # an earlier results folder: replaced as a whole
-        else:
-            _replace_files(partial, target, files)
+        with ownership.locked(target.parent, wait=True):  # one run at a time puts its results in place here
+            target = check_results_folder(out)  # again: another run may have finished meanwhile
+            clean_leftovers(target)
+            own = read_manifest(target) if os.path.lexists(target) else None
+            foreign = _foreign_entries(target, own or []) if own is not None else []
+            clash = [name for name in files if name in foreign]
+            if clash:
+                raise ResultsFolderError(_clash(shown, clash[0]))
+            if not os.path.lexists(target):
+                os.rename(partial, target)
+            elif own is not None and not foreign:
+                _swap(partial, target)  # an earlier results folder: replaced as a whole
+            else:
+                _replace_files(partial, target, files)
+    except OSError as error:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise ResultsFolderError(f"{shown}: cannot write the results: {error.strerror or error}; the folder is as it "
+                                 "was") from None
     except BaseException:
         shutil.rmtree(partial, ignore_errors=True)
         raise
@@ -184,8 +229,15 @@ def _replace_files(new: Path, target: Path, files: list[str]) -> None:
     """Updates a results folder that also holds the user's files: each of sdl-fmu's files is renamed into
     place (atomic per file), files of the old manifest that this run did not write are removed, the
     manifest comes last. The user's files are never touched."""
+    from . import ownership
+
     old = read_manifest(target) or []
-    _write_manifest(target, sorted({*old, *files}), complete=False)
+    # while the files are exchanged, each is sdl-fmu's in its old form or its new one (or absent)
+    entries = {name: [ownership.record(target / name) if name in old else None, ownership.record(new / name)]
+               for name in files}
+    entries.update({name: [ownership.record(target / name), None] for name in set(old) - set(files)})
+    ownership.write_json(target / MANIFEST_NAME, ownership.signed({"format": MANIFEST_FORMAT, "complete": False,
+                                                                   "files": entries}))
     for name in files:
         os.replace(new / name, target / name)
     for name in set(old) - set(files):

@@ -11,6 +11,7 @@ import dataclasses
 import functools
 import hashlib
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -73,20 +74,84 @@ def materialize(bundle: Bundle) -> Path:
     return folder / bundle.files[0][0]
 
 
-def client(workers: int | None, scheduler: str | None):
+# Limits checked before a cluster is started or connected to (docs/sweeps.md): worker processes of a local cluster
+# per core (a run is CPU-bound: more workers than cores only cost memory, some 100 MB each), and the seconds a Dask
+# scheduler has to answer a connection with its handshake
+WORKERS_PER_CORE = 4
+SCHEDULER_PROBE = 10.0
+
+
+def max_workers() -> int:
+    return WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
+def check_workers(workers: int | None) -> None:
+    if workers is not None and not 1 <= workers <= max_workers():
+        raise ClusterError(f"--workers {workers}: must be from 1 to {max_workers()} ({WORKERS_PER_CORE} per core)")
+
+
+def check_scheduler(scheduler: str | None) -> None:
+    """An address a Dask client can be given: [tcp://]host:port, or another Dask protocol's address."""
+    if scheduler is None:
+        return
+    host_port = r"(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):\d{1,5}"
+    if not (re.fullmatch(rf"(?:tcp://)?{host_port}", scheduler)
+            or re.fullmatch(r"(?!tcp://)[a-z][a-z0-9+.-]*://\S+", scheduler)):  # tls://, inproc://, ucx://, ...
+        raise ClusterError(f"--scheduler {scheduler!r}: expected an address such as tcp://host:8786")
+
+
+def _probe_scheduler(scheduler: str) -> None:
+    """A TCP address must answer as a Dask scheduler does: on connection it sends its handshake first, a message
+    whose 8-byte length comes first. An HTTP server (the dashboard, port 8787) sends nothing until asked; another
+    server sends something else. Either is one line, within SCHEDULER_PROBE s (a Dask client would wait for ever,
+    or fail with a traceback)."""
+    import socket
+    import struct
+
+    if "://" in scheduler and not scheduler.startswith("tcp://"):
+        return  # tls, ucx, ...: only the client itself can speak them
+    host, _, port = scheduler.removeprefix("tcp://").rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=SCHEDULER_PROBE) as connection:
+            connection.settimeout(SCHEDULER_PROBE)
+            header = b""
+            while len(header) < 8:
+                chunk = connection.recv(8 - len(header))
+                if not chunk:
+                    break
+                header += chunk
+    except socket.timeout:
+        raise ClusterError(f"--scheduler {scheduler}: no Dask scheduler there (it sent nothing in "
+                           f"{SCHEDULER_PROBE:g} s: a web server? The dashboard is usually on 8787, the scheduler "
+                           "on 8786)") from None
+    except (OSError, ValueError) as error:
+        raise ClusterError(f"--scheduler {scheduler}: cannot connect: {getattr(error, 'strerror', None) or error}") \
+            from None
+    length = struct.unpack("<Q", header)[0] if len(header) == 8 else 0
+    if not 0 < length < 2**20:
+        raise ClusterError(f"--scheduler {scheduler}: not a Dask scheduler (what it sent is not Dask's handshake)")
+
+
+def client(workers: int | None, scheduler: str | None, runs: int | None = None):
     """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes (default one per
-    core); and what to close afterwards. ClusterError (one line) when neither can be had."""
+    core; never more than `runs`); and what to close afterwards. ClusterError (one line) when neither can be had:
+    an address that is none, or where no Dask scheduler answers, a number of workers beyond max_workers()."""
     from distributed import Client, LocalCluster
 
-    if scheduler:
+    if scheduler is not None:
+        check_scheduler(scheduler)
+        _probe_scheduler(scheduler)
         try:
             connected = Client(scheduler, timeout=10)
-        except (OSError, ValueError, TypeError) as error:
-            raise ClusterError(f"--scheduler {scheduler}: cannot connect: {str(error).splitlines()[0]}") from None
+        except Exception as error:  # noqa: BLE001 - OSError, TimeoutError, CommClosedError, a protocol mismatch, ...
+            text = (str(error).strip() or type(error).__name__).splitlines()[0]
+            raise ClusterError(f"--scheduler {scheduler}: cannot connect: {text}") from None
         return connected, [connected]
+    check_workers(workers)
+    count = workers or os.cpu_count() or 1
     try:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        cluster = LocalCluster(n_workers=count if runs is None else max(1, min(count, runs)), threads_per_worker=1,
+                               processes=True, dashboard_address=None)
     except (OSError, RuntimeError) as error:
         raise ClusterError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
     connected = Client(cluster)

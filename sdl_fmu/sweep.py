@@ -25,6 +25,7 @@ own deadline, and the sweep stops waiting for it after twice that, so the sweep 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import json
@@ -41,6 +42,7 @@ import numpy as np
 
 from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
 from .shipping import one_file as _one_file, passed_on as _passed_on
+from .shipping import check_scheduler, check_workers, max_workers  # noqa: F401 (the command line checks with them)
 from .units import Units
 
 Status = Literal["ok", "failed", "timeout"]
@@ -48,8 +50,18 @@ STATUSES: tuple[Status, ...] = ("ok", "failed", "timeout")
 TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
     "sweep.parquet", "sweep.csv", "sweep-rows.jsonl", "sweep.json", "sweep.png")
 OWN_FILES = {TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME}
+# the files above, each with its size and SHA-256 (the journal: its start), signed with the user's key (ownership.py)
+MANIFEST_NAME, MANIFEST_FORMAT = ".sdl-fmu-sweep.json", "sdl-fmu sweep 1"
+PARTIAL = ".partial"  # a file being written: renamed into place when whole
 RUN_OPTIONS = {"speed", "seed", "until_distance", "until_time"}
 DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
+# Limits checked before anything is generated, allocated or started (docs/sweeps.md): the runs of one sweep (the
+# product of the varied values' counts), the worker processes of a local cluster per core (a run is CPU-bound: more
+# workers than cores only cost memory, some 100 MB each), the characters of one --vary
+MAX_RUNS = 100_000
+WORKERS_PER_CORE = 4
+MAX_VALUES_TEXT = 1_000_000
+SCHEDULER_PROBE = 10.0  # s for a Dask scheduler to answer a connection with its handshake
 GRACE = 2.0  # x timeout without any run coming back: the runs still processing are given up
 
 
@@ -59,33 +71,75 @@ class SweepError(ClusterError):
 
 # ---- what varies ----------------------------------------------------------------------------------
 
-def parse_values(name: str, text: str, rng: random.Random) -> list:
-    """`a,b,c`, `start:stop:step` (stop included) or `uniform(lo,hi,n)` / `integers(lo,hi,n)`."""
-    text = text.strip()
+def value_count(name: str, text: str) -> int:
+    """How many values `text` gives, found without generating them (a,b,c: commas; a range: its arithmetic; samples:
+    n); SweepError for a form that cannot be read, a non-finite bound, or more than MAX_RUNS."""
+    shown = _shown(name, text)
+    if len(text) > MAX_VALUES_TEXT:
+        raise SweepError(f"--vary {shown}: longer than {MAX_VALUES_TEXT} characters")
     sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
     try:
         if sample:
-            kind, low, high, count = sample.group(1), float(sample.group(2)), float(sample.group(3)), \
-                int(sample.group(4))
+            low, high = _finite(sample.group(2)), _finite(sample.group(3))
+            count = int(sample.group(4)) if re.fullmatch(r"\+?\d{1,20}", sample.group(4).strip()) else -1
             if count < 1 or high < low:
                 raise ValueError
-            if kind == "integers":
-                return [rng.randint(int(low), int(high)) for _ in range(count)]
-            return [rng.uniform(low, high) for _ in range(count)]
-        if ":" in text:
-            start, stop, step = (float(part) for part in text.split(":"))
+        elif ":" in text:
+            start, stop, step = (_finite(part) for part in text.split(":"))
             if step <= 0 or stop < start:
                 raise ValueError
-            count = int(math.floor((stop - start) / step + 1e-9)) + 1
+            count = math.floor((stop - start) / step + 1e-9) + 1  # finite operands: a finite float
+        else:
+            count = text.count(",") + 1
+    except (ValueError, OverflowError):
+        raise SweepError(f"--vary {shown}: expected a,b,c or start:stop:step (finite numbers, step > 0, stop >= start) "
+                         "or uniform(lo,hi,n) / integers(lo,hi,n) (finite lo <= hi, whole n >= 1)") from None
+    if count > MAX_RUNS:
+        raise SweepError(f"--vary {shown}: {count:.6g} values, more than the {MAX_RUNS} runs a sweep may have")
+    return int(count)
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError
+    return value
+
+
+def _shown(name: str, text: str) -> str:
+    assignment = f"{name}={text}"
+    return assignment if len(assignment) <= 60 else f"{assignment[:45]}...{assignment[-10:]}"
+
+
+def parse_values(name: str, text: str, rng: random.Random) -> list:
+    """`a,b,c`, `start:stop:step` (stop included) or `uniform(lo,hi,n)` / `integers(lo,hi,n)`: finite values, at most
+    MAX_RUNS (counted before any is made); seeds are whole numbers in 0 .. 2^63 - 1."""
+    text = text.strip()
+    shown = _shown(name, text)
+    count = value_count(name, text)
+    sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
+    try:
+        if sample:
+            kind, low, high = sample.group(1), float(sample.group(2)), float(sample.group(3))
+            if kind == "integers":
+                if low != int(low) or high != int(high):
+                    raise SweepError(f"--vary {shown}: integers() takes whole bounds")
+                values = [rng.randint(int(low), int(high)) for _ in range(count)]
+            else:
+                values = [rng.uniform(low, high) for _ in range(count)]
+        elif ":" in text:
+            start, stop, step = (float(part) for part in text.split(":"))
             values = [start + k * step for k in range(count)]
         else:
-            values = [float(part) for part in text.split(",")]
+            values = [_finite(part) for part in text.split(",")]
     except ValueError:
-        raise SweepError(f"--vary {name}={text}: expected a,b,c or start:stop:step (step > 0, stop >= start) "
-                         "or uniform(lo,hi,n) / integers(lo,hi,n)") from None
-    if name == "seed" or not values:
-        if any(v != int(v) for v in values) or not values:
-            raise SweepError(f"--vary {name}={text}: seeds are whole numbers")
+        raise SweepError(f"--vary {shown}: every value must be a finite number") from None
+    if name == "seed":
+        from .options import LIMITS
+
+        low, high = LIMITS["seed"]
+        if any(v != int(v) or not low <= v <= high for v in values):
+            raise SweepError(f"--vary {shown}: seeds are whole numbers from {low} to {high}")
         return [int(v) for v in values]
     return values
 
@@ -101,9 +155,28 @@ def parse_vary(assignments: list[str], sample_seed: int = 0) -> dict[str, list]:
         if name in varied:
             raise SweepError(f"--vary {name} is given twice")
         varied[name] = parse_values(name, text, rng)
+        runs = math.prod(len(values) for values in varied.values())
+        if runs > MAX_RUNS:  # checked before the next name's values are made, and before any combination
+            raise SweepError(f"--vary: {' x '.join(str(len(v)) for v in varied.values())} = {runs} runs, more than "
+                             f"the {MAX_RUNS} a sweep may have")
     if not varied:
         raise SweepError("give at least one --vary NAME=VALUES")
     return varied
+
+
+def check_values(varied: dict[str, list]) -> None:
+    """What the table could not hold, before any run starts: every value a finite number, every seed a whole number
+    in 0 .. 2^63 - 1 (a 64-bit column). A value a run refuses (outside an option's range or an FMU parameter's
+    declared min/max) is that run's failed row, as any run's failure (docs/sweeps.md)."""
+    from .options import LIMITS
+
+    low, high = LIMITS["seed"]
+    for name, values in varied.items():
+        for value in values:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise SweepError(f"--vary {name}={value!r}: every value must be a finite number")
+            if name == "seed" and (value != int(value) or not low <= value <= high):
+                raise SweepError(f"--vary seed={value!r}: seeds are whole numbers from {low} to {high}")
 
 
 def combinations(varied: dict[str, list]) -> list[dict]:
@@ -271,25 +344,98 @@ def criticality_columns(criticality: dict | None, units: Units) -> dict:
 
 # ---- the table ------------------------------------------------------------------------------------
 
-def _key(values: dict) -> str:
-    return json.dumps({name: values[name] for name in sorted(values)}, sort_keys=True)
+def _key(index: int, values: dict) -> str:
+    """A run's identity: its place in the grid and its values (repeated values, e.g. integers(1,3,8), are several
+    runs, each kept)."""
+    return json.dumps({"run": index, "values": {name: values[name] for name in sorted(values)}}, sort_keys=True)
+
+
+def _proved(out: Path) -> set[str] | None:
+    """The files of OWN_FILES in `out` that sdl-fmu's sweep provably wrote (its signed manifest lists them, unchanged;
+    the journal: its start), or None without a valid manifest."""
+    from . import ownership
+
+    try:
+        data = json.loads((out / MANIFEST_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT or not ownership.authentic(data):
+        return None
+    files = data.get("files")
+    if not isinstance(files, dict):
+        return None
+    return {name for name, entry in files.items() if name in OWN_FILES and ownership.unchanged(out / name, entry)}
+
+
+def _manifest_entry(out: Path, name: str):
+    """What the folder's valid manifest records for `name` (None without one)."""
+    from . import ownership
+
+    try:
+        data = json.loads((out / MANIFEST_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or not ownership.authentic(data) or not isinstance(data.get("files"), dict):
+        return None
+    entry = data["files"].get(name)
+    if isinstance(entry, list):  # the form it was exchanged to
+        entry = next((form for form in reversed(entry) if form is not None), None)
+    return entry
+
+
+def _write_manifest(out: Path, coming: dict[str, Path] | None = None) -> None:
+    """The manifest of the sweep's files as they are now (written whole, then renamed into place); `coming`: files
+    about to replace some of them (name -> the file that will be renamed there), each listed in both forms, so that
+    an interruption between the renames leaves every file provably the sweep's."""
+    from . import ownership
+
+    coming = coming or {}
+    files = {}
+    journal = _manifest_entry(out, JOURNAL_NAME)  # the journal's start as compacted (rows are appended after it)
+    for name in sorted(OWN_FILES):
+        now = ownership.record(out / name, prefix=name == JOURNAL_NAME) if (out / name).is_file() else None
+        if name == JOURNAL_NAME and name not in coming and journal is not None and ownership.unchanged(out / name,
+                                                                                                       journal):
+            files[name] = journal
+        elif name in coming:
+            files[name] = [now, ownership.record(coming[name], prefix=name == JOURNAL_NAME)]
+        elif now is not None:
+            files[name] = now
+    ownership.write_json(out / MANIFEST_NAME, ownership.signed({"format": MANIFEST_FORMAT, "files": files}))
 
 
 def _check_folder(out: Path, spec: dict) -> list[dict]:
     """The `ok` rows of an earlier, interrupted or partly failed run of the same sweep in `out` (resume), or
-    [] for a new folder. A folder holding anything sdl-fmu's sweep did not write, or another sweep's
-    table, is refused."""
+    [] for a new folder. A folder holding anything sdl-fmu's sweep did not write (a file of the sweep's names
+    included, unless its signed manifest proves it sdl-fmu's and unchanged), or another sweep's table, is
+    refused. Files left half-written by a sweep that was killed (`*.partial`) go, in a proved folder."""
     if out.exists() and not out.is_dir():
         raise SweepError(f"--out {out}: exists and is not a folder")
     if not out.exists():
         return []
-    foreign = sorted(entry.name for entry in out.iterdir() if entry.name not in OWN_FILES)
+    names = sorted(entry.name for entry in out.iterdir())
+    proved = _proved(out)
+    leftovers = [name for name in names if name.endswith(PARTIAL) and name[:-len(PARTIAL)] in
+                 {*OWN_FILES, MANIFEST_NAME}]
+    foreign = [name for name in names if name not in {*OWN_FILES, MANIFEST_NAME}
+               and not (proved is not None and name in leftovers)]
     if foreign:
         raise SweepError(f"--out {out}: holds files a sweep did not write ({', '.join(foreign[:3])}); "
                          "choose a new or empty folder")
+    unproved = [name for name in names if name in OWN_FILES and name not in (proved or set())]
+    if unproved:
+        raise SweepError(f"--out {out}: its {unproved[0]} was not written by sdl-fmu's sweep, or was changed since; "
+                         "move it away, or choose another folder")
+    for name in leftovers:
+        (out / name).unlink(missing_ok=True)
     if not (out / SPEC_NAME).exists():
         return []
-    earlier = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
+    try:
+        earlier = json.loads((out / SPEC_NAME).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise SweepError(f"--out {out}: its {SPEC_NAME} cannot be read ({error}); choose another folder") from None
+    if not isinstance(earlier, dict):
+        raise SweepError(f"--out {out}: its {SPEC_NAME} is not a sweep's description; choose another folder")
     if earlier != spec:
         differ = [part for part in ("scenario", "vary", "fixed", "files") if earlier.get(part) != spec.get(part)]
         raise SweepError(f"--out {out}: holds a different sweep ({earlier.get('scenario')}, varying "
@@ -300,9 +446,10 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
         for line in (out / JOURNAL_NAME).read_text(encoding="utf-8").splitlines():
             try:
                 row = json.loads(line)
-            except json.JSONDecodeError:
-                continue  # a line cut short by the interruption: that run is simply run again
-            if row.get("status") == "ok" and "key" in row:
+            except ValueError:
+                continue  # a line cut short by the interruption (or damaged): that run is simply run again
+            if (isinstance(row, dict) and row.get("status") == "ok" and isinstance(row.get("key"), str)
+                    and type(row.get("run")) is int):
                 rows[row["key"]] = row
     return list(rows.values())
 
@@ -320,11 +467,18 @@ def write_table(rows: list[dict], out: Path, varied: list[str], units: Units) ->
                   key=_column_order)
     columns = {name: [row.get(name) for row in rows] for name in [*first, *rest]}
     table = pa.table({name: pa.array(values, from_pandas=True) for name, values in columns.items()})
-    pq.write_table(table, out / (TABLE_NAME + ".partial"))
-    pa_csv.write_csv(table, out / (CSV_NAME + ".partial"))
-    os.replace(out / (TABLE_NAME + ".partial"), out / TABLE_NAME)
-    os.replace(out / (CSV_NAME + ".partial"), out / CSV_NAME)
-    plot_sweep(rows, varied, units, out / PLOT_NAME)
+    partials = [out / (name + PARTIAL) for name in (TABLE_NAME, CSV_NAME, PLOT_NAME)]
+    try:
+        pq.write_table(table, partials[0])
+        pa_csv.write_csv(table, partials[1])
+        plot_sweep(rows, varied, units, partials[2])
+        _write_manifest(out, {partial.name[:-len(PARTIAL)]: partial for partial in partials})
+        for partial in partials:
+            os.replace(partial, partial.with_name(partial.name[:-len(PARTIAL)]))
+        _write_manifest(out)
+    finally:
+        for partial in partials:
+            partial.unlink(missing_ok=True)
 
 
 def _column_order(name: str):
@@ -352,7 +506,14 @@ def _axis_label(column: str) -> str:
 def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     """One row of panels per varied quantity that takes more than one value: collisions, the first BRK's
     distance and the smallest gap to any vehicle against that quantity; failed and timed-out runs marked
-    at the bottom. Axes carry units."""
+    at the bottom. Axes carry units; names are drawn as written (a `$` in a --vary name is not mathtext)."""
+    from .text import plain_text
+
+    with plain_text():
+        _plot_sweep(rows, varied, units, path)
+
+
+def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -387,7 +548,7 @@ def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) ->
             if row_index == 0 and k == 0 and any(r.get("status") != "ok" for r in rows):
                 ax.legend(fontsize=8)
     figure.suptitle(f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok", fontsize=11)
-    figure.savefig(path)
+    figure.savefig(path, format="png")
 
 
 # ---- the sweep ------------------------------------------------------------------------------------
@@ -401,6 +562,12 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     Returns the rows, in run order."""
     from . import api
 
+    check_workers(workers if client is None and not scheduler else None)
+    check_scheduler(scheduler)
+    runs = math.prod(len(values) for values in varied.values())
+    if runs > MAX_RUNS:
+        raise SweepError(f"--vary: {runs} runs, more than the {MAX_RUNS} a sweep may have")
+    check_values(varied)
     scenario_path = str(api.resolve_scenario(scenario).absolute())
     # the scenario checked for the runs' vehicle (a bad file fails now, before any FMU is built or loaded)
     loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False),
@@ -411,6 +578,11 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     api.run_options(loaded, **{key: fixed[key] for key in api.RUN_OPTIONS if key in fixed})  # bad options fail now
     model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
     model.with_parameters(fixed.get("params"))  # and bad FMU start values
+    try:  # an FMU that cannot even be instantiated is a bad --fmu, not a table of failed runs
+        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+    except Exception as error:  # noqa: BLE001 - whatever the FMU's start raised
+        raise api.InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: "
+                                    f"{str(error).strip().splitlines()[0] if str(error).strip() else error!r}") from None
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
         model.with_tires(fixed["tires"])  # a bad tire file fails now, naming the local file
@@ -425,40 +597,79 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
             "files": {option: bundle.digest for option, bundle in bundles.items()}}
+    from . import ownership
+
+    if out.exists() and not out.is_dir():
+        raise SweepError(f"--out {out}: exists and is not a folder")
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)  # to hold its lock from the start; removed again if nothing is written
+    except OSError as error:
+        raise SweepError(f"--out {out}: cannot be made: {error.strerror or error}") from None
+    held = False
+    try:
+        with ownership.locked(out):
+            held = True
+            return _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
+                               progress)
+    except ownership.Locked:
+        raise SweepError(f"--out {out}: another sweep is writing into it; wait until it ends, or choose another "
+                         "folder") from None
+    except OSError as error:  # a full disk, a folder that became read-only: what was written stays consistent
+        done = (out / JOURNAL_NAME).exists()
+        raise SweepError(f"--out {out}: cannot write: {error.strerror or error}; "
+                         + ("the finished runs are kept: the same command resumes the sweep" if done else
+                            "nothing was written")) from None
+    finally:
+        if created and held:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if empty: a sweep that wrote nothing leaves nothing
+
+
+def _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
+                progress) -> list[dict]:
+    """The sweep proper, with `out`'s lock held."""
+    from . import ownership
+
     done = _check_folder(out, spec)
     columns = column_names(list(varied), loaded.units, model)
     runs = combinations(varied)
     finished = {row["key"]: row for row in done}
-    todo = [(index, values) for index, values in enumerate(runs) if _key(values) not in finished]
+    todo = [(index, values) for index, values in enumerate(runs) if _key(index, values) not in finished]
     rows = list(finished.values())
     owned = []
     try:
         if todo and client is None:  # connect before anything is written
-            client, owned = _client(workers, scheduler)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / SPEC_NAME).write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
-        _keep_only(out / JOURNAL_NAME, rows)
+            client, owned = _client(workers, scheduler, len(todo))
+        if not (out / SPEC_NAME).exists():  # a resumed sweep's is the same
+            ownership.write_json(out / SPEC_NAME, spec)
+        _keep_only(out / JOURNAL_NAME, rows)  # and the manifest
         if todo:
             rows += _run_all(bundles, todo, fixed, timeout, out, client, progress, columns)
     finally:
         for thing in owned:
             thing.close()
-    write_table(rows, out, list(columns.values()), loaded.units)
+    write_table(rows, out, list(columns.values()), loaded.units)  # and the manifest
     return sorted(rows, key=lambda r: r["run"])
 
 
 def _keep_only(journal: Path, rows: list[dict]) -> None:
     """The journal with only the rows kept (the `ok` ones): the runs that failed are run again."""
-    partial = journal.with_name(journal.name + ".partial")
-    partial.write_text("".join(json.dumps(row, default=_plain) + "\n" for row in rows), encoding="utf-8")
-    os.replace(partial, journal)
-
-
-def _client(workers: int | None, scheduler: str | None):
-    """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes; and what to
-    close afterwards (shipping.client, its errors as SweepError)."""
+    partial = journal.with_name(journal.name + PARTIAL)
     try:
-        return _cluster_client(workers, scheduler)
+        partial.write_text("".join(json.dumps(row, default=_plain) + "\n" for row in rows), encoding="utf-8")
+        _write_manifest(journal.parent, {journal.name: partial})
+        os.replace(partial, journal)
+        _write_manifest(journal.parent)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def _client(workers: int | None, scheduler: str | None, runs: int | None = None):
+    """A client of the cluster at `scheduler`, or of a new LocalCluster of `workers` processes (never more than
+    `runs`); and what to close afterwards (shipping.client, its errors as SweepError)."""
+    try:
+        return _cluster_client(workers, scheduler, runs)
     except ClusterError as error:
         raise SweepError(str(error)) from None
 
@@ -471,8 +682,12 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
 
     rows = []
     patience = GRACE * timeout + 10.0
-    bar = tqdm(total=len(todo), unit="run", disable=progress is False or (progress is None
-                                                                          and not _stderr_is_terminal()))
+    import sys
+
+    from .text import unescaped  # the bar's own carriage returns, not escaped
+
+    bar = tqdm(total=len(todo), unit="run", file=unescaped(sys.stderr),
+               disable=progress is False or (progress is None and not _stderr_is_terminal()))
     shipped = {option: client.submit(_passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
                for option, bundle in bundles.items()}
     try:
@@ -514,7 +729,8 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
 
 
 def _record(journal, row: dict, index: int, values: dict, columns: dict[str, str]) -> dict:
-    row = {"run": index, **{columns[name]: value for name, value in values.items()}, **row, "key": _key(values)}
+    row = {"run": index, **{columns[name]: value for name, value in values.items()}, **row,
+           "key": _key(index, values)}
     journal.write(json.dumps(row, default=_plain) + "\n")
     journal.flush()
     return row

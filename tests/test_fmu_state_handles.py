@@ -46,10 +46,12 @@ def test_fmi2_handles_are_looked_up_not_dereferenced(simple_fmu, tmp_path):
         assert a("FreeFMUstate", ctypes.byref(state)) == OK and state.value is None
         assert a("SetFMUstate", stale) == ERROR
         assert a("FreeFMUstate", ctypes.byref(stale)) == ERROR
-        size = ctypes.c_size_t()
-        assert a("SerializedFMUstateSize", stale, ctypes.byref(size)) == OK  # the size needs no state
-        buffer = ctypes.create_string_buffer(size.value)
-        assert a("SerializeFMUstate", stale, buffer, size.value) == ERROR
+        # the size of a freed, a wild and a null handle: refused (with a message: Raw checks), size untouched
+        size = ctypes.c_size_t(7)
+        for handle in (stale, ctypes.addressof(wild), None):
+            assert a("SerializedFMUstateSize", handle, ctypes.byref(size)) == ERROR and size.value == 7
+        buffer = ctypes.create_string_buffer(1 << 12)
+        assert a("SerializeFMUstate", stale, buffer, len(buffer)) == ERROR
         assert a("DoStep", 0.0, 0.01, 1) == OK  # every refusal left the instance usable
         assert b("FreeFMUstate", ctypes.byref(foreign)) == OK
     finally:
@@ -76,6 +78,9 @@ def test_fmi3_handles_are_looked_up_not_dereferenced(simple_fmus, tmp_path):
         assert a("FreeFMUState", ctypes.byref(stale)) == ERROR
         data = bytes(8 * 64)
         assert a("DeserializeFMUState", data, len(data), ctypes.byref(stale)) == ERROR  # reuse: must be ours
+        size = ctypes.c_size_t(7)  # a freed, a wild and a null handle's size: refused (with a message: Raw3 checks)
+        for handle in (stale, ctypes.addressof(state), None):
+            assert a("SerializedFMUStateSize", handle, ctypes.byref(size)) == ERROR and size.value == 7
         assert a.do_step(0.0, 0.01) == OK
         assert b("FreeFMUState", ctypes.byref(foreign)) == OK
     finally:

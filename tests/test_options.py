@@ -12,8 +12,9 @@ PACKAGE = Path(sdl_fmu.__file__).parent
 # (MAX_SPEED also names sdl/parser.py's bound on a scenario's speed fields, another quantity)
 DEFINED_ONCE = ("MAX_TIME", "LIMITS", "DEFAULT_SPEED", "DEFAULT_STEP", "DEFAULT_DRIVER_PERIOD", "COMMAND_LINE_FLAGS")
 # imported inside a function on purpose: only the commands that need them pay for them (matplotlib for a plot or the
-# test packs' reports, CasADi and the compilers for a build, tqdm for a bar, pandas for a DataFrame)
-HEAVY = {"plots", "verify", "fmu.cache", "fmu.package", "tqdm", "pandas"}
+# test packs' reports, CasADi and the compilers for a build or for an export's scenario FMU, tqdm for a bar, pandas
+# for a DataFrame)
+HEAVY = {"plots", "verify", "fmu.cache", "fmu.package", "export.scenario_fmu", "tqdm", "pandas"}
 
 
 def heavy(module: str) -> bool:

@@ -87,6 +87,104 @@ def test_split_mu_braking_yaw_acceleration_from_the_force_imbalance(simple_fmu, 
     assert np.all(symmetric["yaw_rate"] == 0) and np.all(symmetric["psi"] == 0)
 
 
+# --- the stop uses the whole planar motion ---------------------------------------------------------------------
+
+
+def event_indicators_at(fmu, start, states):
+    """The FMU's event indicators with its continuous states set to `states` ({name: value}, the others as
+    initialised from `start`), through the model-exchange interface in continuous-time mode."""
+    description = read_model_description(str(fmu))
+    directory = extract(str(fmu))
+    model = FMU2Model(guid=description.guid, unzipDirectory=directory,
+                      modelIdentifier=description.modelExchange.modelIdentifier, instanceName="indicators")
+    references = {v.name: v.valueReference for v in description.modelVariables}
+    try:
+        model.instantiate()
+        model.setupExperiment(startTime=0.0)
+        model.setReal([references[name] for name in start], list(start.values()))
+        model.enterInitializationMode()
+        model.exitInitializationMode()
+        while model.newDiscreteStates()[0]:
+            pass
+        model.enterContinuousTimeMode()
+        names = [d.variable.derivative.name for d in description.derivatives]
+        x = (ctypes.c_double * len(names))()
+        model.getContinuousStates(x, len(names))
+        for name, value in states.items():
+            x[names.index(name)] = value
+        model.setContinuousStates(x, len(names))
+        z = (ctypes.c_double * description.numberOfEventIndicators)()
+        model.getEventIndicators(z, len(z))
+        model.terminate()
+        return list(z)
+    finally:
+        model.freeInstance()
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+def test_the_stop_indicator_reads_the_whole_planar_motion(simple_fmu, defaults_simple):
+    # Indicator 0 of a moving car is > 0 while it stays moving and crosses 0 where it is held. With every wheel
+    # rolling forward (the start) it is max(vx, m_side - STOP_SPEED), m_side = sqrt(vy^2 + (r L / 2)^2): a car with
+    # vx = 0 that slides sideways or turns is still moving (its kinetic energy m vy^2 / 2 or Iz r^2 / 2 is not 0);
+    # one whose sideways motion is below STOP_SPEED = 0.01 m/s is held at vx = 0, the exact forward stop. No
+    # pedal: the drive cannot hold it going (drive_excess < 0), so the indicator is the motion's term alone.
+    from sdl_fmu.dynamics.simple import STOP_SPEED
+
+    half = defaults_simple["wheelbase"] / 2
+    start = {"v0": 10.0, **NO_RESISTANCES}
+    for states, expected in [({"vx": 0.0, "vy": 5.0}, 5.0 - STOP_SPEED),
+                             ({"vx": 0.0, "yaw_rate": 2.0}, 2.0 * half - STOP_SPEED),
+                             ({"vx": -0.5, "vy": 3.0, "yaw_rate": -1.0}, math.hypot(3.0, half) - STOP_SPEED),
+                             ({"vx": 0.0, "vy": 0.5 * STOP_SPEED}, 0.0),  # held: sideways motion below STOP_SPEED
+                             ({"vx": 4.0, "vy": 0.0}, 4.0)]:
+        indicator = event_indicators_at(simple_fmu, start, {"vx": 0.0, "vy": 0.0, "yaw_rate": 0.0, **states})[0]
+        print(states, indicator)
+        assert indicator == pytest.approx(expected, rel=1e-12, abs=1e-12) if expected > 0 else indicator <= 0
+
+
+@pytest.mark.parametrize("pedal", [0.65, 0.70, 0.75])
+def test_a_sliding_car_is_not_held_while_it_moves(simple_fmu, defaults_simple, pedal):
+    # Split friction 0.8 left / 0.2 right, 100 km/h straight ahead, a pedal that locks the low-friction wheels
+    # (pedal 9.81 > 0.2 g) and not the high-friction ones (< 0.8 g = 7.85 m/s2): the car yaws, spins and slides
+    # sideways on its braked, rolling left wheels. At every communication step the FMU must run to the stop and
+    # hold the car only once it has (almost) no motion left:
+    # 1. a lower bound on the stop, whatever the car does: each wheel's force is at most (mu_i + f_r) m g / 4
+    #    (rolling, held or locked), so |a| <= A + K v^2 with A = (mu_mean + f_r) g and drag K = rho CdA / (2 m);
+    #    the speed of the centre of gravity falls no faster (d|v|/dt = v.a / |v| >= -|a|), so the path length s
+    #    (ds/dt = |v|) to the stop is at least ln(1 + K v0^2 / A) / (2K) (75.2 m; the old held the car at 40 m);
+    # 2. at a 1 ms step, the last sample before the stop moves at most STOP_SPEED + h max d(motion)/dt, motion =
+    #    sqrt(vx^2 + vy^2 + (r L / 2)^2): d|v|/dt <= |a| and (L / 2) dr/dt <= (L / 2) sum |F_i| |p_i| / Iz, |p_i| the
+    #    wheels' distance from the centre of gravity (bounded with A and v0: the drag term only shrinks);
+    # 3. the stop is an event located inside the step: 0.1, 0.01 and 0.001 s give the same stop. They differ by
+    #    the solver's error control only, whose internal steps each doStep's end cuts differently: the local error
+    #    on s is at most 1e-8 (|s| + 100 m) < 1.8e-6 m per internal step, over a few hundred steps: 1e-3 m.
+    from sdl_fmu.dynamics.simple import STOP_SPEED
+
+    p = defaults_simple
+    v0 = 100 / 3.6
+    start = {"v0": v0, "brake": pedal, "mu_fl": 0.8, "mu_rl": 0.8, "mu_fr": 0.2, "mu_rr": 0.2}
+    a_max = ((0.8 + 0.2) / 2 + p["rolling_resistance"]) * G
+    k = p["air_density"] * p["drag_area"] / (2 * p["mass"])
+    shortest = math.log(1 + k * v0**2 / a_max) / (2 * k)
+    assert shortest == pytest.approx(75.2, abs=0.1)
+    half, track = p["wheelbase"] / 2, p["track"]
+    turning = a_max * p["mass"] * math.hypot(half, track / 2) * half / p["yaw_inertia"]
+    stops = {}
+    for step in (0.1, 0.01, 0.001):
+        result = helpers.simulate(simple_fmu, 7.0, start, step=step, output=("s", "vx", "vy", "yaw_rate", "stopped"))
+        first = int(np.argmax(result["stopped"]))
+        assert result["stopped"][first] and np.all(result["stopped"][first:])
+        stops[step] = result["s"][first]
+        if step == 0.001:
+            before = result[first - 1]
+            motion = math.sqrt(before["vx"] ** 2 + before["vy"] ** 2 + (before["yaw_rate"] * half) ** 2)
+            print(f"pedal {pedal}: motion {motion:.4f} m/s one sample before the stop")
+            assert motion <= STOP_SPEED + step * (a_max + turning)
+    print(f"pedal {pedal}: stops {stops} (at least {shortest:.2f} m)")
+    assert min(stops.values()) >= shortest
+    assert max(stops.values()) - min(stops.values()) <= 1e-3
+
+
 # --- rear wheels that slide --------------------------------------------------------------------------------
 
 

@@ -277,6 +277,8 @@ class Worker:
         self.last_message = ""
         self.callbacks = fmi2_callbacks(Logger(self._log))
         self.stats = Counter()
+        self.wild = (ctypes.c_double * 64)()  # memory that is no FMU state: the wild handle points here
+        self.wild_buffer = ctypes.create_string_buffer(1 << 16)
 
     def _log3(self, environment, status, category, message):
         self._log(environment, None, status, category, message, None)
@@ -329,7 +331,10 @@ class Worker:
             flags = [ctypes.byref(Bool3()) for _ in range(3)]
             return c, t, h, bool(no_set), *flags, ctypes.byref(Real())
         if name == "fmi3UpdateDiscreteStates":
-            return args[0], *[ctypes.byref(Bool3()) for _ in range(5)], ctypes.byref(Real())
+            outputs = [ctypes.byref(Bool3()) for _ in range(5)] + [ctypes.byref(Real())]
+            if args[1] is None:  # the probe of a null output: one of the six, at random
+                outputs[self.rng.randrange(len(outputs))] = None
+            return args[0], *outputs
         if name == "fmi3CompletedIntegratorStep":
             return args[0], bool(args[1]), ctypes.byref(Bool3()), ctypes.byref(Bool3())
         if name == "fmi3EnterInitializationMode":
@@ -560,19 +565,27 @@ class Worker:
         elif choice == "fmi2EnterEventMode":
             self.do_transition(choice, "event")
         elif choice == "fmi2NewDiscreteStates":
-            self.call(choice, must, may, c, ctypes.byref(EventInfo()))
+            if r.random() < 0.25:  # a null output (FMI 3.0: one of its six) must be refused, state unchanged
+                self.stats["null output probes"] += 1
+                self.why = "a null output argument"
+                self.call(choice, True, True, c, None)
+            else:
+                self.call(choice, must, may, c, ctypes.byref(EventInfo()))
         else:
             self.do_transition(choice, "cont")
 
     def do_fmu_state(self) -> None:
         r = self.rng
         c = self.component
-        choice = r.choice(["get", "get", "set", "free", "serialize", "deserialize", "deserialize"])
+        choice = r.choice(["get", "get", "set", "free", "serialize", "deserialize", "deserialize", "bad handle"])
         if choice == "deserialize" and not self.blobs:
             choice = "serialize"
-        if choice == "get" or not self.handles:
+        if choice == "bad handle":
+            self.do_bad_handle()
+        elif choice == "get" or not self.handles:
             handle = ctypes.c_void_p()
             if self.call("fmi2GetFMUstate", False, True, c, ctypes.byref(handle)) == OK:
+                self.issued(handle)
                 self.handles.append((handle, (self.state, self.time, self.stop, self.current_solver_step,
                                               self.current_driver_period)))
         elif choice == "set":
@@ -582,7 +595,11 @@ class Worker:
                 self.state, self.time, _, self.current_solver_step, self.current_driver_period = saved
         elif choice == "free":
             handle, _ = self.handles.pop(r.randrange(len(self.handles)))
-            self.call("fmi2FreeFMUstate", False, False, c, ctypes.byref(handle))
+            value = handle.value
+            if self.call("fmi2FreeFMUstate", False, False, c, ctypes.byref(handle)) == OK:
+                self.freed.add(value)
+                if r.random() < 0.5:  # the freed handle used at once (before its address can be issued again)
+                    self.do_bad_handle("freed")
         elif choice == "serialize":
             handle, saved = r.choice(self.handles)
             size = ctypes.c_size_t()
@@ -605,7 +622,30 @@ class Worker:
             handle = ctypes.c_void_p()
             status = self.call("fmi2DeSerializeFMUstate", must, True, c, bytes(data), len(data), ctypes.byref(handle))
             if status == OK:
+                self.issued(handle)
                 self.handles.append((handle, saved))
+
+    def issued(self, handle) -> None:
+        """A handle the FMU issued: an address freed before may be issued again, and is then valid."""
+        self.freed.discard(handle.value)
+
+    def do_bad_handle(self, kind: str | None = None) -> None:
+        """A handle the instance did not issue or has freed, or NULL: the size, serialization and restore of it
+        must each be refused (the runtime looks handles up in its registry, never reads through them)."""
+        r = self.rng
+        kind = kind or r.choice(["freed", "wild", "null"] if self.freed else ["wild", "null"])
+        value = {"freed": lambda: r.choice(sorted(self.freed)), "wild": lambda: ctypes.addressof(self.wild),
+                 "null": lambda: None}[kind]()
+        self.stats["bad handle probes"] += 1
+        self.why = f"a {kind} FMU state handle"
+        handle = ctypes.c_void_p(value)
+        size = ctypes.c_size_t(123)
+        self.call("fmi2SerializedFMUstateSize", True, True, self.component, handle, ctypes.byref(size))
+        if r.random() < 0.5:
+            self.call("fmi2SerializeFMUstate", True, True, self.component, handle, self.wild_buffer,
+                      len(self.wild_buffer))
+        else:
+            self.call("fmi2SetFMUstate", True, True, self.component, handle)
 
     # -- sequences ------------------------------------------------------------------------------------------
     def progress_call(self) -> None:
@@ -674,7 +714,7 @@ class Worker:
         self.state, self.time, self.stop = "instantiated", 0.0, math.inf
         self.current_solver_step = self.solver_step.start if self.solver_step else 1e-3
         self.current_driver_period = self.driver_period.start if self.driver_period else 0.05
-        self.handles, self.blobs = [], []
+        self.handles, self.blobs, self.freed = [], [], set()
         self.pending_times = (0.0, False, 0.0)
         for _ in range(r.randint(5, 40)):
             if r.random() < 0.65 and self.state is not None:

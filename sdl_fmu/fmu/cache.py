@@ -25,16 +25,9 @@ from .. import __version__, paths
 from ..names import BUILT, SHIPPED_CONTROLLERS, Dynamics
 from .package import FmiVersion, build_fmus, fmu_path, mingw_compiler
 
-CACHE_VARIABLE = "SDL_FMU_CACHE"
+from ..paths import CACHE_VARIABLE, cache_directory  # noqa: F401 (where the run side finds the cache too)
+
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
-
-
-def cache_directory() -> Path:
-    """Where built FMUs are kept for this user."""
-    if os.environ.get(CACHE_VARIABLE):
-        return Path(os.environ[CACHE_VARIABLE]).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "sdl-fmu"
 
 
 @functools.lru_cache(maxsize=None)

@@ -9,7 +9,6 @@ stepped anywhere else, so it never needs rolling back (docs/controllers.md, Exac
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 from typing import Literal, Mapping, NamedTuple
 
@@ -166,11 +165,16 @@ class ControllerInstance:
     signals)` steps it over its k-th period."""
 
     def __init__(self, model: ControllerModel, instance_name: str = "controller"):
-        from fmpy import extract
+        from .fmu_log import FmuLog
+        from .unpack import UnpackError, unpacked
 
         self.model = model
         self.fmi3 = model.fmi_version == "3.0"
-        self._unzipped = extract(str(model.fmu_path))
+        try:  # once per process, with the archive's limits; removed at the process's end (vehicle/unpack.py)
+            self._unzipped = str(unpacked(model.fmu_path))
+        except UnpackError as error:
+            raise ControllerError(f"--controller {error}") from None
+        self._log = FmuLog(model.fmu_path.name)  # its log lines: stderr, decoded leniently, escaped, bounded
         try:
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Slave as Slave
@@ -179,12 +183,14 @@ class ControllerInstance:
             self.slave = Slave(guid=model.guid, unzipDirectory=self._unzipped,
                                modelIdentifier=model.model_identifier, instanceName=instance_name)
         except Exception as error:  # fmpy reports a binary that cannot be loaded as a plain Exception
-            shutil.rmtree(self._unzipped, ignore_errors=True)
             raise ControllerError(f"the controller {model.fmu_path.name}'s binary cannot be loaded: "
                                   f"{_first_line(error)}") from None
         self._instantiated = False
         try:
-            self.slave.instantiate()
+            if self.fmi3:
+                self.slave.instantiate(logMessage=self._log.fmi3_log_message())
+            else:
+                self.slave.instantiate(callbacks=self._log.fmi2_callbacks())
             self._instantiated = True
             if not self.fmi3:
                 self.slave.setupExperiment(startTime=0.0)
@@ -262,7 +268,7 @@ class ControllerInstance:
             except Exception:
                 pass
             self._instantiated = False
-        shutil.rmtree(self._unzipped, ignore_errors=True)
+        self._log.release()
 
     def __enter__(self) -> ControllerInstance:
         return self

@@ -5,13 +5,16 @@ from __future__ import annotations
 
 import functools
 import math
-import shutil
 from ctypes import POINTER, byref, c_bool, c_double, c_int, c_size_t, c_uint, c_uint32, c_void_p, pointer
 from typing import NamedTuple
 
 
 STANDSTILL_SPEED = 0.5  # m/s: a `stopped` output is read only below this speed (far above any model's hold speed)
 STOPPED_SPEED = 0.01  # m/s: an FMU without a `stopped` output is taken as stopped below this speed
+# SI: an output beyond this (or not a number) ends the run with an FmuError naming the variable and the instant.
+# 1e9 m is 1800 times the longest distance a run can cover, 1e9 m/s three times the speed of light: no vehicle's
+# output, and far below where squares and products of outputs overflow a double (1e154).
+OUTPUT_LIMIT = 1e9
 
 
 class EgoState(NamedTuple):
@@ -52,9 +55,14 @@ class EgoInstance:
         self.time = 0.0
         self.warnings: list[str] = []
         self.fmi3 = model.fmi_version == "3.0"
-        from fmpy import extract
+        from .fmu_log import FmuLog
+        from .unpack import UnpackError
 
-        self._unzipped = extract(str(model.fmu_path))
+        name = model.fmu_path.name
+        try:
+            self._unzipped = model.unzipped()  # once per process, shared by the FMU's instances, removed at its end
+        except UnpackError as error:
+            raise FmuError(str(error)) from None
         try:
             if self.fmi3:
                 from fmpy.fmi3 import FMU3Slave as Slave
@@ -63,28 +71,48 @@ class EgoInstance:
             self.slave = Slave(guid=model.guid, unzipDirectory=self._unzipped,
                                modelIdentifier=model.model_identifier, instanceName=instance_name)
         except Exception as error:  # fmpy reports a binary that cannot be loaded as a plain Exception
-            shutil.rmtree(self._unzipped, ignore_errors=True)
             raise FmuError(f"{model.fmu_path}: the FMU's binary cannot be loaded: {error}") from None
+        self._log = FmuLog(name)
         try:
-            self.slave.instantiate()
-            self._bind_step_path()
-            if not self.fmi3:
-                self.slave.setupExperiment(startTime=0.0)
-            values = {}
-            for quantity, value in start.items():
-                conversion = model.start_inputs.get(quantity)
-                if conversion is not None:
-                    values[conversion.variable] = conversion.factor * value + conversion.offset
-            self._set_by_name({**values, **parameters})
             if self.fmi3:
-                self.slave.enterInitializationMode(startTime=0.0)
+                self.slave.instantiate(logMessage=self._log.fmi3_log_message())
             else:
-                self.slave.enterInitializationMode()
-            self.slave.exitInitializationMode()
-            self._start_derivation(start)
-        except Exception:
+                self.slave.instantiate(callbacks=self._log.fmi2_callbacks())
+        except Exception:  # noqa: BLE001 - fmpy: "Failed to instantiate model" (a plain Exception)
+            self.slave = None
+            self._log.release()
+            raise FmuError(f"{self._prefix_of()}Instantiate returned NULL (its GUID or instantiation token "
+                           f"{model.guid!r} is not the binary's, or it cannot run here)") from None
+        try:
+            self._initialize(start, parameters)
+        except FmuError:
             self.close()
             raise
+        except Exception as error:  # noqa: BLE001 - fmpy's FMICallException and anything else of the FMU's start
+            self.close()
+            raise FmuError(f"it could not be initialised: {_first_line(error)}") from None
+
+    def _prefix_of(self) -> str:
+        return "fmi3" if self.fmi3 else "fmi2"
+
+    def _initialize(self, start: dict[str, float], parameters: dict[str, float]) -> None:
+        model = self.model
+        self._bind_step_path()
+        if not self.fmi3:
+            self.slave.setupExperiment(startTime=0.0)
+        values = {}
+        for quantity, value in start.items():
+            conversion = model.start_inputs.get(quantity)
+            if conversion is not None:
+                values[conversion.variable] = conversion.factor * value + conversion.offset
+        self._set_by_name({**values, **parameters})
+        if self.fmi3:
+            self.slave.enterInitializationMode(startTime=0.0)
+        else:
+            self.slave.enterInitializationMode()
+        self.slave.exitInitializationMode()
+        self._start_derivation(start)
+        self.read()  # the outputs at the start, checked as every later one
 
     # ---- binding ----------------------------------------------------------------------------------------------
 
@@ -200,7 +228,16 @@ class EgoInstance:
             conversion = outputs[quantity]
             raw = getattr(self.slave, f"get{conversion.type}")([conversion.reference])[0]
             values[quantity] = conversion.factor * float(raw) + conversion.offset
+        for quantity, value in values.items():
+            if not -OUTPUT_LIMIT <= value <= OUTPUT_LIMIT:
+                self._bad_output(quantity, value)
         return values
+
+    def _bad_output(self, quantity: str, value: float):
+        """Ends the run: an output that is not a number or beyond OUTPUT_LIMIT (in SI)."""
+        variable = self.model.outputs[quantity].variable
+        what = "not a finite number" if not math.isfinite(value) else f"beyond {OUTPUT_LIMIT:g} in SI units"
+        raise FmuError(f"its output {variable!r} ({quantity}) is {value:g} at t = {self.time:.6f} s: {what}")
 
     def _start_derivation(self, start: dict[str, float]) -> None:
         """The derived outputs' memory (distance, the previous communication point) and, for start quantities the
@@ -259,6 +296,9 @@ class EgoInstance:
         if self._get_real() > 1:
             raise FmuError(f"the FMU refused to return its outputs at t = {self.time:.6f} s")
         values = self._output_values
+        for quantity, value in zip(STATE_OUTPUTS, values):
+            if not -OUTPUT_LIMIT <= value <= OUTPUT_LIMIT:
+                self._bad_output(quantity, value)
         # `stopped` means held at standstill: it is asked for only below STANDSTILL_SPEED (one FMI call less)
         stopped = False
         if not values[SPEED] >= STANDSTILL_SPEED:
@@ -321,16 +361,31 @@ class EgoInstance:
         self.step_to(self.time + h)
 
     def save(self):
-        """A snapshot of the instance (FMI GetFMUstate) to step again from."""
+        """A snapshot of the instance (FMI GetFMUstate) to step again from, with the FMU's outputs at it."""
         state = c_void_p()
         if self._get_state(self._component, byref(state)) > 1:
             raise FmuError(f"{self._prefix}GetFMUstate at t = {self.time:.6f} s failed")
-        return state, self.time, None if self._direct else (self._memory, self._state)
+        return state, self.time, None if self._direct else (self._memory, self._state), self._outputs_now()
+
+    def _outputs_now(self) -> tuple:
+        """The FMU's Real outputs as it returns them (the round-trip check of its state's save and restore)."""
+        if self._get_real() > 1:
+            raise FmuError(f"the FMU refused to return its outputs at t = {self.time:.6f} s")
+        return tuple(self._output_values)
 
     def restore(self, snapshot) -> None:
-        state, time, derived = snapshot
+        """Back to a snapshot; the FMU's outputs must be those it had when the snapshot was taken (an FMU that
+        declares canGetAndSetFMUstate but restores nothing, or not all, would silently give other results)."""
+        state, time, derived, outputs = snapshot
         if self._set_state(self._component, state) > 1:
             raise FmuError(f"{self._prefix}SetFMUstate to t = {time:.6f} s failed")
+        now = self._outputs_now()
+        changed = next((i for i, (a, b) in enumerate(zip(now, outputs)) if a != b and not (a != a and b != b)), None)
+        if changed is not None:
+            quantity = self._real_outputs[changed]
+            raise FmuError(f"it declares canGetAndSetFMUstate, but {self._prefix}SetFMUstate did not restore its state "
+                           f"of t = {time:.6f} s: its output {self.model.outputs[quantity].variable!r} is "
+                           f"{now[changed]:g} after the restore, {outputs[changed]:g} when the state was saved")
         self.time = time
         if derived is not None:
             self._memory, self._state = derived
@@ -340,6 +395,9 @@ class EgoInstance:
             raise FmuError(f"{self._prefix}FreeFMUstate failed")
 
     def close(self) -> None:
+        """Terminates and frees the instance (the unpacked FMU stays for the process's other instances)."""
+        if getattr(self, "slave", None) is None:
+            return
         try:
             self.slave.terminate()
         except Exception:
@@ -348,10 +406,16 @@ class EgoInstance:
             self.slave.freeInstance()
         except Exception:
             pass
-        shutil.rmtree(self._unzipped, ignore_errors=True)
+        self.slave = None
+        self._log.release()
 
     def __enter__(self) -> EgoInstance:
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip() or type(error).__name__
+    return text.splitlines()[0]

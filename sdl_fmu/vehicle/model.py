@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import functools
 import math
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Literal, NoReturn
@@ -16,7 +15,8 @@ import numpy as np
 from ..names import WHEELS
 from ..tire_files import SLOT_KEYS, TireFileError, default_attribute_file, slot_parameter, slot_values
 from ..units import STANDARD_GRAVITY
-from .vehicle_map import Channel, FrictionMeaning, VehicleMap, VehicleMapError, load_vehicle_map
+from .vehicle_map import (Channel, FrictionMeaning, VehicleMap, VehicleMapError, declared_range_problem,
+                          load_vehicle_map, vehicle_value_problem)
 
 # surface value of a lane nobody set, per friction meaning: 10 x the nominal mu 0.8, or attribute 0
 DEFAULT_SURFACE = {"mu": 8.0, "attribute": 0.0, None: 8.0}
@@ -72,27 +72,22 @@ class FrictionInput:
 BoundsSource = Literal["vehicle map", "vehicle properties"]
 
 
-@functools.lru_cache(maxsize=None)
-def _registry():
-    import pint
-
-    return pint.UnitRegistry()
-
-
 def _pint_conversion(unit: str, si: str) -> tuple[float, float] | None:
     """(factor, offset) from `unit` to `si` through pint; None if pint does not know the unit or it is of
-    another dimension."""
-    import re
+    another dimension. The unit string is read by a small grammar first (vehicle/unit_text.py): pint alone would
+    evaluate `10**10**10*m` as arithmetic."""
+    from .unit_text import conversion
 
-    registry = _registry()
-    # FMI writes m/s2 and kg.m2: exponents as digits after a name, products with dots
-    spelled = re.sub(r"(?<=[A-Za-z])(-?\d+)", r"**\1", unit.replace(".", "*"))
-    try:
-        zero = registry.Quantity(0.0, spelled).to(si).magnitude
-        one = registry.Quantity(1.0, spelled).to(si).magnitude
-    except Exception:  # pint's UndefinedUnitError, DimensionalityError, a syntax it cannot parse
-        return None
-    return float(one - zero), float(zero)
+    return conversion(unit, si)
+
+
+def _shown_unit(unit: str) -> str:
+    """A unit string in a message: quoted, shortened, and why the grammar refused it (if it did)."""
+    from .unit_text import refusal
+
+    shown = repr(unit if len(unit) <= 40 else unit[:32] + "...")
+    reason = refusal(unit)
+    return shown if reason is None else f"{shown} (not a unit string sdl-fmu reads: {reason})"
 
 
 def _agree(a: tuple[float, float], b: tuple[float, float]) -> bool:
@@ -121,12 +116,13 @@ def si_conversion(key: str, variable, unit_definitions: dict, map_unit: str | No
         else:
             fmu_conversion = _pint_conversion(declared, si)
             if fmu_conversion is None:
-                fail(key, f"the FMU declares {variable.name!r} in {declared!r}, an unknown unit or not one of {si}")
+                fail(key, f"the FMU declares {variable.name!r} in {_shown_unit(declared)}, an unknown unit or not "
+                          f"one of {si}")
     map_conversion = None
     if map_unit is not None:
         map_conversion = _pint_conversion(map_unit, si)
         if map_conversion is None:
-            fail(f"{key}.unit", f"{map_unit!r} is an unknown unit or not a unit of {si}")
+            fail(f"{key}.unit", f"{_shown_unit(map_unit)} is an unknown unit or not a unit of {si}")
     if fmu_conversion is not None and map_conversion is not None and not _agree(fmu_conversion, map_conversion):
         fail(f"{key}.unit", f"{map_unit!r} disagrees with the FMU's unit {declared!r} of {variable.name!r}")
     return fmu_conversion or map_conversion or (1.0, 0.0)
@@ -161,8 +157,10 @@ class EgoModel:
         self.outputs = {name: self._output(channel) for name, channel in vehicle_map.outputs.items()}
         self.start_inputs = {name: self._input(channel, start=True) for name, channel in vehicle_map.start.items()}
         self.friction = self._friction()
-        for name in vehicle_map.parameters:
-            self._variable(f"parameters.{name}", name, ("parameter", "input"))
+        for name, value in vehicle_map.parameters.items():
+            problem = declared_range_problem(self._variable(f"parameters.{name}", name, ("parameter", "input")), value)
+            if problem:
+                self._fail(f"parameters.{name}", problem)
         self.overrides = dict(overrides or {})
         self.parameters = {**parameter_defaults(description), **vehicle_map.parameters, **self.overrides}
         # the surface attribute numbers the run's Tire Attribute File gives (None: no tire file), and what reading
@@ -170,6 +168,7 @@ class EgoModel:
         self.known_attributes = known_attributes
         self.warnings = warnings
         self._resolve_vehicle()
+        self._unzipped: str | None = None
 
     # ---- construction -------------------------------------------------------------------------------------
 
@@ -196,7 +195,14 @@ class EgoModel:
         FMU: a parameter it declares, Real (a finite number) or Integer (a whole number), within its declared min and
         max. The model's properties follow them (the [vehicle] values that name a parameter). VehicleMapError
         naming `params` and the assignment otherwise."""
-        return self._with({name: self._checked_parameter(name, value) for name, value in (values or {}).items()})
+        checked = {name: self._checked_parameter(name, value) for name, value in (values or {}).items()}
+        try:
+            return self._with(checked)
+        except VehicleMapError as error:  # a [vehicle] value that follows a parameter, outside its range: that one
+            name = next((name for name in checked if f"parameter {name!r}" in str(error)), None)
+            if name is None:
+                raise
+            raise VehicleMapError.of("params", f"{name}={checked[name]:g}", str(error)) from None
 
     def with_tires(self, attribute_file: str | Path | None = None) -> EgoModel:
         """This model with its tire slots (the map's `tire_slots`) filled from a Tire Attribute File (None: the
@@ -333,6 +339,9 @@ class EgoModel:
                 self._variable(f"vehicle.{key}", value, ("parameter",))
                 if value not in self.parameters:
                     self._fail(f"vehicle.{key}", f"the FMU parameter {value!r} has no Real start value")
+                problem = vehicle_value_problem(key, float(self.parameters[value]))
+                if problem:
+                    self._fail(f"vehicle.{key}", f"the FMU parameter {value!r}: {problem}")
                 value = self.parameters[value]
             values[key] = float(value)
         self.length, self.width = values["length"], values["width"]
@@ -469,14 +478,25 @@ class EgoModel:
                 "map": None if self.map_path is None else str(self.map_path), "can_roll_back": self.can_roll_back,
                 "friction": self.surface_meaning, "brk_acts": self.brk_acts}
 
+    def unzipped(self) -> str:
+        """The FMU unpacked once for all of this process's instances of it (vehicle/unpack.py: checked, what an
+        instance on this platform loads, removed at the process's end on every path); UnpackError (one line naming
+        the FMU) when it cannot be."""
+        if self._unzipped is None:
+            from .unpack import unpacked
+
+            self._unzipped = str(unpacked(self.fmu_path))
+        return self._unzipped
+
     def instantiate(self, start: dict[str, float] | None = None, parameters: dict[str, float] | None = None,
                     instance_name: str = "ego"):
         """An initialized co-simulation instance. start: sdl-fmu's initial state (speed, x, y, yaw; SI);
         parameters: FMU start values as given (over the map's [parameters] and this model's overrides)."""
         from .instance import EgoInstance
+        from .isolated import IsolatedInstance, runs_in_process
 
-        return EgoInstance(self, start or {}, {**self.map.parameters, **self.overrides, **(parameters or {})},
-                           instance_name)
+        kind = EgoInstance if runs_in_process(self.fmu_path) else IsolatedInstance  # a foreign FMU: out of process
+        return kind(self, start or {}, {**self.map.parameters, **self.overrides, **(parameters or {})}, instance_name)
 
     def __repr__(self) -> str:
         return f"EgoModel({self.name!r}, {self.fmu_path}, FMI {self.fmi_version})"
@@ -487,8 +507,14 @@ def read_description(fmu: Path, option: str = "fmu"):
     platform; VehicleMapError naming the option it came through (`option`: fmu, controller) and the FMU otherwise."""
     import fmpy
 
+    from .unpack import UnpackError, check_archive, check_identifier
+
     if not fmu.is_file():
         raise VehicleMapError.of(option, fmu, "no such file" if not fmu.exists() else "not a file")
+    try:  # member names and sizes, before anything is read from it
+        names = [member.filename for member in check_archive(fmu)]
+    except UnpackError as error:
+        raise VehicleMapError(option, "", subject=str(error)) from None
     try:
         description = _read_description(str(fmu.resolve()), fmu.stat().st_mtime_ns, fmu.stat().st_size)
     except Exception as error:  # fmpy raises zip, XML and its own errors alike: all mean "not an FMU"
@@ -499,11 +525,14 @@ def read_description(fmu: Path, option: str = "fmu"):
     if description.coSimulation is None:
         what = "the vehicle" if option == "fmu" else "it"
         raise VehicleMapError.of(option, fmu, f"has no co-simulation interface (sdl-fmu co-simulates {what})")
+    try:  # it names the binary's file
+        check_identifier(fmu, description.coSimulation.modelIdentifier)
+    except UnpackError as error:
+        raise VehicleMapError(option, "", subject=str(error)) from None
     binary = f"binaries/{_platform(description.fmiVersion)}/{description.coSimulation.modelIdentifier}" \
              f"{fmpy.sharedLibraryExtension}"
-    with zipfile.ZipFile(fmu) as archive:
-        if binary not in archive.namelist():
-            raise VehicleMapError.of(option, fmu, f"has no binary for this platform ({binary})")
+    if binary not in names:
+        raise VehicleMapError.of(option, fmu, f"has no binary for this platform ({binary})")
     return description
 
 

@@ -26,6 +26,21 @@ VEHICLE_NUMBERS = (*VEHICLE_GEOMETRY, "mass", "drive_accel_max", "drive_power_ma
                    "brake_decel_max", "rolling_resistance", "drag_area", "air_density", "peak_friction",
                    "max_acceleration", "max_yaw_rate")
 VEHICLE_FLAGS = ("brk_acts", "spec_closed_forms")
+# the range of each [vehicle] value, SI: (low, high, whether low itself is allowed); a number in the map or an FMU
+# parameter's value outside it is refused (docs/vehicle-maps.md). Generous for any road vehicle, and far from where
+# the driver model's and the trigger bounds' arithmetic (divisions by mass, wheelbase, radius; squares) breaks.
+VEHICLE_RANGES = {
+    "length": (0.0, 100.0, False), "width": (0.0, 20.0, False), "wheelbase": (0.0, 50.0, False),
+    "track": (0.0, 20.0, False), "track_front": (0.0, 20.0, False), "track_rear": (0.0, 20.0, False),
+    "cg_to_front_axle": (0.0, 50.0, True), "cg_to_rear_axle": (0.0, 50.0, True),
+    "mass": (0.0, 1e6, False), "drive_accel_max": (0.0, 100.0, True), "drive_power_max": (0.0, 1e8, True),
+    "drive_torque_max": (0.0, 1e6, False), "wheel_radius": (0.0, 10.0, False),
+    "brake_decel_max": (0.0, 100.0, False), "rolling_resistance": (0.0, 1.0, True), "drag_area": (0.0, 100.0, True),
+    "air_density": (0.0, 100.0, True), "peak_friction": (0.0, 10.0, False), "max_acceleration": (0.0, 1e4, False),
+    "max_yaw_rate": (0.0, 1e3, False)}
+SCALE_RANGE = (1e-6, 1e6)  # |scale| of a channel or the friction input
+MAX_OFFSET = 1e6  # |offset|
+MAX_MAP_BYTES = 1 << 20  # a map is a small text
 TOP_LEVEL = ("name", "fmu", "inputs", "outputs", "start", "parameters", "vehicle")
 
 
@@ -39,6 +54,29 @@ class VehicleMapError(InputError):
     def of(cls, option: str, value, reason: str) -> VehicleMapError:
         """`option value: reason`."""
         return cls(option, "", subject=f"{value}: {reason}")
+
+
+def declared_range_problem(variable, value: float) -> str | None:
+    """Why `value` is outside the FMU variable's declared min/max, or None (no declaration: no limit)."""
+    unit = f" {variable.unit}" if getattr(variable, "unit", None) and variable.unit != "1" else ""
+    for bound, relation, outside in (("min", "minimum", lambda v, b: v < b), ("max", "maximum", lambda v, b: v > b)):
+        declared = getattr(variable, bound, None)
+        try:
+            limit = None if declared is None else float(declared)
+        except (TypeError, ValueError):
+            continue
+        if limit is not None and outside(value, limit):
+            return f"{value!r} is {'below' if bound == 'min' else 'above'} the FMU's declared {relation} {limit:g}{unit}"
+    return None
+
+
+def vehicle_value_problem(key: str, value: float) -> str | None:
+    """Why a [vehicle] value is outside its range (VEHICLE_RANGES), or None."""
+    low, high, low_allowed = VEHICLE_RANGES[key]
+    if not math.isfinite(value) or value > high or value < low or (value == low and not low_allowed):
+        relation = ">=" if low_allowed else ">"
+        return f"{value!r} is outside its range: {relation} {low:g} and <= {high:g} (SI)"
+    return None
 
 
 @dataclass(frozen=True)
@@ -84,7 +122,14 @@ def load_vehicle_map(path: str | Path) -> VehicleMap:
     """Reads and checks a vehicle map's shape (not yet against an FMU)."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+        with open(path, "rb") as file:
+            raw = file.read(MAX_MAP_BYTES + 1)
+        if len(raw) > MAX_MAP_BYTES:
+            raise VehicleMapError.of("vehicle", path, f"larger than {MAX_MAP_BYTES // 1024} KB; a vehicle map is a "
+                                                      "small text")
+        data = tomllib.loads(raw.decode("utf-8"))
+    except RecursionError:  # tomllib reads nested arrays and tables recursively; a map nests three deep
+        raise VehicleMapError("vehicle", f"{path}: not TOML sdl-fmu reads (nested too deeply)") from None
     except FileNotFoundError:
         raise VehicleMapError.of("vehicle", path, "no such file") from None
     except IsADirectoryError:
@@ -124,6 +169,18 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
             fail(key, f"{value!r} must be a finite number")
         return float(value)
 
+    def scale(key: str, value) -> float:
+        value = number(key, value)
+        if not SCALE_RANGE[0] <= abs(value) <= SCALE_RANGE[1]:
+            fail(key, f"{value!r} is outside its range: {SCALE_RANGE[0]:g} <= |scale| <= {SCALE_RANGE[1]:g}")
+        return value
+
+    def offset(key: str, value) -> float:
+        value = number(key, value)
+        if abs(value) > MAX_OFFSET:
+            fail(key, f"{value!r} is outside its range: |offset| <= {MAX_OFFSET:g}")
+        return value
+
     def text(key: str, value) -> str:
         if not isinstance(value, str) or not value:
             fail(key, f"{value!r} must be a non-empty string")
@@ -139,7 +196,7 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
         if "variable" not in entry:
             fail(f"{key}.variable", "missing")
         return Channel(key, text(f"{key}.variable", entry["variable"]),
-                       number(f"{key}.scale", entry.get("scale", 1.0)), number(f"{key}.offset", entry.get("offset", 0.0)),
+                       scale(f"{key}.scale", entry.get("scale", 1.0)), offset(f"{key}.offset", entry.get("offset", 0.0)),
                        None if entry.get("unit") is None else text(f"{key}.unit", entry["unit"]))
 
     name = None if data.get("name") is None else text("name", data["name"])
@@ -177,8 +234,8 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
         if meaning not in ("mu", "attribute"):
             fail(f"{key}.meaning", f"{meaning!r} must be \"mu\" (RSA value / 10) or \"attribute\" (attribute number)")
         slots = entry.get("tire_slots")
-        friction = FrictionEntry(key, names, meaning, number(f"{key}.scale", entry.get("scale", 1.0)),
-                                 number(f"{key}.offset", entry.get("offset", 0.0)),
+        friction = FrictionEntry(key, names, meaning, scale(f"{key}.scale", entry.get("scale", 1.0)),
+                                 offset(f"{key}.offset", entry.get("offset", 0.0)),
                                  None if slots is None else text(f"{key}.tire_slots", slots))
         if friction.tire_slots is not None and "{slot}" not in friction.tire_slots:
             fail(f"{key}.tire_slots", "must contain {slot}, e.g. \"tire{slot}_\"")
@@ -214,6 +271,9 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
                 vehicle[key] = text(f"vehicle.{key}.parameter", value["parameter"])
             else:
                 vehicle[key] = number(f"vehicle.{key}", value)
+                problem = vehicle_value_problem(key, vehicle[key])
+                if problem:
+                    fail(f"vehicle.{key}", problem)
         else:
             fail(f"vehicle.{key}", f"unknown key (vehicle: {', '.join((*VEHICLE_NUMBERS, *VEHICLE_FLAGS))})")
     for key in ("length", "width"):
@@ -223,6 +283,12 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
         fail("vehicle.wheelbase", "missing (or give cg_to_front_axle and cg_to_rear_axle)")
     if complete and "track" not in vehicle and not {"track_front", "track_rear"} <= set(vehicle):
         fail("vehicle.track", "missing (or give track_front and track_rear)")
+    if "drive_torque_max" in vehicle and "drive_accel_max" not in vehicle and "wheel_radius" not in vehicle:
+        fail("vehicle.wheel_radius", "missing (drive_torque_max is a wheel torque: the drive is torque / (mass x "
+                                     "wheel_radius); or give drive_accel_max)")
+    for first, second in (("cg_to_front_axle", "cg_to_rear_axle"),):
+        if all(isinstance(vehicle.get(k), float) for k in (first, second)) and vehicle[first] + vehicle[second] <= 0:
+            fail(f"vehicle.{second}", f"{first} + {second} must be > 0 (the wheelbase)")
     if ("max_acceleration" in vehicle) != ("max_yaw_rate" in vehicle):
         fail("vehicle.max_yaw_rate" if "max_acceleration" in vehicle else "vehicle.max_acceleration",
              "give both bounds (max_acceleration, m/s2, and max_yaw_rate, rad/s) or neither")

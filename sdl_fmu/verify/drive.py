@@ -18,7 +18,7 @@ import numpy as np
 from ..units import KILOMETRE_PER_HOUR
 
 SAMPLE_PERIOD = 0.01  # s: the driver's and the recorder's period (100 Hz, as ISO 7401 / FMVSS 126 data rates)
-# FMVSS 126 S7.6 / S7.7 (49 CFR 571.126): manoeuvres begin at 80 +/- 2 km/h; the same band is used for every entry
+# FMVSS 126 S7.6.1 / S7.9.2 (49 CFR 571.126): manoeuvres begin at 80 +/- 2 km/h; the same band is used for every entry
 ENTRY_SPEED_TOLERANCE = 2.0 * KILOMETRE_PER_HOUR
 RUN_UP_LIMIT = 60.0  # s of full throttle allowed to reach the entry speed (sdl-fmu's choice)
 SETTLE_TIME = 1.0  # s of straight driving at the entry speed before time 0 (sdl-fmu's choice)
@@ -70,13 +70,19 @@ def _first_line(error: BaseException) -> str:
 
 def drive(model, entry_speed: float, law: Callable, duration: float, *, parameters: dict | None = None,
           friction=None, stop: Callable | None = None, start: dict | None = None,
-          settle: float = SETTLE_TIME, settle_steer: Callable | None = None) -> Trace:
+          settle: float = SETTLE_TIME, settle_steer: Callable | None = None,
+          steer_function: Callable[[float], float] | None = None,
+          substeps: int | Callable[[float], int] = 1) -> Trace:
     """Drives `model` through one manoeuvre and returns its trace.
 
     law(time, state) -> (throttle, brake, steer) for time >= 0 (state: the model's EgoState); `stop(time, state)`
     ends the run early when true; `start` the initial position {"x", "y", "yaw"} (default the origin, heading +x);
     `friction` the 4 wheel values set before the start; `settle_steer(state)` the steering while settling
-    (default straight ahead)."""
+    (default straight ahead). `steer_function(t)`: an open-loop steer given as a function of time, in place of the
+    law's (recorded at the sample instants). It is set at the midpoint of each sub-interval (`substeps` per sample
+    period, a number or a function of the sample's time): an FMU holds an input over its communication step, and a
+    value held from a step's start lags a ramp by half a step (5 ms at 100 Hz); the midpoint value is the function's
+    mean over the sub-interval wherever it is linear there (a ramp), so the FMU sees its integral exactly and no lag."""
     try:
         ego = model.instantiate(start={"speed": entry_speed, "x": 0.0, "y": 0.0, "yaw": 0.0, **(start or {})},
                                 parameters=parameters or {}, instance_name="verify")
@@ -124,10 +130,18 @@ def drive(model, entry_speed: float, law: Callable, duration: float, *, paramete
                 rows.append((time, *_values(state), *rows[-1][-3:]))
                 break
             throttle, brake, steer = law(time, state)
+            if steer_function is not None:
+                steer = steer_function(time)
             ego.set_controls(throttle, brake, steer)
             rows.append((time, *_values(state), throttle, brake, steer))
             if k * SAMPLE_PERIOD >= duration:
                 break
+            if steer_function is not None:
+                parts = substeps(time) if callable(substeps) else substeps
+                for j in range(parts):
+                    ego.set_controls(throttle, brake, steer_function(time + (j + 0.5) * SAMPLE_PERIOD / parts))
+                    if j < parts - 1:
+                        ego.step_to(origin + time + (j + 1) * SAMPLE_PERIOD / parts)
             ego.step_to(origin + (k + 1) * SAMPLE_PERIOD)
             state = _checked(ego.read())
     except ManoeuvreFailed:

@@ -20,10 +20,11 @@ class PathFollower:
     """Steers along a polyline path (x increasing or any shape), sampled densely (<= 0.1 m between points)."""
 
     def __init__(self, x: np.ndarray, y: np.ndarray, wheelbase: float, max_steer: float = math.radians(35),
-                 preview_time: float = PREVIEW_TIME):
+                 preview_time: float = PREVIEW_TIME, min_lookahead: float = MIN_LOOKAHEAD):
         self.x, self.y = np.asarray(x, float), np.asarray(y, float)
         self.s = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(self.x), np.diff(self.y)))))
         self.wheelbase, self.max_steer, self.preview_time = wheelbase, max_steer, preview_time
+        self.min_lookahead = min_lookahead
         self.index = 0  # nearest path point, searched forward from the last one
 
     def nearest(self, x: float, y: float) -> int:
@@ -34,7 +35,7 @@ class PathFollower:
 
     def steer(self, state) -> float:
         i = self.nearest(state.x, state.y)
-        lookahead = max(MIN_LOOKAHEAD, self.preview_time * state.v)
+        lookahead = max(self.min_lookahead, self.preview_time * state.v)
         target = self.s[i] + lookahead
         tx, ty = np.interp(target, self.s, self.x), np.interp(target, self.s, self.y)
         if target > self.s[-1]:  # beyond the end: continue along the last segment

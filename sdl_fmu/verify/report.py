@@ -29,7 +29,7 @@ HEADLINE = {  # the metrics shown in the table, per manoeuvre
     "steady_state_circular": ("understeer_gradient_deg_per_g", "max_lateral_acceleration_mps2"),
     "step_steer": ("yaw_rate_response_time_s", "yaw_rate_overshoot_pct"),
     "sine_with_dwell": ("yaw_rate_ratio_1_00s", "yaw_rate_ratio_1_75s", "lateral_displacement_1_07s_m"),
-    "split_mu_braking": ("yaw_angle_deg", "stopping_distance_m"),
+    "split_mu_braking": ("max_yaw_angle_deg", "stopping_distance_m"),
     "double_lane_change": ("max_entry_speed_kmh",),
 }
 
@@ -105,39 +105,43 @@ def _braking(fig, o):
 
 def _circular(fig, o):
     ax = fig.add_subplot()
-    t = o.runs[0][1]
-    after = t["time_s"] >= 0
     wheelbase = o.plot.get("wheelbase", 0.0)
-    ay = t["ay_mps2"][after]
-    excess = np.degrees(t["steer_rad"][after] - wheelbase * t["yaw_rate_radps"][after] / np.maximum(
-        t["speed_mps"][after], 0.1))
-    ax.plot(ay, excess, lw=1, label="steer - Ackermann steer")
-    if "gradient" in o.plot:
-        grid = np.linspace(0, max(ay.max(), 1), 50)
-        ax.plot(grid, np.degrees(o.plot["gradient"] * grid + o.plot["offset"]), "--",
-                label=f"linear range fit: {o.metrics['understeer_gradient_deg_per_g']:.2f} deg/g")
+    for (label, t), color in zip(o.runs, ("tab:blue", "tab:orange")):
+        after = t["time_s"] >= 0
+        sign = 1.0 if label == "left" else -1.0
+        ay = sign * t["ay_mps2"][after]
+        excess = np.degrees(sign * (t["steer_rad"][after] - wheelbase * t["yaw_rate_radps"][after] / np.maximum(
+            t["speed_mps"][after], 0.1)))
+        ax.plot(ay, excess, lw=0.6, color=color, alpha=0.6)
+        entry = o.metrics.get("directions", {}).get(label, {})
+        points = entry.get("steady_points", [])
+        ax.plot([q["lateral_acceleration_mps2"] for q in points], [np.degrees(q["steer_excess_rad"]) for q in points],
+                "o", color=color, label=f"{label}: steady points, {entry.get('understeer_gradient_deg_per_g', 0):.2f} "
+                                        "deg/g")
     ax.set(xlabel="lateral acceleration (m/s2)", ylabel="road-wheel angle (deg)",
-           title="constant radius 100 m: steer against lateral acceleration")
+           title="constant radius 100 m: steer - Ackermann steer against lateral acceleration")
     ax.legend()
 
 
 def _step(fig, o):
     ax = fig.add_subplot()
-    t = o.runs[-1][1]
-    r_ss = o.metrics.get("steady_state_yaw_rate_radps") or 1.0
-    ay_ss = o.metrics.get("steady_state_lateral_acceleration_mps2") or 1.0
-    ax.plot(t["time_s"], t["steer_rad"] / max(o.metrics.get("steer_rad", 1.0), 1e-9), label="steer / final steer")
-    ax.plot(t["time_s"], t["yaw_rate_radps"] / r_ss, label="yaw rate / steady state")
-    ax.plot(t["time_s"], t["ay_mps2"] / ay_ss, label="a_y / steady state")
+    for (label, t), color in zip(o.runs, ("tab:blue", "tab:orange")):
+        entry = o.metrics.get("directions", {}).get(label.split()[0], {})
+        r_ss = entry.get("steady_state_yaw_rate_radps") or 1.0
+        ay_ss = entry.get("steady_state_lateral_acceleration_mps2") or 1.0
+        ax.plot(t["time_s"], t["steer_rad"] / (entry.get("steer_rad") or 1.0), color="gray", lw=0.8)
+        ax.plot(t["time_s"], t["yaw_rate_radps"] / r_ss, color=color, label=f"{label.split()[0]}: yaw rate / steady")
+        ax.plot(t["time_s"], t["ay_mps2"] / ay_ss, color=color, ls="--", label=f"{label.split()[0]}: a_y / steady")
     ax.axhline(0.9, color="gray", ls=":", label="90 %")
-    ax.set(xlim=(-0.2, t["time_s"][-1]), xlabel="time (s)", ylabel="normalised", title="step steer response")
+    ax.set(xlim=(-0.2, o.runs[-1][1]["time_s"][-1]), xlabel="time (s)", ylabel="normalised (grey: steer)",
+           title="step steer response")
     ax.legend()
 
 
 def _sine(fig, o):
     ax = fig.add_subplot()
     runs = o.metrics.get("runs", [])
-    traces = [tr for label, tr in o.runs if label != "slowly increasing steer"]
+    traces = [tr for label, tr in o.runs if not label.startswith("slowly increasing steer")]
     for run, t in zip(runs, traces):
         sign = -1.0 if run["direction"] == "left" else 1.0
         ax.plot(t["time_s"], sign * t["yaw_rate_radps"] / run["peak_yaw_rate_radps"], lw=0.8,
@@ -149,11 +153,11 @@ def _sine(fig, o):
         ax.annotate(f"{delay:.2f} s after COSI: <= {limit}", (cosi + delay, limit), textcoords="offset points",
                     xytext=(4, 6), fontsize=8)
     ax.axvline(cosi, color="black", ls="--", lw=0.8)
-    ax.set(xlabel="time from beginning of steer (s)", ylabel="yaw rate / its peak",
+    ax.set(xlabel="time from the start of the steer (s)", ylabel="yaw rate / its peak",
            title="sine with dwell: yaw rate of each run", ylim=(-1.5, 1.5))
     ax.legend(handles=[Line2D([], [], color="tab:blue", lw=0.8, label="left first"),
                        Line2D([], [], color="tab:orange", lw=0.8, label="right first"),
-                       Line2D([], [], color="black", ls="--", lw=0.8, label="completion of steer (COSI)"),
+                       Line2D([], [], color="black", ls="--", lw=0.8, label="completion of steer (COS)"),
                        Line2D([], [], color="tab:red", lw=2, label="S5.2 limits on the ratio")], fontsize=8)
 
 
@@ -196,11 +200,14 @@ PLOTS = {"braking": _braking, "steady_state_circular": _circular, "step_steer": 
 def png(outcome: Outcome) -> bytes | None:
     if not outcome.runs:
         return None
-    fig = Figure(figsize=(9, 4.2), dpi=100, layout="constrained")
-    FigureCanvasAgg(fig)
-    PLOTS[outcome.name](fig, outcome)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png")
+    from ..text import plain_text  # the vehicle's name and any other text drawn as written (no mathtext)
+
+    with plain_text():
+        fig = Figure(figsize=(9, 4.2), dpi=100, layout="constrained")
+        FigureCanvasAgg(fig)
+        PLOTS[outcome.name](fig, outcome)
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png")
     return buffer.getvalue()
 
 

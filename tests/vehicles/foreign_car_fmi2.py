@@ -20,12 +20,21 @@ class ForeignCarFmi2(Fmi2Slave):
         for name, (_, unit, text) in dynamics.PARAMETERS.items():
             self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.fixed,
                                         initial=Fmi2Initial.exact, description=f"{text} [{unit}]"))
+        self.running = False
         for name, (_, unit, text) in dynamics.OUTPUTS.items():
             self.register_variable(Real(name, causality=Fmi2Causality.output, variability=Fmi2Variability.continuous,
-                                        description=f"{text} [{unit}]"))
+                                        description=f"{text} [{unit}]", getter=lambda name=name: self._output(name)))
+
+    def _output(self, name):
+        """An output; before the first step, that of the start values and inputs set so far (an importer may read
+        the outputs in initialization mode: SSP masters pass them on to the other FMUs there)."""
+        if not self.running:
+            dynamics.initialise(self)
+        return getattr(self, name)
 
     def exit_initialization_mode(self):
         dynamics.initialise(self)
+        self.running = True
 
     def do_step(self, current_time, step_size):
         dynamics.advance(self, step_size)

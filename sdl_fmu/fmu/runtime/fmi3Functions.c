@@ -493,8 +493,9 @@ fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, size_t *size) {
     Instance *instance = checked(c, "fmi3SerializedFMUStateSize", MASK_fmi3SerializedFMUStateSize);
-    (void)FMUState;
-    if (!instance || !present(instance, "fmi3SerializedFMUStateSize", size, "size")) return fmi3Error;
+    if (!instance || !present(instance, "fmi3SerializedFMUStateSize", size, "size") ||
+        !snapshot_handle_valid(instance, FMUState, "fmi3SerializedFMUStateSize"))
+        return fmi3Error;
     *size = snapshot_serialized_size(instance);
     return fmi3OK;
 }
@@ -638,19 +639,27 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance c, fmi3Boolean *discreteStatesN
                                     fmi3Boolean *terminateSimulation, fmi3Boolean *nominalsOfContinuousStatesChanged,
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
+    const char *function = "fmi3UpdateDiscreteStates";
     Instance *instance = checked_type(c, "fmi3UpdateDiscreteStates", MASK_fmi3UpdateDiscreteStates, 0);
     int states_changed = 0, discrete_changed = 0;
     Status status;
-    if (!instance) return fmi3Error;
+    /* every output is required, as fmi2NewDiscreteStates' eventInfo: a null one is refused before any work */
+    if (!instance || !present(instance, function, discreteStatesNeedUpdate, "discreteStatesNeedUpdate") ||
+        !present(instance, function, terminateSimulation, "terminateSimulation") ||
+        !present(instance, function, nominalsOfContinuousStatesChanged, "nominalsOfContinuousStatesChanged") ||
+        !present(instance, function, valuesOfContinuousStatesChanged, "valuesOfContinuousStatesChanged") ||
+        !present(instance, function, nextEventTimeDefined, "nextEventTimeDefined") ||
+        !present(instance, function, nextEventTime, "nextEventTime"))
+        return fmi3Error;
     /* the event iteration runs to its fixed point here, so no further update is needed */
     status = instance_event_iteration(instance, &states_changed, &discrete_changed);
     states_changed |= instance_take_input_jump(instance);
-    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
-    if (terminateSimulation) *terminateSimulation = fmi3False;
-    if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
-    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = states_changed ? fmi3True : fmi3False;
-    if (nextEventTimeDefined) *nextEventTimeDefined = fmi3False;
-    if (nextEventTime) *nextEventTime = 0.0;
+    *discreteStatesNeedUpdate = fmi3False;
+    *terminateSimulation = fmi3False;
+    *nominalsOfContinuousStatesChanged = fmi3False;
+    *valuesOfContinuousStatesChanged = states_changed ? fmi3True : fmi3False;
+    *nextEventTimeDefined = fmi3False;
+    *nextEventTime = 0.0;
     return finish(instance, status);
 }
 

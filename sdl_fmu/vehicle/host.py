@@ -1,0 +1,121 @@
+"""The host process of an isolated FMU (sdl_fmu.vehicle.isolated): one EgoInstance at a time, driven by requests
+on a pipe, each answered on another.
+
+A request is (kind, controls, friction, argument), pickled behind an 8-byte length: the controls and surfaces set
+since the last request are applied first, then `kind`: open (argument-less; the request carries the pickled
+EgoModel, the unpacked folder, start and parameter values), read, step (to the time `argument`), save, restore and
+discard (a snapshot number), close. The answer is ("ok", value) or ("error", the FmuError's text). The host ignores
+Ctrl-C (sdl-fmu decides), dies with its parent (Linux: PR_SET_PDEATHSIG), and ends when the request pipe closes.
+The FMU's own prints (its stdout) go to sdl-fmu's stderr; its log messages too (fmu_log)."""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import struct
+import sys
+
+_HEADER = struct.Struct("<Q")
+
+
+def _die_with_parent() -> None:
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() == 1:  # the parent is already gone
+        os._exit(1)
+
+
+def _read(fd: int, count: int) -> bytes | None:
+    chunks = []
+    while count:
+        chunk = os.read(fd, count)
+        if not chunk:
+            return None
+        chunks.append(chunk)
+        count -= len(chunk)
+    return b"".join(chunks)
+
+
+def _write(fd: int, reply) -> None:
+    data = pickle.dumps(reply, protocol=pickle.HIGHEST_PROTOCOL)
+    view = memoryview(_HEADER.pack(len(data)) + data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip() or type(error).__name__
+    return text.splitlines()[0]
+
+
+def serve(requests: int, replies: int) -> None:
+    from .instance import EgoInstance, FmuError
+    from .unpack import adopt
+
+    instance, snapshots, count = None, {}, 0
+    while True:
+        header = _read(requests, _HEADER.size)
+        if header is None:
+            break
+        request = pickle.loads(_read(requests, _HEADER.unpack(header)[0]) or b"")
+        kind = request[0]
+        try:
+            if kind == "open":
+                _, model, folder, start, parameters, name = request
+                model = pickle.loads(model)
+                adopt(model.fmu_path, folder)
+                instance, snapshots = EgoInstance(model, start, parameters, name), {}
+                value = (instance.warnings, tuple(instance.read()))
+            else:
+                _, controls, friction, argument = request
+                if instance is None:
+                    raise FmuError("no instance")
+                if controls is not None:
+                    instance.set_controls(*controls)
+                if friction is not None:
+                    instance.set_friction(friction)
+                value = None
+                if kind == "step":
+                    instance.step_to(argument)
+                    value = tuple(instance.read())
+                elif kind == "read":
+                    value = tuple(instance.read())
+                elif kind == "save":
+                    count += 1
+                    snapshots[count] = instance.save()
+                    value = count
+                elif kind == "restore":
+                    instance.restore(snapshots[argument])
+                    value = tuple(instance.read())
+                elif kind == "discard":
+                    instance.discard(snapshots.pop(argument))
+                elif kind == "close":
+                    instance.close()
+                    instance, snapshots = None, {}
+                else:
+                    raise FmuError(f"unknown request {kind!r}")
+            reply = ("ok", value)
+        except FmuError as error:
+            reply = ("error", _first_line(error))
+        except Exception as error:  # noqa: BLE001 - whatever the FMU's call raised is the answer
+            reply = ("error", f"{type(error).__name__}: {_first_line(error)}")
+        _write(replies, reply)
+
+
+def main() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    requests, replies = int(sys.argv[1]), int(sys.argv[2])
+    try:
+        serve(requests, replies)
+    except BrokenPipeError:
+        pass
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)  # no exit handlers: an FMU's own (a Python interpreter inside it, say) cannot fail the exit

@@ -1,0 +1,160 @@
+"""Hostile inputs built at test time: the hostile car (tests/vehicles/hostile_car.c, compiled with gcc, an FMI 2.0
+co-simulation FMU that hangs, crashes, exits, outputs NaN, lies about its FMU state, logs garbage on demand) with
+its model description and vehicle map, variants of both, and the command line run under a memory cap.
+
+    fmu = hostile_fmu(folder)                     # the honest description; keywords change it (a unit, the GUID, ...)
+    car = hostile_map(folder, mode=2)             # its map; mode picks the misbehaviour (see hostile_car.c)
+    completed = capped("run", "demo", "--fmu", fmu, "--vehicle", car)   # the real command line, capped
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+SOURCE = Path(__file__).parent / "vehicles" / "hostile_car.c"
+GUID = "{8c4e810f-3df3-4a00-8276-176fa3c9f000}"
+IDENTIFIER = "HostileCar"
+MEMORY_CAP = 1536 * 2**20  # bytes of address space for every command under test (1.5 GB)
+HANG_LIMIT = 600  # s: only a hang takes this long; no test asserts on speed
+MODES = {"honest": 0, "hang": 1, "crash": 2, "exit": 3, "nan": 4, "inf": 5, "huge": 6, "garbage_log": 7, "lie": 8,
+         "no_init": 9}
+
+VARIABLES = [  # name, causality, variability, start (None: an output)
+    ("throttle", "input", "continuous", 0.0), ("brake", "input", "continuous", 0.0),
+    ("steer", "input", "continuous", 0.0), ("x", "output", "continuous", None), ("y", "output", "continuous", None),
+    ("yaw", "output", "continuous", None), ("speed", "output", "continuous", None),
+    ("v_init", "parameter", "fixed", 20.0), ("mode", "parameter", "fixed", 0.0),
+    ("trigger_time", "parameter", "fixed", 1.0)]
+
+
+def library(folder: Path) -> Path:
+    """The hostile car's shared library, compiled once into `folder`."""
+    from sdl_fmu.fmu.package import fmi_headers
+
+    built = folder / f"{IDENTIFIER}.so"
+    if not built.exists():
+        subprocess.run(["gcc", "-std=c99", "-O1", "-shared", "-fPIC", "-Wall", "-Wextra", "-Werror",
+                        f"-I{fmi_headers()}", str(SOURCE), "-o", str(built), "-lm"], check=True)
+    return built
+
+
+def description(*, model_name: str = "Hostile car", guid: str = GUID, identifier: str = IDENTIFIER,
+                can_get_set: bool = True, speed_unit: str | None = None, extra_variables: str = "",
+                ranges: dict[str, tuple[float, float]] | None = None, names: dict[str, str] | None = None) -> str:
+    """The model description; `ranges` declares min/max of variables by name, `names` renames variables."""
+    from xml.sax.saxutils import quoteattr
+
+    units = f" unit={quoteattr(speed_unit)}" if speed_unit is not None else ""
+    variables = []
+    for name, causality, variability, start in VARIABLES:
+        attributes = f' start="{start!r}"' if start is not None else ""
+        if ranges and name in ranges:
+            attributes += f' min="{ranges[name][0]!r}" max="{ranges[name][1]!r}"'
+        unit = units if name == "speed" else ""
+        shown = quoteattr((names or {}).get(name, name))
+        variables.append(f'    <ScalarVariable name={shown} valueReference="{len(variables)}" causality="{causality}" '
+                         f'variability="{variability}"><Real{unit}{attributes}/></ScalarVariable>')
+    outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(VARIABLES) if v[1] == "output")
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName={quoteattr(model_name)} guid="{guid}" generationTool="tests/hostile_fmus.py"
+  numberOfEventIndicators="0">
+  <CoSimulation modelIdentifier="{identifier}" canGetAndSetFMUstate="{str(can_get_set).lower()}"
+    canHandleVariableCommunicationStepSize="true"/>
+  <ModelVariables>
+{chr(10).join(variables)}
+{extra_variables}  </ModelVariables>
+  <ModelStructure><Outputs>{outputs}</Outputs></ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def hostile_fmu(folder: Path, name: str = "HostileCar", *, members: dict[str, bytes] | None = None,
+                **description_options) -> Path:
+    """The hostile car as an FMU `folder/name.fmu`: its binary under binaries/linux64/<identifier>.so (or the members
+    given instead) and the model description (keywords of `description`)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    binary = library(folder).read_bytes()
+    identifier = description_options.get("identifier", IDENTIFIER)
+    if members is None:
+        members = {f"binaries/linux64/{identifier}.so": binary}
+    path = folder / f"{name}.fmu"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as fmu:
+        fmu.writestr("modelDescription.xml", description(**description_options))
+        for member, data in members.items():
+            fmu.writestr(member, data)
+    return path
+
+
+def hostile_map(folder: Path, mode: str | int = "honest", trigger_time: float = 1.0, *, name: str = "hostile",
+                vehicle: str | None = None, extra: str = "", speed: str = 'variable = "speed"',
+                parameters: str | None = None) -> Path:
+    """A vehicle map driving the hostile car; `mode` (a name of MODES or a number) starts at `trigger_time` (s).
+    `vehicle` replaces the [vehicle] table's body, `parameters` the [parameters] table's, `extra` is the top level."""
+    mode = MODES.get(mode, mode)
+    vehicle = vehicle if vehicle is not None else "length = 4.5\nwidth = 1.8\nwheelbase = 2.7\ntrack = 1.5\n"
+    text = f"""{extra}
+[inputs]
+throttle = {{ variable = "throttle" }}
+brake = {{ variable = "brake" }}
+steer = {{ variable = "steer" }}
+
+[outputs]
+x = {{ variable = "x" }}
+y = {{ variable = "y" }}
+yaw = {{ variable = "yaw" }}
+speed = {{ {speed} }}
+
+[start]
+speed = {{ variable = "v_init" }}
+
+[vehicle]
+{vehicle}
+[parameters]
+{parameters if parameters is not None else f"mode = {float(mode)!r}{chr(10)}trigger_time = {float(trigger_time)!r}"}
+"""
+    path = folder / f"{name}.toml"
+    folder.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _capped() -> None:
+    """In the child before exec: the memory cap, and Ctrl-C's default action (a background test run may start the
+    child with SIGINT ignored)."""
+    import signal
+
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def capped_command(*args) -> list[str]:
+    return [sys.executable, "-m", "sdl_fmu.cli", *map(str, args)]
+
+
+def capped(*args, cwd=None, env=None, timeout: float = HANG_LIMIT, **options) -> subprocess.CompletedProcess:
+    """`sdl-fmu ARGS` as a user runs it, in a subprocess with at most MEMORY_CAP of address space; `timeout` only
+    catches a hang."""
+    environment = {**os.environ, "OPENBLAS_NUM_THREADS": "1", **(env or {})}
+    return subprocess.run(capped_command(*args), capture_output=True, text=True, cwd=cwd, env=environment,
+                          timeout=timeout, preexec_fn=_capped, **options)
+
+
+def popen_capped(*args, cwd=None, env=None, **options) -> subprocess.Popen:
+    """capped() started in the background (for signals)."""
+    environment = {**os.environ, "OPENBLAS_NUM_THREADS": "1", **(env or {})}
+    return subprocess.Popen(capped_command(*args), cwd=cwd, env=environment, preexec_fn=_capped,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **options)
+
+
+def one_line(completed: subprocess.CompletedProcess, code: int, *needles: str) -> str:
+    """The command ended with `code` and one line on stderr holding every needle, no traceback; that line."""
+    lines = completed.stderr.splitlines()
+    assert completed.returncode == code and len(lines) == 1, (completed.returncode, completed.stderr[-3000:])
+    assert "Traceback" not in completed.stderr
+    assert all(needle in lines[0] for needle in needles), lines[0]
+    return lines[0]

@@ -178,6 +178,7 @@ def master_runs(exported):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("master-runs")  # one worker computes master_runs (pytest -n: a module fixture per worker)
 @pytest.mark.parametrize("master", MASTERS)
 @pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
 def test_every_shipped_scenario_gives_runs_events_collisions_and_end_in_each_master(exported, master_runs, name,
@@ -186,6 +187,7 @@ def test_every_shipped_scenario_gives_runs_events_collisions_and_end_in_each_mas
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("master-runs")
 @pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
 def test_libcosim_and_ecos_agree_to_rounding(master_runs, name, dynamics):
     key = (name, dynamics)
@@ -193,7 +195,7 @@ def test_libcosim_and_ecos_agree_to_rounding(master_runs, name, dynamics):
 
 
 @pytest.mark.slow
-def test_the_fmi3_export_runs_in_ecos(tmp_path, simple_fmus):
+def test_the_fmi3_export_runs_in_ecos(tmp_path, simple_fmus, scenario_binaries):
     export = api.export("demo", fmi_version=3, out=tmp_path / "fmi3")
     for path in export.fmus.values():
         assert b'fmiVersion="3.0"' in _model_description(path)

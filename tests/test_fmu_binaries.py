@@ -18,11 +18,10 @@ from helpers import windows_tools_required
 SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}
 
 
-@pytest.fixture(params=[("simple_fmu", "EgoVehicleSimple"), ("advanced_fmu", "EgoVehicleAdvanced")],
-                ids=["simple", "advanced"])
-def fmu(request):
-    fixture, model = request.param
-    return request.getfixturevalue(fixture), model
+@pytest.fixture
+def fmu(ego_fmus):
+    """(the FMI 2.0 FMU, its model identifier) of each shipped model in turn."""
+    return ego_fmus[2], ego_fmus[2].stem
 
 
 def test_fmu_validates(fmu):
@@ -42,9 +41,9 @@ def test_binary_links_no_python_or_casadi(fmu, tmp_path):
 
 
 @pytest.mark.parametrize("version, platform, prefix", [(2, "win64", "fmi2"), (3, "x86_64-windows", "fmi3")])
-def test_windows_binary_needs_system_dlls_only(fmu, request, tmp_path, version, platform, prefix):
-    _, model = fmu
-    path = request.getfixturevalue("simple_fmus" if model == "EgoVehicleSimple" else "advanced_fmus")[version]
+def test_windows_binary_needs_system_dlls_only(ego_fmus, tmp_path, version, platform, prefix):
+    path = ego_fmus[version]
+    model = path.stem
     objdump = shutil.which("x86_64-w64-mingw32-objdump")
     if objdump is None:
         if windows_tools_required():

@@ -32,6 +32,8 @@ SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}
 LINUX_LIBRARIES = {"libc.so.6", "libm.so.6"}
 SHIPPED = sorted(api.shipped_scenarios())
 
+pytestmark = pytest.mark.usefixtures("simple_fmus", "scenario_binaries")  # the FMUs of the cache the tests export
+
 
 @pytest.fixture(scope="module")
 def simple_model():
@@ -168,6 +170,7 @@ def test_replaying_a_follow_driver_run_gives_the_run_bit_for_bit(tmp_path):
 @pytest.mark.parametrize("driver", ["lane", "follow"])
 @pytest.mark.parametrize("dynamics", ["simple", "advanced"])
 @pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.usefixtures("dynamics_fmus")
 def test_replaying_every_shipped_scenario_gives_the_run_bit_for_bit(name, dynamics, driver, tmp_path):
     problems, _ = replay_scenario(api.load(name, skip_unsupported=True, dynamics=dynamics), dynamics, tmp_path,
                                   driver=driver)
@@ -191,6 +194,7 @@ def test_replaying_generated_scenarios_gives_the_run_bit_for_bit(seed, tmp_path)
 @pytest.mark.parametrize("driver", ["lane", "follow"])
 @pytest.mark.parametrize("dynamics", ["simple", "advanced"])
 @pytest.mark.parametrize("seed", range(2, 30))
+@pytest.mark.usefixtures("dynamics_fmus")
 def test_replaying_many_generated_scenarios_gives_the_run_bit_for_bit(seed, dynamics, driver, tmp_path):
     problems, _ = replay_scenario(generated(seed, tmp_path, dynamics), dynamics, tmp_path, until_time=100.0,
                                   driver=driver)

@@ -33,6 +33,8 @@ SUBSTEPS = 200  # the oracle's sub-steps per step
 BISECTION = 1e-9  # s, TRIGGER_TOLERANCE of the runtime
 DISTANCE_ACTIONS = {("A", "spawn"), ("BRK", "on"), ("RSA", "set")}
 
+pytestmark = pytest.mark.usefixtures("simple_fmus", "scenario_binaries")  # the FMUs the masters run, from the cache
+
 
 def scenario_fmu(scenario, dynamics, directory, fmi_version=2, **options):
     ego = api.ego_model(dynamics, fmu=None) if dynamics else None

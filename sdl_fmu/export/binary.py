@@ -23,7 +23,7 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
-from ..fmu.cache import cache_directory, compiler_identity, remove_abandoned_builds
+from ..fmu.cache import compiler_identity, remove_abandoned_builds, build_lock, cache_directory
 from ..fmu.package import (FMI_HEADERS, LINUX_BINARY_DIRECTORY, MINGW_COMPILER, WINDOWS_BINARY_DIRECTORY, BuildError,
                            FmiVersion, binary_command, fmi_headers, mingw_compiler, run_compilers)
 from ..interface import INPUT, OUTPUT, PARAMETER, Interface, load_units, parse_interface
@@ -197,23 +197,26 @@ def build_binaries(fmi_version: FmiVersion, out: Path) -> Path:
 
 def cached_binaries(fmi_version: FmiVersion = 2) -> Path:
     """The folder holding sources/ and binaries/ of the generic scenario binary for this FMI version, from the
-    per-user FMU cache (built on first use; two processes building at once never corrupt it)."""
+    per-user FMU cache (built on first use; a second process waits for a build in progress)."""
     if fmi_version not in FMI_LAYERS:
         raise BuildError(f"FMI version {fmi_version!r} is not supported: choose 2 or 3")
     folder = cache_directory() / f"{MODEL_IDENTIFIER}-fmi{fmi_version}-{binary_key(fmi_version)[:24]}"
-    if (folder / "binaries" / LINUX_BINARY_DIRECTORY[fmi_version] / binary_name(False)).is_file():
+    built = folder / "binaries" / LINUX_BINARY_DIRECTORY[fmi_version] / binary_name(False)
+    if built.is_file():
         return folder
-    root = cache_directory()
-    root.mkdir(parents=True, exist_ok=True)
-    remove_abandoned_builds(root)
-    work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
-    try:
-        build_binaries(fmi_version, work / "entry")
+    with build_lock(f"{MODEL_IDENTIFIER}-fmi{fmi_version}"):  # a build in progress elsewhere: wait for it
+        if built.is_file():
+            return folder
+        root = cache_directory()
+        remove_abandoned_builds(root)
+        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
         try:
-            os.rename(work / "entry", folder)  # atomic; fails if another process got there first
-        except OSError:
-            if not (folder / "binaries").is_dir():
-                raise
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+            build_binaries(fmi_version, work / "entry")
+            try:
+                os.rename(work / "entry", folder)  # atomic; fails if another process got there first
+            except OSError:
+                if not (folder / "binaries").is_dir():
+                    raise
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
     return folder

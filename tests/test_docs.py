@@ -141,3 +141,12 @@ def test_benchmarks_md_is_generated_from_the_committed_results():
     spec.loader.exec_module(report)
     assert (ROOT / "BENCHMARKS.md").read_text() == report.render(ROOT / "benchmarks" / "results"), \
         "BENCHMARKS.md differs from the results: run python benchmarks/report.py"
+
+
+def test_ci_runs_the_readmes_test_command():
+    """.ci/run ends in the Quick start's command that installs and runs every test (pip quiet in CI)."""
+    command = next(line for line in (ROOT / "README.md").read_text().splitlines()
+                   if line.startswith("python3 -m venv") and "pytest" in line)
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    assert ci.replace("pip install -q ", "pip install ") == command
+    assert "-n 2 --dist loadgroup" in command  # both cores, the wine tests on one worker (tests/conftest.py)

@@ -28,7 +28,7 @@ SHORT = ["--until-time", "2"]  # a short run of the demo: a few hundred samples
 
 
 @pytest.fixture
-def work(tmp_path):
+def work(tmp_path, simple_fmus):  # the runs take the Simple FMU from the cache
     (tmp_path / "work").mkdir()
     return tmp_path
 

@@ -15,6 +15,7 @@ from sdl_fmu import api
 from sdl_fmu import sweep as sweeping
 
 distributed = pytest.importorskip("distributed")
+pytestmark = pytest.mark.usefixtures("simple_fmus")  # the sweeps run the Simple FMU of the cache
 
 # One oncoming vehicle passing 12 ft to the ego's left, no collision; the run ends at --until-distance.
 SCENARIO = "English\n100,A,50,600,-6,1\n"

@@ -16,7 +16,7 @@ from lxml import etree
 from sdl_fmu import api
 from sdl_fmu.cli import main
 from sdl_fmu.tire_files import SLOT_KEYS, default_attribute_file, slot_parameter, slot_values
-from sdl_fmu.results_folder import MANIFEST_NAME
+from sdl_fmu.results.folder import MANIFEST_NAME
 from sdl_fmu.ssp.document import OSP, SSC, SSD, SSV, schema_directory
 
 from helpers import FOREIGN_AEB_MAP, build_foreign_controller

@@ -149,7 +149,8 @@ def assert_agree_to_rounding(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
 # ---- every shipped scenario in every master ------------------------------------------------------------------------
 
 
-CASES = list(results_snapshot.cases())  # (name, dynamics, skip_unsupported), under each dynamics its header names
+# (name, dynamics, skip_unsupported, driver), under each dynamics its header names, with the options it names
+CASES = list(results_snapshot.cases())
 
 
 @pytest.fixture(scope="module")
@@ -165,9 +166,9 @@ def foreign_controller_and_ccrs(tmp_path_factory):
 def exported(tmp_path_factory):
     """Every shipped scenario exported once (FMI 2.0, step 0.01 s), by (name, dynamics)."""
     folder = tmp_path_factory.mktemp("exports")
-    return {(name, dynamics): api.export(name, dynamics=dynamics, skip_unsupported=skip, step=STEP,
+    return {(name, dynamics): api.export(name, dynamics=dynamics, skip_unsupported=skip, step=STEP, driver=driver,
                                          out=folder / f"{name}-{dynamics}")
-            for name, dynamics, skip in CASES}
+            for name, dynamics, skip, driver in CASES}
 
 
 @pytest.fixture(scope="module")
@@ -180,7 +181,8 @@ def master_runs(exported):
 @pytest.mark.slow
 @pytest.mark.xdist_group("master-runs")  # one worker computes master_runs (pytest -n: a module fixture per worker)
 @pytest.mark.parametrize("master", MASTERS)
-@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
+@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _, _ in CASES],
+                         ids=[f"{n}-{d}" for n, d, _, _ in CASES])
 def test_every_shipped_scenario_gives_runs_events_collisions_and_end_in_each_master(exported, master_runs, name,
                                                                                    dynamics, master):
     check(master_runs[((name, dynamics), master)], exported[(name, dynamics)], f"{name} {master}")
@@ -188,7 +190,8 @@ def test_every_shipped_scenario_gives_runs_events_collisions_and_end_in_each_mas
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("master-runs")
-@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
+@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _, _ in CASES],
+                         ids=[f"{n}-{d}" for n, d, _, _ in CASES])
 def test_libcosim_and_ecos_agree_to_rounding(master_runs, name, dynamics):
     key = (name, dynamics)
     assert_agree_to_rounding(master_runs[(key, "libcosim")], master_runs[(key, "ecos")], name)

@@ -19,7 +19,7 @@ from sdl_fmu.cli import main
 from sdl_fmu.fmu import cache
 from sdl_fmu.fmu.package import fmu_path
 from sdl_fmu.names import BUILT
-from sdl_fmu.results_folder import MANIFEST_NAME
+from sdl_fmu.results.folder import MANIFEST_NAME
 
 CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = sorted([MANIFEST_NAME, "plot.png", "summary.json", "timeseries.csv"])

@@ -1,4 +1,4 @@
-"""Export folders: a results folder (results_folder.py: written aside and moved into place whole, nothing sdl-fmu
+"""Export folders: a results folder (results/folder.py: written aside and moved into place whole, nothing sdl-fmu
 did not write is touched) that holds an SSP and, beside it, the FMUs it holds. `--out` may be a new folder, an empty
 one, or an earlier export folder (sdl-fmu's manifest lists an .ssp); a results folder of another command, or a folder
 holding files sdl-fmu did not write, is refused."""
@@ -9,7 +9,7 @@ import os
 import shutil
 from pathlib import Path
 
-from ..results_folder import ResultsFolderError, check_results_folder, read_manifest, write_results_folder
+from ..results.folder import ResultsFolderError, check_results_folder, read_manifest, write_results_folder
 from .document import RESOURCES, System, write_ssp
 
 

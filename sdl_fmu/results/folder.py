@@ -39,7 +39,7 @@ class ResultsFolderError(Exception):
 def read_manifest(folder: Path) -> list[str] | None:
     """The files in `folder` that sdl-fmu provably wrote (its signed manifest lists them and they are unchanged; a
     listed name with nothing there counts too), or None when it is not a results folder of this user's sdl-fmu."""
-    from . import ownership
+    from .. import ownership
 
     folder = Path(folder)
     try:
@@ -63,7 +63,7 @@ def read_manifest(folder: Path) -> list[str] | None:
 
 
 def _write_manifest(folder: Path, files: list[str], complete: bool) -> None:
-    from . import ownership
+    from .. import ownership
 
     data = {"format": MANIFEST_FORMAT, "complete": complete,
             "files": {name: ownership.record(folder / name) for name in sorted(files)}}
@@ -174,7 +174,7 @@ def _sibling(target: Path, kind: str) -> Path:
 def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None]) -> Path:
     """Runs `write(folder)` into a fresh hidden folder, then puts its files in place at `out`: all of them or
     none, and nothing sdl-fmu did not write is removed. Returns the results folder (absolute)."""
-    from . import ownership
+    from .. import ownership
 
     shown = os.fspath(out)
     target = check_results_folder(out)
@@ -229,7 +229,7 @@ def _replace_files(new: Path, target: Path, files: list[str]) -> None:
     """Updates a results folder that also holds the user's files: each of sdl-fmu's files is renamed into
     place (atomic per file), files of the old manifest that this run did not write are removed, the
     manifest comes last. The user's files are never touched."""
-    from . import ownership
+    from .. import ownership
 
     old = read_manifest(target) or []
     # while the files are exchanged, each is sdl-fmu's in its old form or its new one (or absent)

@@ -671,7 +671,7 @@ MODEL_EXCHANGE = {"EnterEventMode", "NewDiscreteStates", "EnterContinuousTimeMod
 def test_the_scenario_fmus_state_tables_are_the_standards(version):
     """The scenario FMU's MASK_ lines (scenario_fmi2.c, scenario_fmi3.c) are the standard's co-simulation rows;
     its model-exchange functions refuse on every call (there is no model-exchange instance) and have none."""
-    from test_state_tables import FMI2, FMI2_DEVIATIONS, FMI3, FMI3_DEVIATIONS, mask_table
+    from fmi_state_tables import FMI2, FMI2_DEVIATIONS, FMI3, FMI3_DEVIATIONS, mask_table
 
     from sdl_fmu.export.binary import RUNTIME_DIRECTORY
 

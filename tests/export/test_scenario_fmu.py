@@ -27,7 +27,7 @@ from helpers import windows_tools_required
 from scenario_generator import random_scenario
 from scenario_harness import ScenarioInstance, recorded_inputs, replay
 
-TESTS = Path(__file__).resolve().parent
+TESTS = Path(__file__).resolve().parents[1]  # tests/
 SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}
 LINUX_LIBRARIES = {"libc.so.6", "libm.so.6"}
 SHIPPED = sorted(api.shipped_scenarios())

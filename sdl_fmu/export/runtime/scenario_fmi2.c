@@ -19,7 +19,8 @@ typedef struct {
     (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP | MODE_TERMINATED |   \
      MODE_ERROR)
 /* The FMI 2.0 state table (section 4.2.4, co-simulation) in one place: the states in which each function is allowed
- * (elsewhere it returns fmi2Error with a log message). tests/test_state_tables.py compares it with the standard's. */
+ * (elsewhere it returns fmi2Error with a log message). tests/export/test_scenario_fmu.py compares it with the
+ * standard's. */
 #define MASK_fmi2SetDebugLogging               ANY_MODE
 #define MASK_fmi2SetupExperiment               MODE_INSTANTIATED
 #define MASK_fmi2EnterInitializationMode       MODE_INSTANTIATED

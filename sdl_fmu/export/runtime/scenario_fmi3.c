@@ -26,8 +26,8 @@ typedef struct {
 #define GET_MODES ANY_MODE
 #define SET_REAL_MODES (MODE_INSTANTIATED | MODE_INITIALIZATION | MODE_EVENT | MODE_CONTINUOUS_TIME | MODE_STEP)
 /* The FMI 3.0 state table (section 4.2, co-simulation without event mode) in one place: the states in which each
- * function is allowed (elsewhere it returns fmi3Error with a log message). tests/test_state_tables.py compares it
- * with the standard's. */
+ * function is allowed (elsewhere it returns fmi3Error with a log message). tests/export/test_scenario_fmu.py compares
+ * it with the standard's. */
 #define MASK_fmi3SetDebugLogging               ANY_MODE
 #define MASK_fmi3EnterInitializationMode       MODE_INSTANTIATED
 #define MASK_fmi3ExitInitializationMode        MODE_INITIALIZATION

@@ -101,15 +101,12 @@ SOURCES = sorted(p for p in tracked_files()
 # A document a text names: a path with a folder (docs/results.md, sdl_fmu/dynamics/simple.md) or an upper-case name
 # (README.md), read from the repository's top or from the naming file's folder
 CITED = re.compile(r"(?<![\w/.-])((?:[\w.-]+/)+[\w.-]+\.md|[A-Z][A-Z0-9_]+\.md)\b")
-# written by work in flight (delete an entry when its document lands): the scenario FMU's variable table
-PENDING = {"docs/export.md"}
-
 
 def test_every_document_a_text_names_exists():
     missing = [f"{text.relative_to(ROOT)}:{number}: {name}" for text in SOURCES
                for number, line in enumerate(text.read_text(encoding="utf-8").splitlines(), 1)
                for name in CITED.findall(line)
-               if name not in PENDING and not (ROOT / name).exists() and not (text.parent / name).exists()]
+               if not (ROOT / name).exists() and not (text.parent / name).exists()]
     assert not missing, "\n".join(missing)
     assert CITED.findall("see docs/results.md, README.md and EGO_MODEL_INTERFACE.md; not x.md or a/b.mdx") == [
         "docs/results.md", "README.md", "EGO_MODEL_INTERFACE.md"]

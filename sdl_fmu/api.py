@@ -449,9 +449,10 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     try:
         with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
             raw = master.run_scenario(scenario, model, options, _vehicle_table())
-    except FmuTimeout as error:
-        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU "
-                         f"{model.fmu_path.name} {_first_line(error)}") from None  # "did not answer in fmi2DoStep ..."
+    except FmuTimeout as error:  # the ego's, or the controller's (its subject names it)
+        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): "
+                         f"{error.subject or 'the FMU ' + model.fmu_path.name} {_first_line(error)}"
+                         ) from None  # "did not answer in fmi2DoStep ..."
     except ControllerError as error:  # the controller's binary, or values it refused or returned
         raise InputError("controller", _first_line(error)) from None
     except FmuError as error:  # a broken binary, or values the model cannot simulate

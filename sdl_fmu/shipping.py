@@ -149,10 +149,32 @@ def client(workers: int | None, scheduler: str | None, runs: int | None = None):
         return connected, [connected]
     check_workers(workers)
     count = workers or os.cpu_count() or 1
+    scratch = _Scratch()  # the workers' files (Dask's dask-scratch-space and its lock files): removed after them
     try:
-        cluster = LocalCluster(n_workers=count if runs is None else max(1, min(count, runs)), threads_per_worker=1,
-                               processes=True, dashboard_address=None)
+        import dask
+
+        with dask.config.set({"temporary-directory": str(scratch.path)}):  # the scheduler's workspace too
+            cluster = LocalCluster(n_workers=count if runs is None else max(1, min(count, runs)),
+                                   threads_per_worker=1, processes=True, dashboard_address=None,
+                                   local_directory=str(scratch.path))
     except (OSError, RuntimeError) as error:
+        scratch.close()
         raise ClusterError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
+    except BaseException:
+        scratch.close()
+        raise
     connected = Client(cluster)
-    return connected, [connected, cluster]
+    return connected, [connected, cluster, scratch]
+
+
+class _Scratch:
+    """A private temporary folder for a local cluster's workers ($TMPDIR/sdl-fmu-dask-*), removed by close(): by
+    default Dask keeps a dask-scratch-space folder with lock files in $TMPDIR for good."""
+
+    def __init__(self):
+        self.path = Path(tempfile.mkdtemp(prefix="sdl-fmu-dask-"))
+
+    def close(self) -> None:
+        import shutil
+
+        shutil.rmtree(self.path, ignore_errors=True)

@@ -436,7 +436,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     options.until_not_closing = until_not_closing
     if out is not None:
         try:
-            check_results_folder(out)
+            check_results_folder(out, "run")
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
     model = ego_model(dynamics, fmu, vehicle_map if vehicle is not None else None)
@@ -567,7 +567,7 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
         raise InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {_first_line(error)}") from None
     if out is not None:
         try:
-            check_results_folder(out)
+            check_results_folder(out, "verify")
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
     identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,

@@ -274,7 +274,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")
     _loop_arguments(run)
-    run.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
+    run.add_argument("--out", help="results folder: new, empty, or an earlier run's results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)
 
@@ -326,7 +326,7 @@ def parser() -> argparse.ArgumentParser:
     where.add_argument("--scheduler", help="aeb-ccr: address of an existing Dask scheduler (tcp://host:port)")
     verify.add_argument("--strict", action="store_true", help="exit 1 when a criterion fails (a manoeuvre fails; "
                         "aeb-ccr: a test scores less than its full points)")
-    verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
+    verify.add_argument("--out", help="results folder: new, empty, or an earlier verify folder "
                                       "(default: verify/<vehicle>, verify/<vehicle>-aeb-ccr)")
     verify.set_defaults(handler=_verify)
 

@@ -32,6 +32,7 @@ from fmpy import read_model_description
 from . import __version__
 from .cosim import master
 from .cosim.ego import FmuError
+from .hold import HOLD_VARIABLE, hold_here, holding  # noqa: F401 (HOLD_VARIABLE: the tests' name for it)
 from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
 from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DRIVERS, LIMITS, MAX_TIME, ON_COLLISION,
                       InputError, checked_choice, checked_option, checked_seed, option_error, regular_file)
@@ -169,6 +170,7 @@ def check(scenario: str | os.PathLike | Scenario, *, skip_unsupported: bool = Fa
     warnings = vehicle_warnings(loaded, vehicle_map.name or vehicle_map.label,
                                 None if friction is None else friction.meaning, vehicle_map.flags.get("brk_acts", True),
                                 known)
+    hold_here()  # the test hook (hold.py)
     return Check(loaded, [*loaded.warnings, *tire_warnings, *warnings])
 
 
@@ -354,14 +356,9 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
     return update
 
 
-# Test hook, for tests that must catch a run in progress whatever the machine's speed (Ctrl-C, timeouts, a
-# worker killed mid-run): when $SDL_FMU_TEST_HOLD names a file that exists, every run, after its first
-# communication step, appends its process id to that path + ".running" and then waits until the file is
-# removed, its timeout passes (RunTimeout) or it is interrupted.
-HOLD_VARIABLE = "SDL_FMU_TEST_HOLD"
-
-
-def _held(progress: Callable | None, hold: str) -> Callable:
+def _held(progress: Callable | None) -> Callable:
+    """The test hook's hold point of a run (sdl_fmu/hold.py): after its first communication step, until released,
+    its timeout passes (RunTimeout) or it is interrupted."""
     held = []
 
     def hold_once(cosimulation, state) -> None:
@@ -369,12 +366,8 @@ def _held(progress: Callable | None, hold: str) -> Callable:
             progress(cosimulation, state)
         if not held:
             held.append(True)
-            with open(hold + ".running", "a", encoding="utf-8") as running:
-                running.write(f"{os.getpid()}\n")
-            while os.path.exists(hold):
-                time.sleep(0.01)
-                if progress is not None:
-                    progress(cosimulation, state)  # the deadline's check
+            # while held, the deadline's check
+            hold_here(None if progress is None else lambda: progress(cosimulation, state))
 
     return hold_once
 
@@ -444,8 +437,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
-    if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
-        options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
+    if holding():
+        options.progress = _held(options.progress)
     try:
         with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
             raw = master.run_scenario(scenario, model, options, _vehicle_table())

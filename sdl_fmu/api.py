@@ -37,9 +37,8 @@ from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
 from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DRIVERS, LIMITS, MAX_TIME, ON_COLLISION,
                       InputError, checked_choice, checked_option, checked_seed, option_error, regular_file)
 from .paths import SCENARIO_DIRECTORY
-from .results import summary, timeseries_table, write_results
-from .results_folder import ResultsFolderError, check_results_folder
-from .run_result import RunResult
+from .results import RunRecord, scenario_units, summary, timeseries_table, write_results
+from .results.folder import ResultsFolderError, check_results_folder
 from .sdl import Scenario, ScenarioError, SdlError, default_vehicle_table_path, load_scenario, load_vehicle_table
 from .sdl.checks import check_scenario, vehicle_warnings
 from .shipped import shipped_controller, shipped_fmu
@@ -243,10 +242,10 @@ def controller_model(controller: str | os.PathLike | None = None,
 
 @dataclass
 class Result:
-    """What a run produced. `raw` is the orchestrator's RunResult (SI); everything else is in the
+    """What a run produced. `raw` is the orchestrator's RunRecord (SI); everything else is in the
     scenario's units, as in the results files."""
 
-    raw: RunResult
+    raw: RunRecord
     scenario: Scenario
 
     def __repr__(self) -> str:
@@ -276,9 +275,9 @@ class Result:
 
     @property
     def events(self) -> Sequence[dict]:
-        """summary.json's events in order: a sequence of dicts read back from the run's event log on disk
-        (each read afresh; list(result.events) for a list)."""
-        return self.raw.events
+        """summary.json's events in order, in the scenario's units: a sequence of dicts read back from the run's
+        event log on disk (each read afresh; list(result.events) for a list)."""
+        return scenario_units.Events(self.raw.events, self.raw.units)
 
     @property
     def warnings(self) -> list[str]:
@@ -288,15 +287,16 @@ class Result:
     def collisions(self) -> int:
         return self.raw.collisions
 
-    @property
+    @functools.cached_property
     def final(self) -> dict:
-        return self.raw.final
+        """summary.json's `final`, in the scenario's units."""
+        return scenario_units.final(self.raw.final, self.raw.units)
 
-    @property
+    @functools.cached_property
     def criticality(self) -> dict | None:
         """summary.json's `criticality` (docs/results.md): min_distance (scenario units) and its instant, min_ttc_s,
         max_drac (scenario units/s2), min_pet_s, min_headway_s, ..., run-wide and per vehicle (`vehicles`)."""
-        return self.raw.criticality
+        return scenario_units.criticality(self.raw.criticality, self.raw.units)
 
     @property
     def summary(self) -> dict:
@@ -304,7 +304,7 @@ class Result:
         return summary(self.raw)
 
     def write(self, out: str | os.PathLike, plot: bool = True) -> Path:
-        """Writes a results folder (timeseries.csv, summary.json, plot.png); see results_folder for the rules."""
+        """Writes a results folder (timeseries.csv, summary.json, plot.png); see results/folder.py for the rules."""
         try:
             return write_results(self.raw, Path(out), plot=plot)
         except ResultsFolderError as error:
@@ -312,9 +312,9 @@ class Result:
 
     def plot(self, path: str | os.PathLike) -> Path:
         """Only the plot, as a PNG at `path`."""
-        from . import plots  # matplotlib: loaded only to plot
+        from .results.plots import plot_run  # matplotlib: loaded only to plot
 
-        plots.plot_run(self.raw, Path(path))
+        plot_run(self.raw, Path(path))
         return Path(path)
 
 

@@ -40,7 +40,7 @@ from typing import Callable, Literal
 
 import numpy as np
 
-from .results_folder import SWEEP_MANIFEST_FORMAT, SWEEP_MANIFEST_NAME, folder_kind, other_kind_text
+from .results.folder import SWEEP_MANIFEST_FORMAT, SWEEP_MANIFEST_NAME, folder_kind, other_kind_text
 from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
 from .shipping import one_file as _one_file, passed_on as _passed_on
 from .shipping import check_scheduler, check_workers, max_workers  # noqa: F401 (the command line checks with them)
@@ -507,10 +507,31 @@ def _axis_label(column: str) -> str:
     return f"{match.group(1)} ({match.group(2)})" if match else column
 
 
+MAX_PLOT_SERIES = 8  # at most this many series (combinations of the other varied quantities) in one panel
+
+
+def _series(rows: list[dict], name: str, others: list[str]) -> list[tuple[str, list[dict]]]:
+    """The ok rows split into series by the values of the other varied quantities (so that one series varies
+    `name` alone), each labelled `other=value, ...`; with more combinations than MAX_PLOT_SERIES, one series per
+    value of the first other quantity only, and beyond that one series of every ok row."""
+    ok = [r for r in rows if r.get("status") == "ok" and isinstance(r.get(name), (int, float))]
+    for keys in (others, others[:1], []):
+        groups: dict[tuple, list[dict]] = {}
+        for r in ok:
+            groups.setdefault(tuple(r.get(k) for k in keys), []).append(r)
+        if len(groups) <= MAX_PLOT_SERIES:
+            return [(", ".join(f"{_axis_label(k)}={v:g}" if isinstance(v, (int, float)) else f"{_axis_label(k)}={v}"
+                               for k, v in zip(keys, values)), sorted(members, key=lambda r: r[name]))
+                    for values, members in sorted(groups.items(), key=lambda item: str(item[0]))]
+    return []
+
+
 def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     """One row of panels per varied quantity that takes more than one value: collisions, the first BRK's
-    distance and the smallest gap to any vehicle against that quantity; failed and timed-out runs marked
-    at the bottom. Axes carry units; names are drawn as written (a `$` in a --vary name is not mathtext)."""
+    distance and the smallest footprint distance to any vehicle against that quantity, one series (line and
+    markers) per combination of the other varied quantities, so that a series varies that quantity alone; failed
+    and timed-out runs marked at the bottom. Axes carry units; collisions are counted in whole numbers; names are
+    drawn as written (a `$` in a --vary name is not mathtext)."""
     from .text import plain_text
 
     with plain_text():
@@ -520,6 +541,7 @@ def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) ->
 def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     from .units import length_label
 
@@ -531,25 +553,29 @@ def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -
               ("first BRK: distance while on", f"distance ({length})", lambda r: r.get(f"brk1_distance_{length}")),
               ("smallest footprint distance to a vehicle", f"distance ({length})",
                lambda r: r.get(f"min_distance_{length}"))]
-    colours = {"ok": "tab:blue", "failed": "tab:red", "timeout": "tab:orange"}
+    colours = {"failed": "tab:red", "timeout": "tab:orange"}
     for row_index, name in enumerate(quantities):
+        others = [other for other in plotted_quantities(rows, varied) if other != name]
+        series = _series(rows, name, others)
         for k, (title, ylabel, value) in enumerate(panels):
             ax = figure.add_subplot(len(quantities), 3, 3 * row_index + k + 1)
-            for status, colour in colours.items():
-                points = [(r[name], value(r)) for r in rows
-                          if r.get("status") == status and isinstance(r.get(name), (int, float))]
-                if status != "ok":
-                    points = [(x, 0.0) for x, _ in points]
-                points = [(x, y) for x, y in points if y is not None]
+            for number, (label, members) in enumerate(series):
+                points = [(r[name], value(r)) for r in members if value(r) is not None]
                 if points:
                     xs, ys = zip(*points)
-                    ax.scatter(xs, ys, s=18, color=colour, marker="o" if status == "ok" else "x",
-                               label=status if status != "ok" else None)
+                    ax.plot(xs, ys, marker="o", ms=4, lw=1.0, color=f"C{number % 10}", label=label or None)
+            for status, colour in colours.items():
+                xs = [r[name] for r in rows if r.get("status") == status and isinstance(r.get(name), (int, float))]
+                if xs:
+                    ax.scatter(xs, [0.0] * len(xs), s=18, color=colour, marker="x", label=status, zorder=3)
+            if k == 0:
+                ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+                ax.set_ylim(bottom=-0.2)
             ax.set_xlabel(_axis_label(name))
             ax.set_ylabel(ylabel)
             ax.set_title(title, fontsize=10, loc="left")
             ax.grid(True, alpha=0.3)
-            if row_index == 0 and k == 0 and any(r.get("status") != "ok" for r in rows):
+            if k == 0 and (len(series) > 1 or any(r.get("status") != "ok" for r in rows)):
                 ax.legend(fontsize=8)
     figure.suptitle(f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok", fontsize=11)
     figure.savefig(path, format="png")

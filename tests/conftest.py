@@ -6,15 +6,32 @@ import os
 import shutil
 import subprocess
 import tempfile
+import uuid
 from pathlib import Path
 
 import pytest
 
 # Every test (and every sdl-fmu subprocess it starts) uses a private FMU cache, never the user's: a fresh one
-# per session, or $SDL_FMU_TEST_CACHE, kept between sessions (the developer loop; the cache is keyed by a hash
-# of every build input, so a changed model is rebuilt there too).
+# per run, or $SDL_FMU_TEST_CACHE, kept between runs (the developer loop; the cache is keyed by a hash of every
+# build input, so a changed model is rebuilt there too). The workers of one `pytest -n N` run (pytest-xdist) share
+# one fresh cache, named by the run's id, so each FMU is built once per run: a worker that finds a build in
+# progress waits for it (sdl_fmu/fmu/cache.py, build_lock); the controller process removes the cache at the end.
 KEPT_CACHE = os.environ.get("SDL_FMU_TEST_CACHE")
-os.environ["SDL_FMU_CACHE"] = KEPT_CACHE or tempfile.mkdtemp(prefix="sdl-fmu-test-cache-")
+RUN_ID = os.environ.get("PYTEST_XDIST_TESTRUNUID") if os.environ.get("PYTEST_XDIST_WORKER") else None
+
+
+def run_cache(run_id: str) -> Path:
+    """The FMU cache the workers of the xdist run `run_id` share."""
+    return Path(tempfile.gettempdir()) / f"sdl-fmu-test-cache-{run_id}"
+
+
+if KEPT_CACHE:
+    os.environ["SDL_FMU_CACHE"] = KEPT_CACHE
+elif RUN_ID:
+    run_cache(RUN_ID).mkdir(exist_ok=True)
+    os.environ["SDL_FMU_CACHE"] = str(run_cache(RUN_ID))
+else:
+    os.environ["SDL_FMU_CACHE"] = tempfile.mkdtemp(prefix="sdl-fmu-test-cache-")
 
 from sdl_fmu.fmu.cache import cached_fmus  # noqa: E402
 from sdl_fmu.fmu.package import FMI_VERSIONS  # noqa: E402
@@ -34,6 +51,35 @@ def simple_fmus():
 def advanced_fmus():
     """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of the Advanced model."""
     return dict(zip(FMI_VERSIONS, cached_fmus("advanced", FMI_VERSIONS)))
+
+
+@pytest.fixture(scope="session", params=["simple", "advanced"])
+def ego_fmus(request):
+    """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of each shipped ego model in turn (a test taking it runs once per model;
+    `@pytest.mark.parametrize("ego_fmus", ["simple"], indirect=True)` picks models): the FMUs of the fixtures above."""
+    return dict(zip(FMI_VERSIONS, cached_fmus(request.param, FMI_VERSIONS)))
+
+
+@pytest.fixture
+def dynamics_fmus(dynamics):
+    """The FMUs of the shipped model a test parametrised by `dynamics` runs through the cache (api.run, sdl-fmu run
+    without --fmu), built as the test's setup rather than in its body."""
+    return dict(zip(FMI_VERSIONS, cached_fmus(dynamics, FMI_VERSIONS)))
+
+
+@pytest.fixture(scope="session")
+def example_aeb_fmus():
+    """{2: FMI 2.0 FMU, 3: FMI 3.0 FMU} of the example AEB controller (sdl_fmu/controllers/)."""
+    return dict(zip(FMI_VERSIONS, cached_fmus("example-aeb", FMI_VERSIONS)))
+
+
+@pytest.fixture(scope="session")
+def scenario_binaries():
+    """{2: folder, 3: folder} of the scenario FMU's generic binary (sdl_fmu/export/binary.py) in the cache, which
+    write_scenario_fmu copies."""
+    from sdl_fmu.export.binary import cached_binaries
+
+    return {version: cached_binaries(version) for version in FMI_VERSIONS}
 
 
 @pytest.fixture(scope="session")
@@ -117,6 +163,22 @@ def wine(tmp_path_factory):
         subprocess.run([server, "-k"], env=environment, check=False)  # ends this prefix's server only
 
 
+def pytest_configure(config):
+    if RUN_ID is None and hasattr(config.option, "testrunuid") and config.option.testrunuid is None:
+        config.option.testrunuid = uuid.uuid4().hex  # pytest-xdist gives it to the workers: their cache's name
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist's own, which reads the groups
+def pytest_collection_modifyitems(config, items):
+    """The tests that run programs under wine share one worker (`--dist loadgroup`), so one wine prefix is made."""
+    for item in items:
+        if "wine" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.xdist_group("wine"))
+
+
 def pytest_unconfigure(config):
-    if not KEPT_CACHE:
-        shutil.rmtree(os.environ["SDL_FMU_CACHE"], ignore_errors=True)
+    if KEPT_CACHE or RUN_ID:
+        return  # kept, or the controller's to remove
+    shutil.rmtree(os.environ["SDL_FMU_CACHE"], ignore_errors=True)
+    if getattr(config.option, "testrunuid", None):
+        shutil.rmtree(run_cache(config.option.testrunuid), ignore_errors=True)

@@ -3,6 +3,7 @@ tests, parameter defaults, fmpy runs and their input tables, the command line in
 straight stop, the foreign car's build, FMU copies, ctypes wrappers of the FMU binaries and the plain C test host."""
 
 import ctypes
+import dataclasses
 import math
 import os
 import shutil
@@ -16,6 +17,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 
 import fmi_fuzz as fuzz
+from sdl_fmu.results import scenario_units
 from sdl_fmu.sdl import default_vehicle_table_path, load_vehicle_table
 from sdl_fmu.units import STANDARD_GRAVITY as G
 
@@ -383,3 +385,11 @@ def host_arguments(fmu, library, start, outputs, stop_time, booleans=()):
             *[f"r:{variables[n].valueReference}={v!r}" for n, v in start.items()],
             *[f"o:{variables[n].valueReference}" for n in outputs],
             *[f"b:{variables[n].valueReference}" for n in booleans]]
+
+
+def as_written(record):
+    """A run's record (SI) with its events, final state and criticality in the scenario's units, as summary.json
+    and api.Result give them (results/scenario_units.py); its time series and tracks stay SI."""
+    return dataclasses.replace(record, events=list(scenario_units.Events(record.events, record.units)),
+                               final=scenario_units.final(record.final, record.units),
+                               criticality=scenario_units.criticality(record.criticality, record.units))

@@ -176,7 +176,7 @@ EGO_INPUTS = {"ego_x": "x", "ego_y": "y", "ego_psi": "psi", "ego_v": "v", "ego_s
 
 
 def recorded_inputs(columns: dict, k: int) -> dict:
-    """The scenario FMU's ego inputs from a run's sample k (SI columns of RunResult)."""
+    """The scenario FMU's ego inputs from a run's sample k (SI columns of RunRecord)."""
     values = {name: float(columns[column][k]) for name, column in EGO_INPUTS.items()}
     values["ego_stopped"] = bool(columns["stopped"][k])
     return values

@@ -18,8 +18,8 @@ import pytest
 
 from sdl_fmu.api import HOLD_VARIABLE
 from sdl_fmu.cli import main
+from sdl_fmu.results.folder import MANIFEST_NAME
 from sdl_fmu.tire_files import DEFAULT_ATTRIBUTE_FILE
-from sdl_fmu.results_folder import MANIFEST_NAME
 
 from helpers import sdl_fmu
 

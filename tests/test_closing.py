@@ -19,6 +19,8 @@ from helpers import NO_RESISTANCES
 A = 0.5 * 9.81  # m/s2: the pedal 0.5 of the Simple FMU's brake_decel_max
 V0 = 50 * KILOMETRE_PER_HOUR
 
+pytestmark = pytest.mark.usefixtures("simple_fmus")  # every run uses the Simple FMU of the cache
+
 
 def scenario(target_speed: float, gap: float, brake: bool = True, target_braking: float | None = None) -> Scenario:
     """The ego at V0 in lane 1 behind vehicle 1 (model 1, the compact car, 4.2 m long), `gap` centre to centre,

@@ -12,7 +12,7 @@ from sdl_fmu.cosim.traffic import choose_model
 from sdl_fmu.sdl import parse_text
 from sdl_fmu.units import FOOT
 
-from helpers import NO_RESISTANCES, TABLE, G
+from helpers import NO_RESISTANCES, TABLE, G, as_written
 
 # Triggers are located to 1e-6 s; at 100 ft/s that is 1e-4 ft, and the FMU's own stop is exact to
 # round-off. So 1e-3 ft and 1e-5 s bound the numerics.
@@ -24,7 +24,7 @@ def run(text, speed_ft=100.0, parameters=NO_RESISTANCES, seed=1, **options):
     scenario = parse_text(text, "test.sdl")
     speed = speed_ft * (FOOT if scenario.units == "English" else 1.0)
     model = EgoModel.open(options.pop("fmu"), shipped_map_path("simple")).with_parameters(parameters)
-    return run_scenario(scenario, model, RunOptions(speed=speed, seed=seed, **options), TABLE)
+    return as_written(run_scenario(scenario, model, RunOptions(speed=speed, seed=seed, **options), TABLE))
 
 
 def events(result, code, action=None):

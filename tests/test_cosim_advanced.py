@@ -72,4 +72,4 @@ def test_approaching_vehicle_example_runs_with_advanced_dynamics(advanced_fmu):
     assert times[("spawn", None)] == pytest.approx(spawn, abs=1e-5)
     assert times[("maneuver", 1)] == pytest.approx(spawn + 2.5, abs=0.02)
     assert times[("maneuver", 2)] == pytest.approx(spawn + 7.5, abs=0.02)
-    assert math.isclose(result.final["speed"], 60.0, abs_tol=0.05)
+    assert math.isclose(result.final["speed"], 60.0 * FOOT, abs_tol=0.05 * FOOT)  # the record is SI

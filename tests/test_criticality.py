@@ -239,6 +239,61 @@ def test_horizons_are_lower_bounds_on_motions_within_the_bounds():
     assert checked > 50
 
 
+def test_heading_horizon_holds_against_the_fastest_turn_of_the_relative_velocity():
+    # heading_horizon's bound is stretched (by 1.5, up to three times) while the angles themselves prove it: the
+    # relative velocity's direction turns by at most asin(A tau / |v0|), the centre offset's by at most
+    # asin(P / rho0) with P = |v0| tau + A tau^2 / 2. Checked against the motions that turn the relative velocity
+    # fastest: an acceleration of size A at a fixed angle phi to the velocity (phi = +-90 deg turns it at A / |v|,
+    # others also shrink it, which turns it faster still), integrated by the midpoint rule in 2 ms steps (its error
+    # in position, ~ A^2 h^2 / |v| per step, is far below the margins of a few cm checked), with the ego turning at
+    # +-r_max. Before the bound the distance's rate stays < 0 (the approach goes on).
+    rng = np.random.default_rng(21)
+    acceleration, yaw_rate_bound = 12.0, 0.8
+    radius = math.hypot(EGO_LENGTH / 2, EGO_WIDTH / 2)
+    radius_sum = radius + math.hypot(CAR_LENGTH, CAR_WIDTH) / 2
+    turn = radius * yaw_rate_bound
+    stretched = checked = 0
+    for _ in range(150):
+        rho, bearing = rng.uniform(60, 400), rng.uniform(0, 2 * math.pi)
+        dx, dy = rho * math.cos(bearing), rho * math.sin(bearing)
+        speed = rng.uniform(15, 60)
+        heading = bearing + math.pi + rng.uniform(-0.6, 0.6)  # roughly toward the ego: approaching
+        vx, vy = speed * math.cos(heading), speed * math.sin(heading)
+        bound = heading_horizon(dx, dy, vx, vy, radius_sum, turn, acceleration)
+        if bound <= 0:
+            continue
+        # the bound before stretching (heading_horizon's first formula), to show the stretch is exercised
+        alpha = math.acos(max(-1.0, min(1.0, -(dx * vx + dy * vy) / (rho * speed))))
+        margin = math.acos(2 * turn / speed) - math.asin(2 * radius_sum / rho) - alpha
+        within = min(reach_time_for_test(rho / 2, speed, acceleration), speed / (2 * acceleration))
+        first = min(within, margin / (2 * (speed + acceleration * within) / rho + 2 * acceleration / speed))
+        stretched += bound > first * 1.4
+        psi0, yaw_rate = rng.uniform(-0.3, 0.3), rng.choice([-1, 1]) * yaw_rate_bound
+        for phi in (math.pi / 2, -math.pi / 2, rng.uniform(math.pi / 2, math.pi), -rng.uniform(math.pi / 2, math.pi)):
+            cos_phi, sin_phi = math.cos(phi), math.sin(phi)
+            x, y, u, w, t, h = dx, dy, vx, vy, 0.0, 2e-3
+            while t < bound:
+                ego = Footprint.of(EGO_LENGTH, EGO_WIDTH, psi0 + yaw_rate * t)
+                assert distance_rate(ego, x, y, u, w, yaw_rate, CAR_LENGTH, CAR_WIDTH) < 0, (t, bound)
+                ax, ay = turned_acceleration(u, w, acceleration, cos_phi, sin_phi)
+                um, wm = u + ax * h / 2, w + ay * h / 2  # midpoint
+                ax, ay = turned_acceleration(um, wm, acceleration, cos_phi, sin_phi)
+                x, y, u, w, t = x + um * h, y + wm * h, u + ax * h, w + ay * h, t + h
+            checked += 1
+    assert checked > 400 and stretched > 50, (checked, stretched)
+
+
+def turned_acceleration(u, w, size, cos_phi, sin_phi):
+    """An acceleration of the given size at the angle phi to the velocity (u, w)."""
+    speed = math.hypot(u, w)
+    return size * (cos_phi * u - sin_phi * w) / speed, size * (sin_phi * u + cos_phi * w) / speed
+
+
+def reach_time_for_test(distance_, rate, acceleration):
+    """The smallest tau >= 0 with rate tau + acceleration tau^2 / 2 >= distance_ (rate >= 0 here)."""
+    return (math.sqrt(rate * rate + 2 * acceleration * distance_) - rate) / acceleration
+
+
 def test_passage_known_never_contradicts_a_motion_within_the_bounds():
     # The front of the ego's footprint, x(t) + (L/2) |cos psi| + (W/2) |sin psi|, for motions whose station
     # acceleration stays within A (here a(t) = A sin(w t + phase) scaled by k <= 1) and whose yaw rate stays
@@ -401,7 +456,8 @@ from typing import NamedTuple  # noqa: E402
 from sdl_fmu.cosim.extremes import RANGE, Extremes  # noqa: E402
 from sdl_fmu.cosim.measures import relative_motion  # noqa: E402
 from sdl_fmu.cosim.traffic import Traffic  # noqa: E402
-from sdl_fmu.units import FOOT, from_si  # noqa: E402
+from sdl_fmu.results import scenario_units  # noqa: E402
+from sdl_fmu.units import FOOT  # noqa: E402
 
 
 class State(NamedTuple):
@@ -491,7 +547,7 @@ def test_oncoming_vehicle_in_the_adjacent_lane_minimum_distance_and_its_instant_
     # course: TTC and DRAC never apply; no headway (oncoming). In feet: 1.8 / 0.3048 = 5.9055 ft.
     traffic = traffic_of((0.0, 120.0, -LANE, 20.0, -LANE, 20.0, 0.0))
     extremes = master_like_run(traffic, cruising(25.0), step, end=4.0)
-    summary = extremes.summary([1], lambda value: from_si(value, "English"))
+    summary = scenario_units.criticality(extremes.summary([1]), "English")
     vehicle = summary["vehicles"][0]
     assert vehicle["vehicle"] == 1
     assert vehicle["min_distance"] == pytest.approx(1.8 / FOOT, abs=1e-6)
@@ -511,19 +567,23 @@ def test_braking_ego_and_a_stopped_car_ahead_minimum_distance_ttc_and_drac_whate
     # (the stopping distance still ahead), dTTC/dt = -1 + g a / v^2 = 0 at v^2 / 2a = G: v = sqrt(2 a G) =
     # sqrt(120) m/s, t = (20 - sqrt(120)) / 6 = 1.50763 s, TTC = 2 G / v = sqrt(2 G / a) = 1.82574 s.
     # DRAC = v^2 / (2 g) = v^2 / (2 G + v^2 / a) grows with v: its maximum is at t = 0, 400 / (2 g0) =
-    # 4.61538 m/s2. None of these instants but t = 0 is a communication point (multiples of 0.05 s or of the
-    # step): they are located.
+    # 4.61538 m/s2. The time headway to the stopped car (it applies to a vehicle ahead that stands still) is
+    # g / v, the same quantity as TTC here (the car does not move): its minimum is TTC's, at the same instant.
+    # None of these instants but t = 0 is a communication point (multiples of 0.05 s or of the step): they are
+    # located.
     g0 = 10 + 400 / 12
     traffic = traffic_of((0.0, g0 + 4.55, 0.0, 0.0, 0.0, 0.0, 0.0))
     extremes = master_like_run(traffic, braking(20.0, 6.0), step, end=6.0)
-    summary = extremes.summary([7], lambda value: from_si(value, "Metric"))
+    summary = scenario_units.criticality(extremes.summary([7]), "Metric")
     assert summary["min_distance"] == pytest.approx(10.0, abs=1e-6)
     assert summary["min_distance_time_s"] == pytest.approx(10 / 3, abs=1e-6)
     assert summary["min_ttc_s"] == pytest.approx(math.sqrt(20 / 6), abs=1e-6)
     assert summary["min_ttc_time_s"] == pytest.approx((20 - math.sqrt(120)) / 6, abs=1e-6)
     assert summary["max_drac"] == pytest.approx(400 / (2 * g0), rel=1e-12)
     assert summary["max_drac_time_s"] == 0.0
-    assert summary["vehicles"][0]["vehicle"] == 7
+    assert summary["min_headway_s"] == pytest.approx(math.sqrt(20 / 6), abs=1e-6)
+    assert summary["min_headway_time_s"] == pytest.approx((20 - math.sqrt(120)) / 6, abs=1e-6)
+    assert summary["vehicles"][0]["vehicle"] == 7 and not summary["contact"]
 
 
 @pytest.mark.parametrize("step", STEPS)
@@ -534,7 +594,7 @@ def test_time_headway_minimum_to_a_slower_car_ahead_whatever_the_step(step):
     # t = 15 - sqrt(115) = 4.27620 s, v = sqrt(115), h = g / v = v - 10 = 0.72381 s.
     traffic = traffic_of((0.0, 20.0 + 4.55, 0.0, -10.0, 0.0, -10.0, 0.0))
     extremes = master_like_run(traffic, braking(15.0, 1.0), step, end=8.0)
-    summary = extremes.summary([1], lambda value: value)
+    summary = extremes.summary([1])
     assert summary["min_headway_s"] == pytest.approx(math.sqrt(115) - 10, abs=1e-6)
     assert summary["min_headway_time_s"] == pytest.approx(15 - math.sqrt(115), abs=1e-6)
 
@@ -566,7 +626,7 @@ def test_post_encroachment_time_recorded_when_the_ego_reaches_the_conflict_stati
     assert extremes.pending_stations().tolist() == [132.75]
     extremes.reach(ego(reaches))
     assert len(extremes.pending_stations()) == 0
-    summary = extremes.summary([3], lambda value: value)
+    summary = extremes.summary([3])
     assert summary["min_pet_s"] == pytest.approx(reaches - 6.5, abs=1e-12)
     # the ego already past the area's near end when the car left: they were there together, no PET
     extremes.path_left(1, 6.5, 100.0, CAR_LENGTH, ego(6.5).x + EGO_LENGTH / 2)
@@ -674,6 +734,29 @@ def test_a_look_offers_what_observe_offers_and_returns_the_rates():
     assert courses > 20
 
 
+def test_a_course_check_sees_a_course_or_a_headway_exactly_where_a_look_does():
+    # Between looks the follower only checks (Extremes.course_check) whether a collision course or a headway has
+    # begun within RANGE: it must say so exactly where a look's rates do (TTC's or the headway's rate defined), and
+    # elsewhere give a bound >= 0 (course_horizon's, tested above, or the time to come within RANGE).
+    rng = np.random.default_rng(37)
+    rows = [(rng.uniform(0, 2), rng.uniform(-40, 150), rng.choice([rng.uniform(-5, 5), 0.0]), rng.uniform(-30, 30),
+             rng.uniform(-5, 5), rng.uniform(-30, 30), rng.choice([0.0, 1.5, 4.0])) for _ in range(40)]
+    traffic = traffic_of(*rows)
+    extremes = Extremes(EGO_LENGTH, EGO_WIDTH)
+    seen = {True: 0, False: 0}
+    for t in np.linspace(2, 8, 31):
+        state = State(float(t), 20 * t, rng.uniform(-1, 1), rng.uniform(-0.2, 0.2), rng.uniform(5, 30),
+                      rng.uniform(-1, 1), rng.uniform(-5, 5), rng.uniform(-3, 3), rng.uniform(-0.3, 0.3))
+        for i in range(traffic.size):
+            rates, _ = extremes.look(traffic, i, state, 15.0, 1.0, 2.5)
+            followed = rates[1] == rates[1] or rates[3] == rates[3]
+            bound = extremes.course_check(traffic, i, state, 15.0, 1.0, 2.5)
+            assert math.isnan(bound) == followed, (t, i, rates, bound)
+            assert followed or bound >= 0.0
+            seen[followed] += 1
+    assert seen[True] > 50 and seen[False] > 500
+
+
 @pytest.mark.parametrize("step", STEPS)
 def test_smallest_ttc_at_the_end_of_a_collision_course_whatever_the_step(step):
     # The ego at 20 m/s on lateral 0; a 4.5 x 1.8 car standing with its centre 30.55 m ahead (bumper gap 26 m)
@@ -685,7 +768,7 @@ def test_smallest_ttc_at_the_end_of_a_collision_course_whatever_the_step(step):
     # DRAC = |v_rel| / (2 TTC) with v_rel = (-20, -1) is largest there: sqrt(401) / 1.34.
     traffic = traffic_of((0.0, 26.0 + 4.55, 2.5, 0.0, 1.87, 0.0, 0.63))
     extremes = master_like_run(traffic, cruising(20.0), step, end=2.0)
-    summary = extremes.summary([1], lambda value: value)
+    summary = extremes.summary([1])
     assert summary["min_ttc_s"] == pytest.approx(0.67, abs=1e-6)
     assert summary["min_ttc_time_s"] == pytest.approx(0.63, abs=1e-6)
     assert summary["max_drac"] == pytest.approx(math.sqrt(401) / 1.34, rel=1e-6)

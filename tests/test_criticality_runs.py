@@ -15,6 +15,8 @@ from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_
 from sdl_fmu.units import FOOT
 from sdl_fmu.vehicle import EgoModel, shipped_map_path
 
+from helpers import as_written
+
 TABLE = load_vehicle_table(default_vehicle_table_path())
 STEPS = (0.001, 0.01, 1.0, 10.0)
 V0 = 88 * FOOT  # m/s, the driver's default speed, which it holds on a straight road
@@ -34,6 +36,10 @@ SCENARIOS = {
     # (it fires 30 s apart), keeps it on the road (a vehicle leaves only with no action left that could fire)
     "ego_first": lambda: parse_text("English\n100,A,20,1000,-6,1,1,6,20,8,-30,-6,20,2\n1500,ES", "ego_first.sdl"),
     "head_on": lambda: load_scenario(SCENARIO_DIRECTORY / "head_on.sdl"),
+    # model 1 (4.2 x 1.75 m) in the ego's lane 200 ft ahead, going the ego's way at 60 ft/s; within 4 s of each
+    # other it moves to the other lane (-6 ft) over 3 s at the same speed: the headway applies (within RANGE)
+    # until its footprint leaves the ego's path
+    "lead_leaves": lambda: parse_text("English\n100,A,-60,200,*0,1,4,-6,-60,3\n1500,ES", "lead_leaves.sdl"),
     "seed_a": lambda: load_scenario(SCENARIO_DIRECTORY / "approaching_vehicle.sdl"),
     # the demo to 4700 ft (54 s): three cars pass, one swerving into the ego's lane and back (PET, transitions
     # ending within range), a BRK on ice
@@ -52,7 +58,7 @@ def run(simple_fmu):
         if (name, step) not in _runs:
             model = EgoModel.open(simple_fmu, shipped_map_path("simple")).with_parameters(PARAMETERS.get(name))
             cosim = Cosimulation(SCENARIOS[name](), model, RunOptions(step=step, until_distance=UNTIL.get(name)), TABLE)
-            _runs[(name, step)] = cosim.run(), cosim
+            _runs[(name, step)] = as_written(cosim.run()), cosim
         return _runs[(name, step)]
     return at
 
@@ -118,6 +124,33 @@ def test_head_on_ttc_is_gap_over_closing_speed_and_drac_closing_squared_over_twi
     summary = result.criticality
     assert summary["min_ttc_s"] == 0.0 and summary["min_distance"] == 0.0
     assert abs(summary["min_ttc_time_s"] - collision) <= 1e-6 + CRITICALITY_TOLERANCE
+    # the ego touched it: no DRAC (it grows without bound toward the contact: any finite value would only say how
+    # close to it the last look was, 286 788 ft/s2 at the default step before), the contact flagged instead
+    vehicle = summary["vehicles"][0]
+    assert vehicle["contact"] and summary["contact"]
+    assert vehicle["max_drac"] is None and vehicle["max_drac_time_s"] is None and summary["max_drac"] is None
+
+
+def test_the_headway_applies_until_the_vehicle_ahead_leaves_the_path_and_its_minimum_there_is_located(run):
+    # lead_leaves: the ego holds V0 = 88 ft/s at yaw 0 on lane 1's centre (y = -6 ft); the car (4.2 x 1.75 m)
+    # spawns at t_s 200 ft ahead (centres) in the ego's lane going its way at 60 ft/s, closing at 28 ft/s; action 1
+    # at t_a (the gap 4 s x 28 ft/s = 112 ft) moves it from lateral 6 ft to -6 ft over 3 s: dy = 4 ft/s (t - t_a).
+    # The headway applies while the footprints overlap across the road, |dy| < (W + 1.75 m) / 2, i.e. until
+    # t_end = t_a + (W + 1.75 m) / 2 / (4 ft/s); it falls all along (the gap closes), so its minimum is at that
+    # end of its domain: (200 ft - 28 ft/s (t_end - t_s) - (L + 4.2 m) / 2) / V0 (about 21 m from bumper to
+    # bumper: within RANGE). Not a communication point: the instant is located (it was the last sample before it,
+    # whatever the step)
+    result, cosim = run("lead_leaves")
+    length, width = cosim.bounds.length, cosim.bounds.width
+    assert np.abs(column(result, "v") - V0).max() < 1e-9 and np.abs(column(result, "psi")).max() < 1e-12
+    t_s, t_a = event(result, "spawn")["time_s"], event(result, "maneuver", index=1)["time_s"]
+    assert t_a - t_s == pytest.approx(88 / 28, abs=1e-5)
+    t_end = t_a + (width + 1.75) / 2 / (4 * FOOT)
+    headway = (200 * FOOT - 28 * FOOT * (t_end - t_s) - (length + 4.2) / 2) / V0
+    vehicle = result.criticality["vehicles"][0]
+    assert vehicle["min_headway_time_s"] == pytest.approx(t_end, abs=1e-6)
+    assert vehicle["min_headway_s"] == pytest.approx(headway, abs=1e-6)
+    assert not vehicle["contact"] and result.collisions == 0
 
 
 def test_seed_a_post_encroachment_time(run):
@@ -321,8 +354,7 @@ def test_criticality_is_the_same_whatever_the_step(run, name):
     # 0.05 s samples; and a car spawned 1e-6 s later (the spawn trigger's own tolerance) starts (v - u) 1e-6 s
     # further on, which cancels against the ego for an oncoming car but not for one moving the ego's way
     # (48 ft/s x 1e-6 s here). Both measured below on the common samples; the distance may differ by as much.
-    # DRAC grows without bound toward a contact: head-on, its maximum is the last instant looked at before
-    # the contact, which depends on the step (README); not compared there.
+    # A vehicle the ego touched has no DRAC (null, the contact flagged): head-on too, every key agrees.
     reference, _ = run(name, 0.01)
     ref_time, ref_s = column(reference, "time"), column(reference, "s")
     for step in STEPS:
@@ -340,7 +372,7 @@ def test_criticality_is_the_same_whatever_the_step(run, name):
                                    [reference.criticality, *reference.criticality["vehicles"]]):
             assert entry.keys() == expected.keys()
             for key, value in entry.items():
-                if key == "vehicles" or (name == "head_on" and key.startswith("max_drac")):
+                if key == "vehicles":
                     continue
                 if value is None or expected[key] is None:
                     assert value is None and expected[key] is None, (step, key)
@@ -388,7 +420,7 @@ def test_an_fmu_that_cannot_roll_back_gives_the_extremes_within_a_step(simple_fm
     no_state = rewritten_fmu(simple_fmu, tmp_path / "NoState.fmu", lambda text: re.sub(
         r'canGetAndSetFMUstate="true"', 'canGetAndSetFMUstate="false"', text, flags=re.I))
     cosim = Cosimulation(SCENARIOS["adjacent"](), no_state, RunOptions(), TABLE)
-    result = cosim.run()
+    result = as_written(cosim.run())
     assert not cosim.exact
     summary = result.criticality
     uncertainty = summary["time_uncertainty_s"]

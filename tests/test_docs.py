@@ -101,15 +101,12 @@ SOURCES = sorted(p for p in tracked_files()
 # A document a text names: a path with a folder (docs/results.md, sdl_fmu/dynamics/simple.md) or an upper-case name
 # (README.md), read from the repository's top or from the naming file's folder
 CITED = re.compile(r"(?<![\w/.-])((?:[\w.-]+/)+[\w.-]+\.md|[A-Z][A-Z0-9_]+\.md)\b")
-# written by work in flight (delete an entry when its document lands): the scenario FMU's variable table
-PENDING = {"docs/export.md"}
-
 
 def test_every_document_a_text_names_exists():
     missing = [f"{text.relative_to(ROOT)}:{number}: {name}" for text in SOURCES
                for number, line in enumerate(text.read_text(encoding="utf-8").splitlines(), 1)
                for name in CITED.findall(line)
-               if name not in PENDING and not (ROOT / name).exists() and not (text.parent / name).exists()]
+               if not (ROOT / name).exists() and not (text.parent / name).exists()]
     assert not missing, "\n".join(missing)
     assert CITED.findall("see docs/results.md, README.md and EGO_MODEL_INTERFACE.md; not x.md or a/b.mdx") == [
         "docs/results.md", "README.md", "EGO_MODEL_INTERFACE.md"]
@@ -141,3 +138,12 @@ def test_benchmarks_md_is_generated_from_the_committed_results():
     spec.loader.exec_module(report)
     assert (ROOT / "BENCHMARKS.md").read_text() == report.render(ROOT / "benchmarks" / "results"), \
         "BENCHMARKS.md differs from the results: run python benchmarks/report.py"
+
+
+def test_ci_runs_the_readmes_test_command():
+    """.ci/run ends in the Quick start's command that installs and runs every test (pip quiet in CI)."""
+    command = next(line for line in (ROOT / "README.md").read_text().splitlines()
+                   if line.startswith("python3 -m venv") and "pytest" in line)
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    assert ci.replace("pip install -q ", "pip install ") == command
+    assert "-n 2 --dist loadgroup" in command  # both cores, the wine tests on one worker (tests/conftest.py)

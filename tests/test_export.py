@@ -16,7 +16,7 @@ from lxml import etree
 from sdl_fmu import api
 from sdl_fmu.cli import main
 from sdl_fmu.tire_files import SLOT_KEYS, default_attribute_file, slot_parameter, slot_values
-from sdl_fmu.results_folder import MANIFEST_NAME
+from sdl_fmu.results.folder import MANIFEST_NAME
 from sdl_fmu.ssp.document import OSP, SSC, SSD, SSV, schema_directory
 
 from helpers import FOREIGN_AEB_MAP, build_foreign_controller
@@ -106,13 +106,19 @@ def test_the_ssd_and_the_parameter_sets_validate_against_the_ssp_schemas_fmpy_sh
     read_ssd(str(demo.ssp), validate=True)  # fmpy's own reader, validating, as simulate_ssp does
 
 
-def test_an_export_writes_the_same_system_every_time(demo, tmp_path):
-    # the SSD, the parameter sets and the ego FMU byte for byte (the scenario FMU's zip carries its files' dates)
+def test_an_export_writes_the_same_bytes_every_time(demo, tmp_path):
+    # every file of the folder byte for byte: the SSP (its SSD, parameter sets and FMUs), the scenario FMU and the
+    # ego FMU beside it, the manifest; the zips carry fixed dates and modes and the scenario FMU's model description
+    # no generation date, so neither the clock nor the files' dates in the cache show
     again = api.export("demo", out=tmp_path / "again")
-    first, second = members(demo.ssp), members(again.ssp)
-    assert list(first) == list(second)
-    dated = f"resources/{demo.fmus['scenario'].name}"
-    assert {k: v for k, v in first.items() if k != dated} == {k: v for k, v in second.items() if k != dated}
+    first = {path.name: path.read_bytes() for path in demo.ssp.parent.iterdir()}
+    second = {path.name: path.read_bytes() for path in again.ssp.parent.iterdir()}
+    assert sorted(first) == sorted(second) and len(first) == 4  # the SSP, two FMUs, the manifest
+    assert [name for name in first if first[name] != second[name]] == []
+    scenario = demo.fmus["scenario"]
+    with zipfile.ZipFile(scenario) as archive:
+        assert {entry.date_time for entry in archive.infolist()} == {(1980, 1, 1, 0, 0, 0)}
+        assert b"generationDateAndTime" not in archive.read("modelDescription.xml")
 
 
 # ---- the parameter sets and connections --------------------------------------------------------------------------

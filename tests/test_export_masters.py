@@ -6,6 +6,10 @@ FMU built elsewhere (the test suite's PythonFMU car) runs in libcosim and ecos t
 
 Each master runs in a subprocess of its own (tests/ssp_masters.py)."""
 
+import ctypes
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +18,7 @@ import pytest
 import results_snapshot
 from sdl_fmu import api
 from sdl_fmu.cosim.locate import TIME_TOLERANCE
+from sdl_fmu.export.scenario_fmu import tie_tolerance
 from sdl_fmu.units import to_si
 from helpers import FOREIGN_AEB_MAP, build_foreign_controller
 from ssp_masters import MASTERS, run_master
@@ -92,7 +97,8 @@ def assert_conforms(result: dict[str, np.ndarray], reference: api.Result, step: 
         if "line" in event:
             assert result["scenario.last_event_line"][k] == event["line"], (label, i, event)
         located = result["scenario.last_event_time"][k]
-        assert time[k] - step - 1e-9 <= located <= time[k] + 1e-9, (label, i, event, located, time[k])
+        assert time[k] - step - 1e-9 <= located <= time[k] + tie_tolerance(time[k]), \
+            (label, i, event, located, time[k])
         if (event["code"], event["action"]) in DISTANCE_EVENTS or event.get("reason") in DISTANCE_ENDS:
             # where the master's ego reaches run's ego's distance at the event
             where = to_si(event["distance"], reference.scenario.units)
@@ -120,29 +126,19 @@ def check(result: dict[str, np.ndarray], export: api.Export, label: str) -> None
 # the runs here (at most 13 000 steps, |dx/dt| <= 40 m/s, the dynamics dissipative: no growth) that adds up to well
 # under 1e-9 in any output. Measured: 2e-16 relative in the ego's distance after the demo's 130 s.
 ROUNDING = 1e-9
-# An event can only move between the two if its instant falls within that rounding of a communication point: a tie,
-# which round SDL numbers make common (approaching_vehicle: ES at 1100 ft at a constant 88 ft/s is 12.5 s, exactly a
-# communication point); the one master shows it at that point, the other one step later.
-TIE = 1e-9  # s
+# An event whose instant falls within that rounding of a communication point (a tie, which round SDL numbers make
+# common: approaching_vehicle's ES at 1100 ft at a constant 88 ft/s is 12.5 s, exactly a communication point) shows
+# at that point in both: the scenario FMU counts an instant up to tie_tolerance(t) after a communication point t as
+# the step's (docs/scenario-fmu.md, Stepping, ties), far more than the masters' clocks differ. So every event, count
+# and code is the same in both, at every communication point.
 
 
 def assert_agree_to_rounding(a: dict[str, np.ndarray], b: dict[str, np.ndarray], label: str) -> None:
     time = a["time"]
     assert np.array_equal(time, b["time"]), label
-    # the steps where the event counts differ: each a tie, the event's located instant on the communication point
-    # before, both counts equal again one step later
-    ties = np.nonzero(a["scenario.events"] != b["scenario.events"])[0]
-    for k in ties:
-        ahead = a if a["scenario.events"][k] > b["scenario.events"][k] else b
-        assert abs(ahead["scenario.last_event_time"][k] - time[k]) <= TIE, (label, "not a tie", time[k])
-        assert k + 1 < len(time) and a["scenario.events"][k + 1] == b["scenario.events"][k + 1], (label, time[k])
-    tied = np.zeros(len(time), bool)
-    tied[ties] = True
     for name, kind in SIGNALS.items():
         x, y = a[name], b[name]
         assert x.shape == y.shape, (label, name)
-        if name.startswith(("scenario.events", "scenario.last_event", "scenario.ended", "scenario.end_reason")):
-            x, y = x[~tied], y[~tied]  # what a tied event shows
         if kind == "Real":
             worst = float(np.max(np.abs(x - y) / np.maximum(1.0, np.abs(x))))
             assert worst <= ROUNDING, (label, name, worst)
@@ -153,7 +149,8 @@ def assert_agree_to_rounding(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
 # ---- every shipped scenario in every master ------------------------------------------------------------------------
 
 
-CASES = list(results_snapshot.cases())  # (name, dynamics, skip_unsupported), under each dynamics its header names
+# (name, dynamics, skip_unsupported, driver), under each dynamics its header names, with the options it names
+CASES = list(results_snapshot.cases())
 
 
 @pytest.fixture(scope="module")
@@ -169,9 +166,9 @@ def foreign_controller_and_ccrs(tmp_path_factory):
 def exported(tmp_path_factory):
     """Every shipped scenario exported once (FMI 2.0, step 0.01 s), by (name, dynamics)."""
     folder = tmp_path_factory.mktemp("exports")
-    return {(name, dynamics): api.export(name, dynamics=dynamics, skip_unsupported=skip, step=STEP,
+    return {(name, dynamics): api.export(name, dynamics=dynamics, skip_unsupported=skip, step=STEP, driver=driver,
                                          out=folder / f"{name}-{dynamics}")
-            for name, dynamics, skip in CASES}
+            for name, dynamics, skip, driver in CASES}
 
 
 @pytest.fixture(scope="module")
@@ -182,22 +179,26 @@ def master_runs(exported):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("master-runs")  # one worker computes master_runs (pytest -n: a module fixture per worker)
 @pytest.mark.parametrize("master", MASTERS)
-@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
+@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _, _ in CASES],
+                         ids=[f"{n}-{d}" for n, d, _, _ in CASES])
 def test_every_shipped_scenario_gives_runs_events_collisions_and_end_in_each_master(exported, master_runs, name,
                                                                                    dynamics, master):
     check(master_runs[((name, dynamics), master)], exported[(name, dynamics)], f"{name} {master}")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _ in CASES], ids=[f"{n}-{d}" for n, d, _ in CASES])
+@pytest.mark.xdist_group("master-runs")
+@pytest.mark.parametrize("name, dynamics", [(n, d) for n, d, _, _ in CASES],
+                         ids=[f"{n}-{d}" for n, d, _, _ in CASES])
 def test_libcosim_and_ecos_agree_to_rounding(master_runs, name, dynamics):
     key = (name, dynamics)
     assert_agree_to_rounding(master_runs[(key, "libcosim")], master_runs[(key, "ecos")], name)
 
 
 @pytest.mark.slow
-def test_the_fmi3_export_runs_in_ecos(tmp_path, simple_fmus):
+def test_the_fmi3_export_runs_in_ecos(tmp_path, simple_fmus, scenario_binaries):
     export = api.export("demo", fmi_version=3, out=tmp_path / "fmi3")
     for path in export.fmus.values():
         assert b'fmiVersion="3.0"' in _model_description(path)
@@ -229,9 +230,53 @@ def test_a_foreign_vehicle_fmu_exports_and_runs_through_its_map(tmp_path, foreig
     assert result["ego.earth_y"][0] == pytest.approx(6 * 0.3048, rel=1e-6)  # lane 1's centre, to the right
 
 
-def _model_description(fmu: Path) -> bytes:
-    import zipfile
+@pytest.mark.slow
+def test_a_vehicle_that_fills_its_outputs_only_on_leaving_initialization_is_started_right_in_ecos(tmp_path,
+                                                                                                  foreign_vehicle):
+    # the FMI 3.0 foreign car (pythonfmu3) computes its outputs in exit_initialization_mode: ecos passes them on in
+    # initialization mode (zeros: an ego at rest on the dividing line, which asks for full throttle and a steer to the
+    # right) and again after every FMU left it (its start). The scenario FMU takes the start again at its first step:
+    # its commands from then on to the driver's next sample (0.05 s) are those it gives the FMI 2.0 car, whose outputs
+    # are right in initialization mode, bit for bit. What it cannot change is the car's first step, which ecos feeds
+    # with the commands read before it (docs/export.md, the start).
+    results = {}
+    for version in (3, 2):
+        fmu, vehicle_map = foreign_vehicle(version)
+        export = api.export("head_on", fmu=fmu, vehicle=vehicle_map, fmi_version=3, out=tmp_path / f"car{version}")
+        signals = {"scenario.throttle": "Real", "scenario.brake": "Real", "scenario.steer": "Real",
+                   "scenario.ego_v": "Real", "scenario.ego_y": "Real"}
+        results[version] = run_master("ecos", export.ssp, 0.1, STEP, signals)
+    before_the_next_sample = slice(0, 4)  # t = 0.01 ... 0.04
+    for name in ("scenario.throttle", "scenario.brake", "scenario.steer"):
+        assert np.array_equal(results[3][name][before_the_next_sample], results[2][name][before_the_next_sample]), \
+            (name, results[3][name][:5], results[2][name][:5])
+    assert results[3]["scenario.throttle"][0] < 0.2 and results[3]["scenario.steer"][0] == 0.0  # not 1.0, -0.355
 
+
+@pytest.mark.slow
+def test_ecos_asks_every_fmi3_fmu_for_its_version_before_loading_its_binary(tmp_path, foreign_vehicle):
+    # ecos (ecospy 0.7.2) prints 'Function "fmi3GetVersion" is not provided by this FMU.' for each FMI 3.0 FMU: its
+    # model-description reader calls fmi4c's fmi3_getVersion, and fmi4c loads an FMI 3.0 binary's functions only when
+    # an instance is made, so the call reaches fmi4c's placeholder (docs/export.md, ecos). Not ours: the same line for
+    # the car pythonfmu3 built, once per FMI 3.0 FMU; our binaries export fmi3GetVersion, which answers "3.0".
+    fmu, vehicle_map = foreign_vehicle(3)
+    export = api.export("head_on", fmu=fmu, vehicle=vehicle_map, fmi_version=3, out=tmp_path / "fmi3")
+    code = ("import sys\nfrom ecospy import EcosSimulation\n"
+            "with EcosSimulation(ssp_path=sys.argv[1], step_size=0.01) as simulation:\n"
+            "    simulation.init(parameter_set='start')\n    simulation.step()\n    simulation.terminate()\n")
+    completed = subprocess.run([sys.executable, "-c", code, str(export.ssp)], capture_output=True, text=True,
+                               timeout=300)
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    said = completed.stdout + completed.stderr
+    assert said.count('Function "fmi3GetVersion" is not provided by this FMU.') == 2, said[-2000:]
+    with zipfile.ZipFile(export.fmus["scenario"]) as archive:
+        archive.extractall(tmp_path / "scenario")
+    library = ctypes.CDLL(str(tmp_path / "scenario" / "binaries" / "x86_64-linux" / "SdlScenario.so"))
+    library.fmi3GetVersion.restype = ctypes.c_char_p
+    assert library.fmi3GetVersion() == b"3.0"
+
+
+def _model_description(fmu: Path) -> bytes:
     with zipfile.ZipFile(fmu) as archive:
         return archive.read("modelDescription.xml")
 

@@ -18,11 +18,10 @@ from helpers import windows_tools_required
 SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}
 
 
-@pytest.fixture(params=[("simple_fmu", "EgoVehicleSimple"), ("advanced_fmu", "EgoVehicleAdvanced")],
-                ids=["simple", "advanced"])
-def fmu(request):
-    fixture, model = request.param
-    return request.getfixturevalue(fixture), model
+@pytest.fixture
+def fmu(ego_fmus):
+    """(the FMI 2.0 FMU, its model identifier) of each shipped model in turn."""
+    return ego_fmus[2], ego_fmus[2].stem
 
 
 def test_fmu_validates(fmu):
@@ -42,9 +41,9 @@ def test_binary_links_no_python_or_casadi(fmu, tmp_path):
 
 
 @pytest.mark.parametrize("version, platform, prefix", [(2, "win64", "fmi2"), (3, "x86_64-windows", "fmi3")])
-def test_windows_binary_needs_system_dlls_only(fmu, request, tmp_path, version, platform, prefix):
-    _, model = fmu
-    path = request.getfixturevalue("simple_fmus" if model == "EgoVehicleSimple" else "advanced_fmus")[version]
+def test_windows_binary_needs_system_dlls_only(ego_fmus, tmp_path, version, platform, prefix):
+    path = ego_fmus[version]
+    model = path.stem
     objdump = shutil.which("x86_64-w64-mingw32-objdump")
     if objdump is None:
         if windows_tools_required():
@@ -96,13 +95,13 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
     from sdl_fmu.fmu import package
 
     commands = []
-    original = package._run_compilers
+    original = package.run_compilers
 
     def recorded(batch, progress=None):
         commands.extend(batch)
         return original(batch, progress)
 
-    monkeypatch.setattr(package, "_run_compilers", recorded)
+    monkeypatch.setattr(package, "run_compilers", recorded)
     package.build_fmus("simple", tmp_path, (2,), progress=True)
     def level(command) -> str:
         return next(flag for flag in command if re.fullmatch(r"-O\d", flag))
@@ -115,3 +114,17 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
     for stage in ("generating the C code", "compiling the model code", "compiling the runtime and linking",
                   "packaging"):
         assert f"EgoVehicleSimple: {stage}" in said
+
+
+def test_a_failed_compile_names_the_file_it_was_to_write(tmp_path):
+    # a link line ends with -lm: the message names the output (its -o argument), not the last argument
+    from sdl_fmu.fmu.package import BuildError, binary_command, run_compilers
+
+    (tmp_path / "broken.c").write_text("int broken(void) { return }\n")
+    command = binary_command(tmp_path, ["broken.c"], tmp_path / "out" / "Broken.so")
+    assert command[-1] == "-lm"
+    with pytest.raises(BuildError) as raised:
+        run_compilers([command])
+    first = str(raised.value).splitlines()[0]
+    assert first == "compiling Broken.so failed:", first
+    assert "broken.c" in str(raised.value)  # the compiler's own message follows

@@ -23,11 +23,10 @@ ROOT = Path(__file__).resolve().parent.parent
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 
-@pytest.fixture(params=[("simple_fmus", 2), ("simple_fmus", 3), ("advanced_fmus", 2), ("advanced_fmus", 3)],
-                ids=["simple-fmi2", "simple-fmi3", "advanced-fmi2", "advanced-fmi3"])
-def fmu(request):
-    fixture, version = request.param
-    return request.getfixturevalue(fixture)[version]
+@pytest.fixture(params=[2, 3], ids=["fmi2", "fmi3"])
+def fmu(request, ego_fmus):
+    """Each shipped model's FMU in each FMI version."""
+    return ego_fmus[request.param]
 
 
 def test_fmpy_validate_reports_no_problem(fmu):
@@ -107,9 +106,9 @@ def test_licence_text_is_the_projects(fmu):
     assert shipped.startswith(licence.rstrip("\n")) and "2-Clause BSD" in shipped  # and the FMI headers'
 
 
-@pytest.mark.parametrize("fixture, version", [("simple_fmus", 2), ("advanced_fmus", 3)])
-def test_the_documented_example_runs_as_written(request, fixture, version, tmp_path):
-    fmu = request.getfixturevalue(fixture)[version]
+@pytest.mark.parametrize("ego_fmus, version", [("simple", 2), ("advanced", 3)], indirect=["ego_fmus"])
+def test_the_documented_example_runs_as_written(ego_fmus, version, tmp_path):
+    fmu = ego_fmus[version]
     example = next(html.unescape(block) for block in re.findall(r"<pre>(.*?)</pre>", _documentation(fmu), re.S)
                    if "simulate_fmu" in block)
     shutil.copy(fmu, tmp_path / fmu.name)

@@ -1,4 +1,4 @@
-"""Folders of one kind stay that kind (sdl_fmu/results_folder.py: folder_kind; docs/results.md, Results folders): a
+"""Folders of one kind stay that kind (sdl_fmu/results/folder.py: folder_kind; docs/results.md, Results folders): a
 folder sdl-fmu wrote for `run`, `verify`, `export` or `sweep` is replaced only by the same command; every other
 command refuses it in one line naming the folder and what it holds, before anything runs, and leaves it as it was.
 A manifest of an earlier sdl-fmu, which did not record its kind, is told by its files."""
@@ -11,7 +11,7 @@ import pytest
 
 from sdl_fmu import api, ownership, sweep
 from sdl_fmu.cli import main
-from sdl_fmu.results_folder import EARLIER, HOLDS, MANIFEST_NAME, folder_kind
+from sdl_fmu.results.folder import EARLIER, HOLDS, MANIFEST_NAME, folder_kind
 
 KINDS = ("run", "verify", "export", "sweep")
 

@@ -33,10 +33,8 @@ def count(statuses, function, status):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("version", [2, 3], ids=["fmi2", "fmi3"])
-@pytest.mark.parametrize("fixture", ["simple_fmus", "advanced_fmus"], ids=["simple", "advanced"])
-def test_random_call_sequences(request, fixture, version):
-    report = fuzz(request.getfixturevalue(fixture)[version], sequences=1000, seed=20261122,
-                  hang_timeout=HANG_GUARD)
+def test_random_call_sequences(ego_fmus, version):
+    report = fuzz(ego_fmus[version], sequences=1000, seed=20261122, hang_timeout=HANG_GUARD)
     print(report.summary())
     assert report.sequences == 1000 and report.calls > 10000
     assert report.crashes == [] and report.hangs == [] and report.violations == []

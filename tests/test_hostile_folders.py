@@ -1,4 +1,4 @@
-"""Results and sweep folders lose nothing (sdl_fmu/ownership.py, results_folder.py, sweep.py): a file sdl-fmu did not
+"""Results and sweep folders lose nothing (sdl_fmu/ownership.py, results/folder.py, sweep.py): a file sdl-fmu did not
 write is never deleted or overwritten, even under a planted manifest; repeated --vary values keep every row; two
 sweeps into one folder cannot both write (a lock), runs into one folder finish one after the other; a full disk
 leaves the folder as it was and the same command resumes.
@@ -28,7 +28,7 @@ SHORT = ["--until-time", "2"]  # a short run of the demo: a few hundred samples
 
 
 @pytest.fixture
-def work(tmp_path):
+def work(tmp_path, simple_fmus):  # the runs take the Simple FMU from the cache
     (tmp_path / "work").mkdir()
     return tmp_path
 
@@ -99,7 +99,7 @@ def test_concurrent_runs_into_one_folder_finish_one_after_the_other(work):
     results = [process.communicate(timeout=HANG_LIMIT) for process in processes]
     for process, (stdout, stderr) in zip(processes, results):
         assert process.returncode == 0 and "Traceback" not in stderr, stderr
-    from sdl_fmu.results_folder import read_manifest
+    from sdl_fmu.results.folder import read_manifest
 
     assert read_manifest(out) == ["plot.png", "summary.json", "timeseries.csv"]
     assert sorted(os.listdir(work / "work")) == ["out"]

@@ -41,7 +41,7 @@ SWEEP = [
 
 
 @pytest.fixture
-def work(tmp_path):
+def work(tmp_path, simple_fmus):  # the sweeps take the Simple FMU from the cache
     (tmp_path / "work").mkdir()
     (tmp_path / "rsa.sdl").write_text("English\n100,RSA,1,8\n500,ES\n")
     return tmp_path

@@ -53,7 +53,7 @@ def test_parsed_scenario_is_compact():
 def test_a_run_keeps_no_object_per_line_or_event(tmp_path, simple_fmu, monkeypatch):
     """Python objects still allocated once a run has returned (sys.getallocatedblocks: no tracing, so the
     runs go at full speed), per added scenario line, the parsed scenario included."""
-    import sdl_fmu.storage as storage
+    import sdl_fmu.results.storage as storage
 
     # both lengths stream to files (a run that fits in one chunk keeps its samples in memory, bounded by
     # the chunk; a partly filled batch of events is up to EVENT_BATCH dicts): what is left grows per line
@@ -80,17 +80,17 @@ def test_a_run_keeps_no_object_per_line_or_event(tmp_path, simple_fmu, monkeypat
 
 def test_summary_json_streams_the_events(tmp_path):
     """Writing summary.json holds one event at a time, not the list and the whole text."""
-    from sdl_fmu.results import summary, write_summary_json
-    from sdl_fmu.run_result import RunResult
-    from sdl_fmu.storage import EventLog
+    from sdl_fmu.results.files import summary, write_summary_json
+    from sdl_fmu.results.record import RunRecord
+    from sdl_fmu.results.storage import EventLog
     from sdl_fmu.sdl.events import DEFAULT_ROAD
 
-    def result(events: int) -> RunResult:
+    def result(events: int) -> RunRecord:
         log = EventLog()
         for k in range(events):
             log.append({"code": "A", "action": "spawn", "time_s": 0.1 * k, "distance": 8.8 * k, "speed": 88.0,
                         "lateral": -6.0, "vehicle": k + 1, "model": 1 + k % 8, "name": "car", "line": k + 2})
-        return RunResult("x.sdl", "English", "simple", 1, DEFAULT_ROAD, {}, [], log, 0, [], [],
+        return RunRecord("x.sdl", "English", "simple", 1, DEFAULT_ROAD, {}, [], log, 0, [], [],
                          final={"time_s": 1.0}, timing={"wall_s": 0.1})
 
     peaks = {}
@@ -113,7 +113,7 @@ def resident_bytes() -> int:
 def test_read_sample_pages_leave_resident_memory(monkeypatch):
     """The disk-backed sample tables: pages read (as the CSV writers do) and released leave the resident
     memory again, so writing a long run's files does not hold them all (the data stays in the file)."""
-    from sdl_fmu.storage import ChunkedTable, release_pages
+    from sdl_fmu.results.storage import ChunkedTable, release_pages
 
     rows, columns = 100_000, 25  # 20 MB
     table = ChunkedTable(columns)

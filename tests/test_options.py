@@ -14,7 +14,7 @@ DEFINED_ONCE = ("MAX_TIME", "LIMITS", "DEFAULT_SPEED", "DEFAULT_STEP", "DEFAULT_
 # imported inside a function on purpose: only the commands that need them pay for them (matplotlib for a plot or the
 # test packs' reports, CasADi and the compilers for a build or for an export's scenario FMU, tqdm for a bar, pandas
 # for a DataFrame)
-HEAVY = {"plots", "verify", "fmu.cache", "fmu.package", "export.scenario_fmu", "tqdm", "pandas"}
+HEAVY = {"plots", "results.plots", "verify", "fmu.cache", "fmu.package", "export.scenario_fmu", "tqdm", "pandas"}
 
 
 def heavy(module: str) -> bool:

@@ -17,7 +17,9 @@ import pytest
 from sdl_fmu import api, paths
 from sdl_fmu.cli import main
 from sdl_fmu.fmu import cache
-from sdl_fmu.results_folder import MANIFEST_NAME
+from sdl_fmu.fmu.package import fmu_path
+from sdl_fmu.names import BUILT
+from sdl_fmu.results.folder import MANIFEST_NAME
 
 CHECKOUT = Path(__file__).resolve().parents[1]
 RESULTS = sorted([MANIFEST_NAME, "plot.png", "summary.json", "timeseries.csv"])
@@ -238,6 +240,38 @@ def test_two_processes_building_at_once_leave_one_good_fmu(tmp_path):
     assert folder.startswith("EgoVehicleSimple-fmi2-")
     fmu = Path(paths.pop())
     assert zipfile.ZipFile(fmu).testzip() is None and fmu.parent.parent == tmp_path / "cache" / folder
+
+
+WAITER = """
+import sys
+from sdl_fmu.fmu import cache
+
+def build(*arguments, **options):
+    print("built", flush=True)
+    sys.exit(3)
+
+cache.build_fmus = build  # this process must not build: the build in progress elsewhere brings the FMU
+print(cache.cached_fmu("simple", 2, announce=lambda path: print("missing", flush=True)), flush=True)
+"""
+
+
+def test_a_process_waits_for_a_build_in_progress_instead_of_building_again(tmp_path, monkeypatch, simple_fmus):
+    # The test holds the Simple model's build lock (a build in progress); a second process that finds the FMU
+    # missing ("missing": it got past its lookup) must wait; the test then puts the FMU in place, as the build
+    # would, and releases the lock: the second process finds it and does not build. Without the lock it would
+    # build at once, whatever the machine's speed (it decided so before printing "missing").
+    monkeypatch.setenv(cache.CACHE_VARIABLE, str(tmp_path / "cache"))
+    target = fmu_path(cache._cache_folder("simple", 2), "simple", 2)
+    with cache.build_lock(BUILT["simple"]):
+        waiter = subprocess.Popen([sys.executable, "-c", WAITER], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                  text=True)
+        assert waiter.stdout.readline() == "missing\n"
+        target.parent.mkdir(parents=True)
+        shutil.copy(simple_fmus[2], target)
+    out, err = waiter.communicate(timeout=300)
+    assert waiter.returncode == 0, out + err
+    assert out.splitlines() == [str(target)]
+    assert os.listdir(tmp_path / "cache") == [target.parent.parent.name]  # no lock file left behind
 
 
 def test_a_cached_fmu_is_reused(simple_fmu):

@@ -1,15 +1,14 @@
 """Writing a run's results: timeseries.csv units and cells, summary.json keys, atomic directory, plot.png."""
 
 import csv
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
-from sdl_fmu import plots
-from sdl_fmu.results import summary, write_results
-from sdl_fmu.run_result import RunResult, SurfaceSection, VehicleTrack
-from sdl_fmu.results_folder import ResultsFolderError
+from sdl_fmu.results import RunRecord, SurfaceSection, VehicleTrack, plots, summary, write_results
+from sdl_fmu.results.folder import ResultsFolderError
 from sdl_fmu.sdl.events import Road
 from sdl_fmu.units import from_si
 
@@ -21,7 +20,7 @@ EGO_HEADER = ["time_s", "distance_{L}", "station_{L}", "lateral_{L}", "speed_{V}
               "ay_{L}/s2", "yaw_rate_rad/s", "psi_rad", "throttle_1", "brake_1", "steer_rad", "brk_active", "stopped"]
 
 
-def make_result(units="English", dynamics="simple", collision=False) -> RunResult:
+def make_result(units="English", dynamics="simple", collision=False) -> RunRecord:
     """Five samples 0.1 s apart at 15.24 m/s (50 ft/s); A1 appears at the third sample."""
     time = np.array([0.0, 0.1, 0.2, 0.3, 0.4])
     s = 15.24 * time  # 0, 1.524 m (5 ft), 3.048 m (10 ft), ...
@@ -41,22 +40,27 @@ def make_result(units="English", dynamics="simple", collision=False) -> RunResul
         vehicle=1, model=3, name="Pickup", length=5.3, width=2.0,
         station=np.array([NAN, NAN, 33.528, 31.0, 28.472]),  # 110 ft at the third sample
         lateral=np.array([NAN, NAN, -1.8288, -1.8288, -1.8288]),
-        speed=np.array([NAN, NAN, 6.096, 6.096, 6.096]),
+        speed=np.array([NAN, NAN, 6.096, 6.096, 6.096]),  # approaching (SDL's sign): 20 ft/s toward the ego
+        # the bumper gap as the run stage gives it (an ego 4.6 m long, yaw 0): 30.48 - 2.3 - 2.65 = 25.53 m at the
+        # third sample (100 ft between the centres), then 2.528 m and 2.528 + 3.048 m less
+        bumper_gap=np.array([NAN, NAN, 25.53, 20.454, 15.378]),
     )
+    # the record is SI: 3.048 m (10 ft) at 15.24 m/s (50 ft/s), 1.8288 m (6 ft) right of the dividing line
     events = [
-        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 10.0, "speed": 50.0,
-         "lateral": 6.0},
-        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 10.0, "speed": 50.0, "lateral": 6.0},
+        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 3.048, "speed": 15.24,
+         "lateral": 1.8288},
+        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 3.048, "speed": 15.24, "lateral": 1.8288,
+         "threshold": "distance", "magnitude": 30.48},
     ]
     if collision:
-        events.append({"code": "A", "action": "collision", "vehicle": 1, "time_s": 0.3, "distance": 15.0,
-                       "speed": 50.0, "lateral": 6.0})
-    return RunResult(
+        events.append({"code": "A", "action": "collision", "vehicle": 1, "time_s": 0.3, "distance": 4.572,
+                       "speed": 15.24, "lateral": 1.8288})
+    return RunRecord(
         scenario_path="scenarios/example.sdl", units=units, dynamics=dynamics, seed=42, road=ROAD, columns=columns,
         vehicles=[vehicle], events=events, collisions=int(collision),
         collision_points=[(4.6, 0.0)] if collision else [],
         surfaces=[SurfaceSection(lane=1, start=1.0, end=None, value=3 if dynamics == "simple" else 2)],
-        warnings=["a warning"], final={"time_s": 0.4, "distance": 20.0, "speed": 50.0, "lateral": 6.000000000001},
+        warnings=["a warning"], final={"time_s": 0.4, "distance": 6.096, "speed": 15.24, "lateral": 1.8288000000003},
     )
 
 
@@ -68,7 +72,8 @@ def read_csv(path):
 
 def expected_header(length, speed, wheels):
     ego = [name.format(L=length, V=speed) for name in EGO_HEADER]
-    vehicle = [f"A1_station_{length}", f"A1_lateral_{length}", f"A1_speed_{speed}", f"A1_gap_{length}"]
+    vehicle = [f"A1_station_{length}", f"A1_lateral_{length}", f"A1_speed_{speed}", f"A1_gap_{length}",
+               f"A1_bumper_gap_{length}"]
     return ego + wheels + vehicle
 
 
@@ -87,8 +92,9 @@ def test_csv_english_header_and_feet(tmp_path):
     assert row["brk_active"] == "1" and row["stopped"] == "0"
     assert float(row["mu_fl_1"]) == pytest.approx(0.3)
     assert float(row["A1_station_ft"]) == pytest.approx(110.0)
-    assert float(row["A1_speed_ft/s"]) == pytest.approx(20.0)
+    assert float(row["A1_speed_ft/s"]) == pytest.approx(-20.0)  # along the road, + the ego's way: it comes toward us
     assert float(row["A1_gap_ft"]) == pytest.approx(100.0)  # vehicle station - ego station
+    assert float(row["A1_bumper_gap_ft"]) == pytest.approx(25.53 / 0.3048)  # 83.7598 ft
 
 
 def test_csv_metric_header_and_metres(tmp_path):
@@ -113,7 +119,7 @@ def test_csv_cells_empty_while_vehicle_absent(tmp_path):
     header, rows = read_csv(out / "timeseries.csv")
     vehicle_columns = [k for k, name in enumerate(header) if name.startswith("A1_")]
     for row in rows[:2]:
-        assert [row[k] for k in vehicle_columns] == ["", "", "", ""]
+        assert [row[k] for k in vehicle_columns] == ["", "", "", "", ""]
     for row in rows[2:]:
         assert all(row[k] != "" for k in vehicle_columns)
     assert all(cell != "" for row in rows for k, cell in enumerate(row) if k not in vehicle_columns)
@@ -132,8 +138,13 @@ def test_summary_json_keys_per_spec(tmp_path):
     assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
     assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
     assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}
-    assert data["final"]["lateral"] == 6.0  # rounded to 6 decimals
-    assert data["events"] == result.events
+    # the record's SI values in feet (by hand: m / 0.3048), rounded to 6 decimals
+    assert data["final"] == {"time_s": 0.4, "distance": 20.0, "speed": 50.0, "lateral": 6.0}
+    assert data["events"] == [
+        {"code": "A", "action": "spawn", "vehicle": 1, "model": 3, "time_s": 0.2, "distance": 10.0, "speed": 50.0,
+         "lateral": 6.0},
+        {"code": "BRK", "action": "on", "time_s": 0.2, "distance": 10.0, "speed": 50.0, "lateral": 6.0,
+         "threshold": "distance", "magnitude": 100.0}]
     assert data["warnings"] == ["a warning"]
     assert (out / "summary.json").read_text().startswith('{\n  "')  # indent 2
 
@@ -195,12 +206,95 @@ def test_plot_png_is_written(tmp_path, dynamics, collision):
     assert (out / "plot.png").read_bytes()[:8] == PNG_SIGNATURE
 
 
-def test_event_labels_do_not_overlap():
-    events = [{"code": "A", "action": "spawn", "vehicle": 1, "time_s": t} for t in (0.0, 0.1, 0.2, 5.0, 9.99)]
-    placed = plots._label_rows(events, 0.0, 10.0, axis_px=700)
-    rows = [row for _, row, _ in placed]
-    assert rows[:3] == [0, 1, 2] and rows[3] == 0  # crowded labels stack, a distant one reuses the first row
-    assert placed[-1][2] == "right"  # a label at the right edge is drawn leftward of its line
+def test_label_rows_stack_crowded_labels_and_reuse_a_free_row():
+    # spans (x, width) in pixels on a 700 px axes: three labels 5 px apart stack, one far right of them goes back to
+    # the first row, one at the right edge is drawn leftward of its line; with more crowded labels than rows the
+    # last ones get no row (left out rather than drawn over another)
+    placed = plots._label_rows([(0.0, 60.0), (5.0, 60.0), (10.0, 60.0), (300.0, 60.0), (695.0, 60.0)], 700.0)
+    assert [row for row, _ in placed] == [0, 1, 2, 0, 0] and placed[-1][1] == "right"
+    crowded = plots._label_rows([(float(k), 60.0) for k in range(plots.MAX_LABEL_ROWS + 2)], 700.0)
+    assert [row for row, _ in crowded] == [*range(plots.MAX_LABEL_ROWS), None, None]
+
+
+def drawn_figure(result, monkeypatch, tmp_path):
+    """The figure plot_run draws for `result` (captured at savefig)."""
+    from matplotlib.figure import Figure
+
+    figures = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figures.append(self), original(self, *a, **k)))
+    plots.plot_run(result, tmp_path / "plot.png")
+    return figures[0]
+
+
+def test_event_labels_do_not_overlap_as_drawn(tmp_path, monkeypatch):
+    # 40 events in bursts 0.1 s apart over 30 s, labels of every length: the labels drawn in the speed panel,
+    # measured by the renderer, overlap none of the others (each left out where no row has room)
+    result = make_result()
+    n = 601
+    t = np.arange(n) * 0.05
+    for name, values in list(result.columns.items()):
+        result.columns[name] = np.resize(values, n)
+    result.columns.update(time=t, s=15.24 * t, station=15.24 * t, x=15.24 * t)
+    kinds = [{"code": "A", "action": "spawn", "vehicle": 12}, {"code": "BRK", "action": "off", "reason": "velocity"},
+             {"code": "RSA", "action": "set", "lane": -1, "value": 7.5}, {"code": "A", "action": "maneuver",
+                                                                          "vehicle": 3, "index": 2}]
+    result.events = [{**kinds[k % 4], "time_s": 0.1 * (k % 8) + 3.0 * (k // 8), "distance": 0.0, "speed": 15.24,
+                      "lateral": 1.8288} for k in range(40)]
+    figure = drawn_figure(result, monkeypatch, tmp_path)
+    speed_ax = figure.axes[0]
+    renderer = figure.canvas.get_renderer()
+    boxes = [text.get_window_extent(renderer) for text in speed_ax.texts if text.get_visible()]
+    assert len(boxes) >= 20
+    for k, box in enumerate(boxes):
+        for other in boxes[k + 1:]:
+            assert not box.overlaps(other), (box, other)
+
+
+def test_the_zoom_follows_the_runs_criticality_minimum():
+    # two vehicles: A1's closest approach (centre to centre) comes first, but the run's minimum footprint distance
+    # (the criticality record) is A2's at 0.3 s: the zoom shows that instant and names A2
+    result = make_result()
+    result.vehicles.append(VehicleTrack(vehicle=2, model=1, name="Sedan", length=4.5, width=1.8,
+                                        station=np.array([NAN, 20.0, 19.0, 18.0, 17.0]),
+                                        lateral=np.array([NAN, -1.8288, -1.8288, -1.8288, -1.8288]),
+                                        speed=np.array([NAN, 10.0, 10.0, 10.0, 10.0])))
+    entry = {"min_ttc_s": None, "min_ttc_time_s": None, "max_drac": None, "max_drac_time_s": None, "min_pet_s": None,
+             "min_headway_s": None, "min_headway_time_s": None}
+    result.criticality = {"min_distance": 1.2, "min_distance_time_s": 0.3, **entry,
+                          "vehicles": [{"vehicle": 1, "min_distance": 9.0, "min_distance_time_s": 0.2, **entry},
+                                       {"vehicle": 2, "min_distance": 1.2, "min_distance_time_s": 0.3, **entry}]}
+    index, what = plots._focus(result, result.columns["time"])
+    # 1.2 m / 0.3048 = 3.937 ft, by hand
+    assert index == 3 and what == "minimum distance 3.937 ft to A2 Sedan, t = 0.30 s (the run's criticality minimum)"
+
+
+def test_a_lead_vehicle_and_the_gap_to_it_are_drawn(tmp_path, monkeypatch):
+    # the record's lead series (the run stage computes it from signals.py's definition): the speed panel draws the
+    # lead vehicle's speed, and a panel of its own the bumper gap (in ft: 30.48 m / 0.3048) and the relative speed
+    result = make_result()
+    present = np.array([False, True, True, True, False])
+    result.lead_series = lambda: {"present": present, "index": np.where(present, 0, -1),
+                                  "gap": np.array([1000.0, 30.48, 27.432, 24.384, 1000.0]),
+                                  "speed": np.array([0.0, 6.096, 6.096, 6.096, 0.0]),
+                                  "relative_speed": np.array([0.0, -9.144, -9.144, -9.144, 0.0]),
+                                  "ttc": np.array([1000.0, 3.333, 3.0, 2.667, 1000.0]),
+                                  "lateral_offset": np.zeros(5)}
+    figure = drawn_figure(result, monkeypatch, tmp_path)
+    speed_ax = figure.axes[0]
+    lead_line = next(line for line in speed_ax.lines if line.get_label() == "lead vehicle speed")
+    assert np.allclose(lead_line.get_ydata(), [NAN, 20.0, 20.0, 20.0, NAN], equal_nan=True)
+    lead_ax = next(ax for ax in figure.axes if ax.get_title(loc="left").startswith("lead vehicle"))
+    gap = next(line for line in lead_ax.lines if line.get_label() == "bumper gap")
+    assert np.allclose(gap.get_ydata(), [NAN, 100.0, 90.0, 80.0, NAN], equal_nan=True)
+    assert [text.get_text() for text in lead_ax.texts] == ["A1"]
+
+
+def test_without_a_lead_vehicle_no_lead_panel_is_drawn(tmp_path, monkeypatch):
+    result = make_result()
+    result.lead_series = lambda: {"present": np.zeros(5, dtype=bool)}
+    figure = drawn_figure(result, monkeypatch, tmp_path)
+    assert not [ax for ax in figure.axes if ax.get_title(loc="left").startswith("lead vehicle")]
 
 
 def test_plot_handles_long_runs(tmp_path):
@@ -245,3 +339,20 @@ def test_plot_of_many_vehicles_sections_and_events_uses_few_artists(tmp_path, mo
     artists = sum(len(ax.lines) + len(ax.collections) + len(ax.patches) + len(ax.texts)
                   for ax in figures[0].axes)
     assert artists < 200
+
+
+def test_traffic_csv_has_the_signed_speed_and_both_gaps(tmp_path):
+    # more than WIDE_VEHICLE_LIMIT vehicles: their columns go to traffic.csv, one row per vehicle per sample, with
+    # the same signs and gaps as timeseries.csv's per-vehicle columns (hand values of make_result's A1)
+    from sdl_fmu.results import files
+
+    result = make_result()
+    result.vehicles = [dataclasses.replace(result.vehicles[0], vehicle=k + 1)
+                       for k in range(files.WIDE_VEHICLE_LIMIT + 1)]
+    out = write_results(result, tmp_path / "run", plot=False)
+    header, rows = read_csv(out / "traffic.csv")
+    assert header == ["time_s", "vehicle", "model", "station_ft", "lateral_ft", "speed_ft/s", "gap_ft", "bumper_gap_ft"]
+    first = dict(zip(header, rows[2]))  # A1 at its first sample on the road (its track's third)
+    assert (first["time_s"], first["vehicle"]) == ("0.200000", "1")
+    assert float(first["speed_ft/s"]) == pytest.approx(-20.0) and float(first["gap_ft"]) == pytest.approx(100.0)
+    assert float(first["bumper_gap_ft"]) == pytest.approx(25.53 / 0.3048)

@@ -12,7 +12,7 @@ import pytest
 
 from sdl_fmu import api
 from sdl_fmu.cli import main
-from sdl_fmu.results_folder import (MANIFEST_NAME, ResultsFolderError, check_results_folder, clean_leftovers,
+from sdl_fmu.results.folder import (MANIFEST_NAME, ResultsFolderError, check_results_folder, clean_leftovers,
                                     read_manifest, write_results_folder)
 
 RESULT_FILES = ["plot.png", "summary.json", "timeseries.csv"]
@@ -126,7 +126,7 @@ def test_unwritable_locations_are_refused_before_anything_is_written(tmp_path):
 
 def test_ctrl_c_while_writing_keeps_the_old_results_and_leaves_no_partial_folder(tmp_path, monkeypatch, scenario,
                                                                                  simple_fmu, capsys):
-    from sdl_fmu import plots
+    from sdl_fmu.results import plots
 
     out = tmp_path / "run"
     api.run(scenario, fmu=simple_fmu, out=out, plot=False)
@@ -148,7 +148,7 @@ def test_leftovers_of_a_killed_run_are_cleaned_by_the_next_run(tmp_path):
     child = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
         import time
         from pathlib import Path
-        from sdl_fmu.results_folder import write_results_folder
+        from sdl_fmu.results.folder import write_results_folder
         import threading
         def write(folder):
             (folder / "summary.json").write_text("half")

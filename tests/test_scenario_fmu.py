@@ -32,6 +32,8 @@ SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}
 LINUX_LIBRARIES = {"libc.so.6", "libm.so.6"}
 SHIPPED = sorted(api.shipped_scenarios())
 
+pytestmark = pytest.mark.usefixtures("simple_fmus", "scenario_binaries")  # the FMUs of the cache the tests export
+
 
 @pytest.fixture(scope="module")
 def simple_model():
@@ -168,6 +170,7 @@ def test_replaying_a_follow_driver_run_gives_the_run_bit_for_bit(tmp_path):
 @pytest.mark.parametrize("driver", ["lane", "follow"])
 @pytest.mark.parametrize("dynamics", ["simple", "advanced"])
 @pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.usefixtures("dynamics_fmus")
 def test_replaying_every_shipped_scenario_gives_the_run_bit_for_bit(name, dynamics, driver, tmp_path):
     problems, _ = replay_scenario(api.load(name, skip_unsupported=True, dynamics=dynamics), dynamics, tmp_path,
                                   driver=driver)
@@ -191,6 +194,7 @@ def test_replaying_generated_scenarios_gives_the_run_bit_for_bit(seed, tmp_path)
 @pytest.mark.parametrize("driver", ["lane", "follow"])
 @pytest.mark.parametrize("dynamics", ["simple", "advanced"])
 @pytest.mark.parametrize("seed", range(2, 30))
+@pytest.mark.usefixtures("dynamics_fmus")
 def test_replaying_many_generated_scenarios_gives_the_run_bit_for_bit(seed, dynamics, driver, tmp_path):
     problems, _ = replay_scenario(generated(seed, tmp_path, dynamics), dynamics, tmp_path, until_time=100.0,
                                   driver=driver)
@@ -218,16 +222,21 @@ def test_the_models_are_drawn_from_the_seed_as_the_run_draws_them(tmp_path, simp
 
 
 @pytest.mark.parametrize("version", [2, 3])
-def test_non_finite_and_out_of_range_inputs_are_refused_with_a_message(demo_fmus, version, tmp_path):
+def test_non_finite_inputs_are_refused_with_a_message(demo_fmus, version, tmp_path):
     instance = ScenarioInstance(demo_fmus[version].path, tmp_path)
     instance.initialize({}, {"ego_v": 26.8, "ego_y": -1.8288})
     for name, value in (("ego_x", float("nan")), ("ego_v", float("inf")), ("ego_ax", float("-inf")),
-                        ("request_brake", 1.5), ("request_throttle", -0.1)):
+                        ("request_brake", float("nan")), ("request_deceleration", float("inf"))):
         instance.messages.clear()
         assert instance.set(**{name: value}) == fmi_fuzz.ERROR
         assert any(status == fmi_fuzz.ERROR and name in text for status, _, text in instance.messages), name
     # the instance goes on: nothing was changed
     assert instance.step(0.0, 0.01)[0] == fmi_fuzz.OK and instance.get("throttle") >= 0.0
+    # a controller's requests beyond the pedals' and the steer's range are taken (sdl-fmu run takes them and limits
+    # them in the arbitration: test_the_controller_requests_are_arbitrated_as_the_run_arbitrates)
+    assert instance.set(request_active=True, request_brake=1.5, request_throttle=-0.1, request_steer=-4.0,
+                        request_deceleration=-3.0) == fmi_fuzz.OK
+    assert (instance.get("throttle"), instance.get("brake")) == (0.0, 1.0)  # the defaults: override, max
     assert instance.set(speed=10.0) == fmi_fuzz.ERROR  # a fixed parameter after initialization
     instance.free()
 
@@ -379,6 +388,45 @@ def drive(instance, seconds: float, h: float = 0.01, speed: float = 26.8224, lat
 
 
 @pytest.mark.parametrize("version", [2, 3])
+def test_inputs_changed_after_initialization_give_the_start_of_the_first_step(version, tmp_path, simple_model):
+    """Masters (libcosim, ecos) pass the ego's outputs on in initialization mode; a vehicle FMU that fills them only
+    when it leaves initialization hands over an ego at rest at the origin there, and its start only before the first
+    step. The first doStep takes the start again from its inputs (docs/scenario-fmu.md, Wiring): from its outputs on,
+    everything is bit for bit as if the inputs had been right in initialization mode (here a car spawned at distance
+    0 in the ego's lane, *0: beside the ego's start, not on the dividing line; the driver's first sample), the start's
+    events are logged once, and a warning says that the start was taken again. Unchanged inputs: no warning."""
+    path = tmp_path / "spawn_at_start.sdl"
+    path.write_text("English\n0,A,40,300,*0,2\n1600,ES\n")
+    fmu = write_scenario_fmu(api.load(path), tmp_path / "spawn.fmu", ego=simple_model, fmi_version=version)
+    speed, lateral = 26.8224, -1.8288
+    start = {"ego_v": speed, "ego_vx": speed, "ego_y": lateral}
+    outputs = ("throttle", "brake", "steer", "events", "tv1_present", "tv1_x", "tv1_y", "tv1_v", "lead_gap",
+               "last_event_time")
+    runs = {}
+    for name, initial in (("given in initialization", start), ("given after it", {"ego_y": 0.0, "ego_v": 0.0})):
+        instance = ScenarioInstance(fmu.path, tmp_path / name.replace(" ", "-"))
+        instance.debug_logging(True)
+        instance.initialize({}, initial)
+        read_then = (instance.get("tv1_y"), instance.get("throttle"))  # what a master passes on before the step
+        if initial is not start:
+            assert read_then[0] == 0.0 and read_then[1] == 1.0  # from the ego at rest on the dividing line
+            assert instance.set(**start) == 0
+        rows = []
+        for k in range(10):
+            t = k * 0.01
+            assert instance.set(ego_x=speed * t, ego_s=speed * t) == 0
+            assert instance.step(t, 0.01)[0] == 0, instance.messages[-3:]
+            rows.append(tuple(instance.get(name) for name in outputs))
+        warnings = [text for status, category, text in instance.messages if category == "logStatusWarning"]
+        runs[name] = rows, [(e.code, e.action, e.time, e.detail) for e in instance.events()], warnings
+        instance.free()
+    right, late = runs["given in initialization"], runs["given after it"]
+    assert late[0] == right[0] and late[1] == right[1]
+    assert right[0][0][6] == lateral and [e[:2] for e in right[1]] == [("A", "spawn")]  # beside the ego, logged once
+    assert right[2] == [] and len(late[2]) == 1 and "changed between initialization and the first step" in late[2][0]
+
+
+@pytest.mark.parametrize("version", [2, 3])
 def test_the_end_is_reported_as_termination_and_nothing_fires_after_it(version, tmp_path, simple_model):
     """head_on: a car in the ego's lane from 200 ft on, ES at 1600 ft (18.2 s at 88 ft/s): a contact, then the end."""
     fmu = write_scenario_fmu(api.load("head_on"), tmp_path / "head_on.fmu", ego=simple_model, fmi_version=version)
@@ -480,8 +528,9 @@ def test_each_event_is_a_log_line_and_the_last_one_is_in_the_outputs(demo_fmus, 
 
 def test_the_controller_requests_are_arbitrated_as_the_run_arbitrates(demo_fmus, tmp_path):
     """arbitration.arbitrate (the run's) and the FMU's outputs, bit for bit, for every rule of every channel and 40
-    random requests each (pedals, steer beyond the driver's limit, decelerations beyond brake_decel_max, inactive
-    requests), against the driver's commands of the moment."""
+    random requests each (pedals inside and outside 0..1, steer beyond the driver's limit and beyond +-pi/2,
+    decelerations negative and beyond brake_decel_max, inactive requests), against the driver's commands of the
+    moment: the FMU takes every finite request, as the run does, and limits it as arbitrate does."""
     import itertools
 
     from sdl_fmu.cosim.arbitration import arbitrate
@@ -497,9 +546,10 @@ def test_the_controller_requests_are_arbitrated_as_the_run_arbitrates(demo_fmus,
                              "arbitration_steer": steer_rule}, {"ego_v": speed, "ego_vx": speed, "ego_y": -1.0})
         driver = tuple(instance.get(name) for name in ("driver_throttle", "driver_brake", "driver_steer"))
         for _ in range(40):
-            request = Request(rng.random() < 0.8, rng.choice([0.0, rng.random(), 1.0]),
-                              rng.choice([0.0, rng.random(), 1.0]), rng.uniform(-1.5, 1.5),
-                              rng.choice([0.0, rng.uniform(0, 15)]))
+            request = Request(rng.random() < 0.8, rng.choice([0.0, rng.random(), 1.0, rng.uniform(-3, 4)]),
+                              rng.choice([0.0, rng.random(), 1.0, rng.uniform(-3, 4)]),
+                              rng.choice([rng.uniform(-1.5, 1.5), rng.uniform(-10, 10)]),
+                              rng.choice([0.0, rng.uniform(0, 15), rng.uniform(-15, 40)]))
             assert instance.set(request_active=request.active, request_throttle=request.throttle,
                                 request_brake=request.brake, request_steer=request.steer,
                                 request_deceleration=request.deceleration) == 0

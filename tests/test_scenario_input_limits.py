@@ -372,7 +372,8 @@ def test_the_plot_draws_the_same_road_however_many_lanes_nothing_uses(simple_fmu
 
     from matplotlib.figure import Figure
 
-    from sdl_fmu import api, plots
+    from sdl_fmu import api
+    from sdl_fmu.results import plots
     from sdl_fmu.sdl import Road
 
     raw = api.run(api.load("brake_examples"), fmu=simple_fmu, until_time=2.0, plot=False).raw

@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from sdl_fmu import api
-from sdl_fmu.export.scenario_fmu import write_scenario_fmu
+from sdl_fmu.export.scenario_fmu import tie_tolerance, write_scenario_fmu
 
 from scenario_generator import random_scenario
 from scenario_harness import (Ego, ScenarioInstance, path_acceleration, scenario_inputs, wheel_names)
@@ -32,6 +32,8 @@ H = 0.01  # s, the master's communication step
 SUBSTEPS = 200  # the oracle's sub-steps per step
 BISECTION = 1e-9  # s, TRIGGER_TOLERANCE of the runtime
 DISTANCE_ACTIONS = {("A", "spawn"), ("BRK", "on"), ("RSA", "set")}
+
+pytestmark = pytest.mark.usefixtures("simple_fmus", "scenario_binaries")  # the FMUs the masters run, from the cache
 
 
 def scenario_fmu(scenario, dynamics, directory, fmi_version=2, **options):
@@ -219,3 +221,87 @@ def test_early_return_makes_a_fixed_step_master_exact(name, tmp_path):
     assert returns == 0
     assert [(e.code, e.action, e.vehicle) for e in fixed] == [(e["code"], e["action"], e.get("vehicle")) for e in run]
     assert max(abs(ours.time - theirs["time_s"]) for ours, theirs in zip(fixed, run)) > 1e-3
+
+
+# ---- ties at communication points and the belief's fading offset --------------------------------------------------
+
+FOOT = 0.3048
+
+
+def one_event_fmu(text: str, directory: Path):
+    path = directory / "scenario.sdl"
+    path.write_text(text)
+    return write_scenario_fmu(api.load(path), directory / "scenario.fmu", ego=api.ego_model("simple"))
+
+
+def test_the_tie_tolerance_is_the_runtimes():
+    # scenario_fmu.TIE_TOLERANCE (what the cross-master tests hold the located instants to) is runtime/scenario.h's
+    import re
+
+    from sdl_fmu.export.binary import RUNTIME_DIRECTORY
+    from sdl_fmu.export.scenario_fmu import TIE_TOLERANCE
+
+    header = (RUNTIME_DIRECTORY / "scenario.h").read_text()
+    assert float(re.search(r"#define TIE_TOLERANCE (\S+)", header)[1]) == TIE_TOLERANCE
+    assert tie_tolerance(0.5) == TIE_TOLERANCE and tie_tolerance(-12.5) == 12.5 * TIE_TOLERANCE
+
+
+@pytest.mark.parametrize("clock", ["nanoseconds", "running sum"])
+def test_an_event_within_rounding_after_a_communication_point_shows_there(clock, tmp_path):
+    """A tie: ES at 1100 ft at a constant 88 ft/s is 12.5 s, a communication point at h = 10 ms (approaching_vehicle's
+    end). Masters form their communication points with different rounding (libcosim: whole nanoseconds, converted;
+    ecos: a running sum of steps, a few ulps off), and the ego's distance carries its own, so the located instant
+    falls a hair before 12.5 s in one master and a hair after it in another. An instant within tie_tolerance(t) after
+    the communication point t (1e-9 relative: 1.25e-8 s here) belongs to the step that ends at t: the end shows at
+    12.5 s with the ego's distance 1e-12 m (18 ulps; its instant 3.7e-14 s) short of 1100 ft, on it, or past it, with
+    either clock, located on the belief to the bisection's 1e-9 s."""
+    fmu = one_event_fmu("English\n1100,ES\n", tmp_path)
+    v = 88 * FOOT
+    shown = set()
+    for shift in (-1e-12, 0.0, 1e-12):
+        instance = ScenarioInstance(fmu.path, tmp_path / f"shift{shift}")
+        instance.initialize({}, {"ego_v": v, "ego_vx": v, "ego_y": -6 * FOOT})
+        t, k = 0.0, 0
+        while not instance.get("ended"):
+            assert instance.set(ego_x=v * t + shift, ego_s=v * t + shift) == 0
+            assert instance.step(t, H)[0] == 0, instance.messages[-2:]
+            k += 1
+            t = k * 10_000_000 / 1e9 if clock == "nanoseconds" else t + H
+            assert k < 1300
+        located = instance.get("last_event_time")
+        assert (instance.get("end_reason"), instance.get("events")) == (1, 1)  # ES
+        assert abs(t - 12.5) < 1e-12 and located - t <= tie_tolerance(t), (shift, t, located)
+        assert abs(located - (12.5 - shift / v)) <= BISECTION + 1e-12, (shift, located)
+        shown.add(k)
+        instance.free()
+    assert shown == {1250}
+
+
+@pytest.mark.parametrize("speed", [26.8224, 0.3])
+def test_the_trigger_bounds_follow_the_beliefs_fading_offset(speed, tmp_path):
+    """The worst case of docs/scenario-fmu.md (Stepping, the bound's proof). Over step 1 the ego's inputs say it
+    brakes at the acceleration bound a (ax = -a), while it accelerates at +a (a command change: its path acceleration
+    strays by 2a, the most the bound allows); at t = h its inputs hold where it is (s1 = V h + a h^2 / 2, v1 = V + a h,
+    ax = +a). The belief ended step 1 at V h - a h^2 / 2, a h^2 behind: over step 2 it is
+        s_b(tau) = s1 + v1 tau + a tau^2 / 2 - a h^2 (1 - tau / h),
+    which moves at v1 + a h, faster than the speed v1 the inputs give, by the fading offset's rate a h. ES is put
+    where the belief arrives at tau* = 0.9 h. A lower bound on the arrival that took the speed v1 as the distance's rate
+    would say tau* + a h tau* / (v1 + a tau*): the end located 2.7e-5 s late at 88 ft/s, and at 0.3 m/s after the
+    step's end (1.6e-3 s late), so that it shows one step late. With the offset's rate in the bound the end is located
+    at h + tau* (to the bisection's 1e-9 s) and shows at 2 h."""
+    a, h = 8.0, H
+    s1, v1 = speed * h + a * h * h / 2, speed + a * h
+    tau = 0.9 * h
+    distance = s1 + v1 * tau + a * tau * tau / 2 - a * h * h * (1 - tau / h)
+    fmu = one_event_fmu(f"Metric\n{distance!r},ES\n", tmp_path)
+    instance = ScenarioInstance(fmu.path, tmp_path / "unzipped")
+    lane = -6 * FOOT
+    instance.initialize({"ego_max_acceleration": a}, {"ego_v": speed, "ego_vx": speed, "ego_ax": -a, "ego_y": lane})
+    assert instance.step(0.0, h)[0] == 0 and not instance.get("ended")
+    assert instance.set(ego_x=s1, ego_s=s1, ego_v=v1, ego_vx=v1, ego_ax=a) == 0
+    assert instance.step(h, h)[0] == 0
+    assert instance.get("ended"), "the end shows one step late"
+    located = instance.get("last_event_time")
+    assert abs(located - (h + tau)) <= BISECTION + 1e-12, (located, h + tau)
+    assert not any(category == "logStatusWarning" for _, category, _ in instance.messages)  # within the bounds
+    instance.free()

@@ -62,3 +62,54 @@ def test_without_a_closing_lead_the_sentinels_hold():
 def test_overlapping_road_extents_give_a_zero_gap_and_ttc():
     signals = lead([4.0], [1.8288], [0.0])  # centres 4 m apart, 2.25 + 2.0 > 4: in contact along the road
     assert signals.gap == 0.0 and signals.ttc == 0.0
+
+
+@pytest.mark.parametrize("name", ["lead_vehicle", "demo"])
+def test_the_lead_track_of_a_run_is_lead_vehicle_at_every_sample_bit_for_bit(simple_fmu, name):
+    # signals.lead_track (the plot's lead series, vectorised over the samples) against lead_vehicle (plain floats)
+    # at every sample, over the vehicles on the road there: the same operations in the same order, the same bits
+    import numpy as np
+
+    from sdl_fmu import api
+    from sdl_fmu.cosim.signals import lead_track
+    from sdl_fmu.vehicle import EgoModel, shipped_map_path
+
+    result = api.run(name, fmu=simple_fmu)
+    raw = result.raw
+    columns, tracks = raw.columns, list(raw.vehicles)
+    model = EgoModel.open(simple_fmu, shipped_map_path("simple"))
+    length, width = model.length, model.width
+    series = lead_track(columns["x"], columns["y"], columns["psi"], columns["vx"], columns["vy"], length, width,
+                        [(track.vehicle - 1, track.first, track.station, track.lateral, track.speed, track.length,
+                          track.width) for track in tracks])
+    assert series["present"].sum() > 100
+    for k in range(len(columns["time"])):
+        present = [track for track in tracks if track.first <= k < track.first + len(track.station)]
+        lead = lead_vehicle(float(columns["x"][k]), float(columns["y"][k]), float(columns["psi"][k]),
+                            float(columns["vx"][k]), float(columns["vy"][k]), length, width,
+                            [t.station[k - t.first] for t in present], [t.lateral[k - t.first] for t in present],
+                            [t.speed[k - t.first] for t in present], [t.length for t in present],
+                            [t.width for t in present], [t.vehicle - 1 for t in present])
+        got = (bool(series["present"][k]), int(series["index"][k]), *(float(series[key][k]) for key in (
+            "gap", "speed", "relative_speed", "ttc", "lateral_offset")))
+        assert got == (lead.present, lead.index, lead.gap, lead.speed, lead.relative_speed, lead.ttc,
+                       lead.lateral_offset), k
+    # and the record's own series (made by the run stage from the vehicles' closed-form motions) is this one
+    recorded = raw.lead_series()
+    assert all(np.array_equal(recorded[key], series[key]) for key in series)
+
+
+def test_bumper_gaps_ahead_behind_and_overlapping_by_hand():
+    # ego 4.5 x 1.8 m at yaw 0 (reaching 2.25 m ahead and behind its centre), cars 4.0 m long: a centre 30 m ahead
+    # is 30 - 2.25 - 2.0 = 25.75 m from bumper to bumper; one 30 m behind -25.75 m; centres 3 m apart (ahead or
+    # behind) overlap along the road: 0
+    import numpy as np
+
+    from sdl_fmu.cosim.signals import bumper_gaps
+
+    along = extents(EGO_LENGTH, EGO_WIDTH, 0.0)[0]
+    assert along == 2.25
+    gaps = bumper_gaps(np.array([30.0, -30.0, 3.0, -3.0]), along, np.full(4, 4.0))
+    assert list(gaps) == [25.75, -25.75, 0.0, 0.0]
+    # and ahead it is lead_vehicle's gap
+    assert lead([30.0], [-EGO_Y], [0.0]).gap == gaps[0]

@@ -13,13 +13,13 @@ from sdl_fmu.results import write_results
 from sdl_fmu.sdl import load_scenario
 from sdl_fmu.units import FOOT
 
-from helpers import TABLE
+from helpers import TABLE, as_written
 
 SCENARIO = SCENARIO_DIRECTORY / "spin.sdl"
 
 
 def run(fmu):
-    return run_scenario(load_scenario(SCENARIO), fmu, RunOptions(), TABLE)
+    return as_written(run_scenario(load_scenario(SCENARIO), fmu, RunOptions(), TABLE))
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ from sdl_fmu import api
 from sdl_fmu import sweep as sweeping
 
 distributed = pytest.importorskip("distributed")
+pytestmark = pytest.mark.usefixtures("simple_fmus")  # the sweeps run the Simple FMU of the cache
 
 # One oncoming vehicle passing 12 ft to the ego's left, no collision; the run ends at --until-distance.
 SCENARIO = "English\n100,A,50,600,-6,1\n"
@@ -365,3 +366,30 @@ def test_a_real_cluster_with_workers_elsewhere_runs_every_row_even_when_a_worker
     assert shipped == ["EgoVehicleSimple.fmu", "pass.sdl"]
     assert list(elsewhere.iterdir()) == []
     assert sorted(os.listdir(project)) == ["scenarios", "table"]
+
+
+def test_the_plot_draws_one_series_per_value_of_the_other_quantity_and_whole_collision_ticks(tmp_path, monkeypatch):
+    # speed x seed: against speed, one line per seed (a line varies speed alone: the two quantities are never
+    # mixed in one scatter), and against seed one per speed; the collision counts (0, 1, 2) get whole-number ticks
+    from matplotlib.figure import Figure
+
+    figures = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figures.append(self), original(self, *a, **k)))
+    rows = [{"run": k, "speed_ft/s": speed, "seed": seed, "status": "ok", "collisions": (speed > 70) + (seed == 2),
+             "min_distance_ft": 100.0 - speed + seed} for k, (speed, seed) in enumerate(
+                 (s, d) for s in (60.0, 70.0, 80.0) for d in (1, 2))]
+    rows.append({"run": 6, "speed_ft/s": 90.0, "seed": 1, "status": "failed", "error": "x"})
+    sweeping.plot_sweep(rows, ["speed_ft/s", "seed"], "English", tmp_path / "sweep.png")
+    axes = figures[0].axes
+    collisions_by_speed, _, distance_by_speed = axes[:3]
+    lines = {line.get_label(): line for line in collisions_by_speed.lines}
+    assert set(lines) == {"seed=1", "seed=2"}
+    assert list(lines["seed=1"].get_xdata()) == [60.0, 70.0, 80.0] and list(lines["seed=1"].get_ydata()) == [0, 0, 1]
+    assert list(lines["seed=2"].get_ydata()) == [1, 1, 2]
+    assert {line.get_label() for line in axes[3].lines} == {"speed (ft/s)=60", "speed (ft/s)=70", "speed (ft/s)=80"}
+    assert [line.get_label() for line in distance_by_speed.lines] == ["seed=1", "seed=2"]
+    ticks = [tick for tick in collisions_by_speed.get_yticks() if -0.2 <= tick <= 2.2]
+    assert ticks and all(float(tick).is_integer() for tick in ticks)
+    # the failed run is marked at the bottom, apart from the series
+    assert [list(c.get_offsets()[:, 0]) for c in collisions_by_speed.collections] == [[90.0]]

@@ -180,3 +180,39 @@ def test_the_top_speed_is_the_closed_form_of_the_drive_against_the_resistances(s
     strong = model.with_parameters({"drive_power_max": 1e7})  # now the force limit binds
     assert strong.top_speed() == pytest.approx(((strong.drive_accel_max - G * f_r) / k) ** 0.5, rel=1e-12)
     assert model.with_parameters({"drag_area": 0.0, "rolling_resistance": 0.0}).top_speed() == float("inf")
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_a_discarded_snapshot_of_an_sdl_fmu_build_is_reused_and_restores_exactly(simple_fmus, fmi_version):
+    """sdl-fmu's runtime updates a snapshot given to GetFMUstate in place (FMI allows it): a discarded snapshot is
+    kept and taken again by the next save (the master saves one per step near traffic: no allocation each time),
+    and restoring it after it was reused gives the state of its second save, bit for bit."""
+    with shipped_model("simple", fmi_version).instantiate(start={"speed": 25.0, "y": -1.8}) as ego:
+        ego.set_controls(0.2, 0.0, 0.02)
+        first = ego.save()
+        ego.discard(first)
+        ego.step_to(1.0)
+        second = ego.save()
+        assert second[0] is first[0]  # the same FMU state handle, updated in place
+        at_one = ego.read()
+        ego.step_to(2.0)
+        ego.restore(second)
+        assert ego.read() == at_one
+        ego.discard(second)
+
+
+def test_another_tools_snapshots_are_freed_not_reused(simple_fmus):
+    """Another tool's FMU may not update a given snapshot in place: its snapshots are freed on discard and every
+    save asks for a new one (the rule reads the model description's generationTool: here the Simple FMU's,
+    renamed)."""
+    import copy
+
+    model = EgoModel.open(simple_fmus[2], shipped_map_path("simple"))
+    model.description = copy.copy(model.description)
+    model.description.generationTool = "another tool 1.0"
+    with model.instantiate(start={"speed": 10.0, "x": 0.0, "y": 0.0, "yaw": 0.0}) as ego:
+        first = ego.save()
+        ego.discard(first)
+        second = ego.save()
+        assert second[0] is not first[0]
+        ego.discard(second)

@@ -144,6 +144,7 @@ def hand_ccrs(v0: float, k_partial: int):
 
 
 @pytest.mark.parametrize("speed_kmh, expected", [(20, "stop"), (40, "stop"), (50, "impact")])
+@pytest.mark.usefixtures("simple_fmus", "example_aeb_fmus")
 def test_impact_or_not_by_hand_with_the_example_aeb(speed_kmh, expected):
     # hand_ccrs at k = 280: 20 km/h partial braking only, stops 1.5226 m short; 40 km/h partial, full at 3.623 s,
     # partial again at 4.675 s (TTC above 0.9 s), stops 0.3857 m short; 50 km/h partial, full at 3.575 s, contact at

@@ -20,9 +20,11 @@ import numpy as np
 
 WRITTEN_FOR = re.compile(r"^// Written for: (.+?) dynamics", re.M)
 SKIPPING = re.compile(r"^// Written for: .+ dynamics, with --skip-unsupported", re.M)
+DRIVER = re.compile(r"^// Written for: .+ dynamics, with --driver (\w+)", re.M)
 
 
 def cases():
+    """(name, dynamics, skip_unsupported, driver) of every shipped example, as its header says it is run."""
     from sdl_fmu import api
 
     for name, path in api.shipped_scenarios().items():
@@ -30,8 +32,9 @@ def cases():
         match = WRITTEN_FOR.search(text)
         if not match:
             continue
+        driver = DRIVER.search(text)
         for dynamics in match.group(1).split(" and "):
-            yield name, dynamics, SKIPPING.search(text) is not None
+            yield name, dynamics, SKIPPING.search(text) is not None, driver.group(1) if driver else "lane"
 
 
 def _stable(summary: dict) -> dict:
@@ -46,10 +49,10 @@ def take(path: str) -> None:
     from sdl_fmu.fmu.cache import cached_fmus
 
     arrays = {}
-    for name, dynamics, skip in cases():
+    for name, dynamics, skip, driver in cases():
         for version, fmu in zip((2, 3), cached_fmus(dynamics, (2, 3))):
             for step in (1.0, 0.05):
-                result = api.run(name, dynamics=dynamics, fmu=fmu, skip_unsupported=skip, step=step)
+                result = api.run(name, dynamics=dynamics, fmu=fmu, skip_unsupported=skip, step=step, driver=driver)
                 key = f"{name}-{dynamics}-fmi{version}-step{step:g}"
                 for header, values in result.arrays.items():
                     arrays[f"{key}/{header}"] = np.asarray(values)

@@ -1,37 +1,40 @@
 """The run's criticality record: per traffic vehicle, the extreme of each measure (measures.py) and the instant
 it was first reached, and what the run needs to locate those instants instead of taking the best sample.
 
-Design: how the master uses these (one record for the run, `Extremes`, one row per traffic vehicle).
+How the run uses it (one record, `Extremes`, one row per traffic vehicle; the follower, follower.py, keeps the
+per-vehicle instants and asks the FMU for snapshots and probes):
 1. Looks. At a look (`Extremes.look`, one pass) a vehicle's values at the ego's state are offered to the
    record (a value replaces the recorded extreme only when better by more than FLAT, so the first instant
-   an extreme is reached stays), and the look returns the vehicle's rates and its horizon. The master
-   keeps a next-look instant per vehicle and their minimum, as it keeps its traffic bounds: at a
-   communication point it looks at the vehicles whose instant has come, and drops every next-look instant
-   when something fires (an action changes a vehicle's motion). A look also leaves `Extremes.quiet`, a
-   bound before which none of the vehicle's located instants (2) can be: the master starts a step from an FMU
-   snapshot only when such a bound ends within it. It also looks at every vehicle at its
-   spawn, its departure and the run's end (an extreme at the end of an interval), and at every located
-   instant below.
+   an extreme is reached stays), and the look returns the vehicle's rates and its horizon, a lower bound on
+   when it next needs a look. The follower keeps a next-look instant per vehicle and their minimum, as the
+   trigger schedule keeps its traffic bounds, and looks at a communication point at the vehicles whose instant
+   has come. A look also leaves `Extremes.quiet`, a bound before which none of the vehicle's located instants
+   (2) can be, and `Extremes.course`, a bound before which no collision course or headway can begin (4): a step
+   starts from an FMU snapshot only when such a bound ends within it. Every vehicle is also looked at at its
+   spawn, before and after its own actions, at its contacts' starts and ends, before it leaves the road, at the
+   run's end (an extreme at the end of an interval), and at every located instant below.
 2. Located instants. Inside a step an extreme is the root of its rate (`Extremes.rates`: distance, TTC,
    minus DRAC, headway; from < 0 to >= 0), or a contact's start or end (the master's contact triggers
-   already locate them; TTC is 0 and the distance 0 there), or a collision course's start or end (TTC
-   turns finite / infinite). The master adds a trigger kind "criticality" whose condition at a probe is: a
-   looked-at vehicle's rate turned from < 0 at the step's start to >= 0, or its collision course began or
-   ended. It bisects it like any trigger (rollback, TIME_TOLERANCE) and looks at the vehicle at the
-   located instant.
+   already locate them; TTC is 0 and the distance 0 there), or a collision course's start or end (TTC's rate
+   turns defined / undefined; also where a vehicle on a course crosses RANGE). The follower finds a change of
+   sign between the rates at the step's start and at its end and bisects it from the snapshot (locate.py), then
+   looks at the vehicle on both sides of the located instant.
 3. Horizons (`Extremes.look`'s second value): 0 within RANGE (50 m, SUMO's device.ssm.range) while a
    vehicle is on a collision course or has a headway: TTC, DRAC and headway are followed at every
    communication point there (the driver's 20 Hz samples at least), their roots and courses found by the
    sign checks of 2, which assume at most one change of sign between two communication points (no horizon
-   bounds TTC's or headway's rate yet). Within RANGE with neither (a car beside the ego's path), the
-   distance's horizon below, cut to `course_horizon`'s proven bound on when a course or a headway can
-   begin. Beyond RANGE only the
-   distance applies, and the horizon is a proven lower bound, from the ego's bounds as in triggers.py (the
-   acceleration A of its CG, its yaw rate r_max, the radius R of its footprint): the earliest of coming
-   within RANGE (`distance_horizon`) and of a new minimum distance, which needs both the distance below the
-   recorded minimum (`distance_horizon`) and an approach ending (`approach_horizon` near,
-   `heading_horizon` far), and never past the end of a lateral transition.
-4. PET: when an action starts a lateral move, `band_times` gives the instant the vehicle's footprint
+   bounds TTC's or headway's rate yet). Otherwise only the distance is followed by looks, and the horizon is a
+   proven lower bound, from the ego's bounds as in triggers.py (the acceleration A of its CG, its yaw rate
+   r_max, the radius R of its footprint), on a new minimum distance, which needs both the distance below the
+   recorded minimum (`distance_horizon`) and an approach ending (`approach_horizon` near, `heading_horizon`
+   far), and never past the end of a lateral transition.
+4. Courses. Between its looks a vehicle off any course and headway is checked (`course_check`: TTC and the
+   headway alone, a third of a look's cost) at every communication point from `course` on, which is
+   `course_horizon`'s proven bound within RANGE and the instant it can come within RANGE beyond it: a check that
+   finds a course or a headway within RANGE makes the vehicle due a look at once (a course's start is then
+   located as in 2). A car passing in the next lane within RANGE is checked at nearly every communication point
+   (the ego could steer toward it within about 0.05 s) but looked at only as its distance's bounds require.
+5. PET: when an action starts a lateral move, `band_times` gives the instant the vehicle's footprint
    leaves the ego's lane (closed form); the master steps to it like a driver sample and calls
    `Extremes.path_left`; the conflict stations then pending (`Extremes.pending_stations`) are distance
    triggers for the ego's front, horizon reach_time(station - front, station_rate + R r_max, A) as for the
@@ -64,13 +67,15 @@ class Extremes:
     A later value replaces the recorded one only when better by more than FLAT, so that a flat extreme (the
     distance to a car passing in the next lane, constant over the whole overlap) keeps the first instant it
     was reached, whatever the samples after it: with the start located, the instant does not depend on the
-    step. Values are SI (m, s, m/s2); `summary` converts lengths at the results boundary."""
+    step. Values are SI (m, s, m/s2), in `summary` too (the results convert them)."""
 
     def __init__(self, ego_length: float, ego_width: float, capacity: int = 16):
         self.ego_length, self.ego_width = ego_length, ego_width
         self.size = 0
-        self.value = {name: np.full(capacity, np.nan) for name in MEASURES}
-        self.time = {name: np.full(capacity, np.nan) for name in MEASURES}
+        # per measure, per vehicle: the extreme and its instant (nan: none yet); plain lists, read and written per
+        # look
+        self.value = {name: [math.nan] * capacity for name in MEASURES}
+        self.time = {name: [math.nan] * capacity for name in MEASURES}
         self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
         self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
         # the ego passing first (PET): the far end of the area where the vehicle's footprint will enter the ego's
@@ -78,8 +83,10 @@ class Extremes:
         self.far_end = np.full(capacity, np.nan)
         self.rear_left = np.full(capacity, np.nan)
         # s from the last look: a lower bound on when that vehicle's next located instant (a closest
-        # approach, a collision course's start or end, a transition's end) can be (0: any time)
+        # approach, a collision course's end, a transition's end) can be (0: any time), and on when a collision
+        # course or a headway can begin (inf: not to be checked before the vehicle's next look)
         self.quiet = 0.0
+        self.course = INF
         # the last ego state evaluated at and (footprint, cos, sin, inertial velocity) there; per vehicle its
         # (length, width) in floats (fixed from its spawn, a vehicle's index is never reused)
         self._at = (None, None)
@@ -88,8 +95,8 @@ class Extremes:
     def _grow(self, size: int) -> None:
         while size > len(self.left_path):
             for table in (self.value, self.time):
-                for name, values in table.items():
-                    table[name] = np.concatenate([values, np.full(len(values), np.nan)])
+                for values in table.values():
+                    values.extend([math.nan] * len(values))
             self.left_path = np.concatenate([self.left_path, np.full(len(self.left_path), np.nan)])
             self.conflict = np.concatenate([self.conflict, np.full(len(self.conflict), np.nan)])
             self.far_end = np.concatenate([self.far_end, np.full(len(self.far_end), np.nan)])
@@ -105,7 +112,7 @@ class Extremes:
         if i >= self.size:
             self._grow(i + 1)
         values = self.value[name]
-        recorded = float(values[i])
+        recorded = values[i]
         if name == "max_drac":
             better = recorded != recorded or value > recorded + FLAT
         else:
@@ -120,7 +127,7 @@ class Extremes:
         """`offer` for vehicles idx at once."""
         if len(idx) and int(idx.max()) >= self.size:
             self._grow(int(idx.max()) + 1)
-        recorded = self.value[name][idx]
+        recorded = np.array(self.value[name])[idx]
         finite = np.isfinite(values)
         empty = np.isnan(recorded)
         if name == "max_drac":
@@ -129,8 +136,10 @@ class Extremes:
         else:
             better = finite & (empty | (values < recorded - FLAT))
             improves = finite & ~empty & (values < recorded)
-        self.value[name][idx] = np.where(better | improves, values, recorded)
-        self.time[name][idx[better]] = t
+        for i, value in zip(idx.tolist(), np.where(better | improves, values, recorded).tolist()):
+            self.value[name][i] = value
+        for i in idx[better].tolist():
+            self.time[name][i] = t
 
     def observe(self, traffic, idx: np.ndarray, state) -> None:
         """Offers the distance (and within RANGE, TTC, DRAC and headway) of vehicles idx (traffic.Traffic
@@ -170,8 +179,9 @@ class Extremes:
         self.reach(state)
 
     def _evaluate(self, traffic, i: int, state):
-        """Vehicle i at the ego's state, in one pass: (values to offer {measure: value}, rates, what the horizon
-        needs). Beyond RANGE only the distance and its rates."""
+        """Vehicle i at the ego's state, in one pass: (the values to offer: distance, TTC, DRAC, headway; rates;
+        what the horizon needs). Beyond RANGE only the distance and its rates (the others inf or nan: not
+        offered)."""
         t = state.time
         at = self._at
         if at[0] is state:  # another vehicle at the same ego state: its footprint and velocity as computed
@@ -182,9 +192,10 @@ class Extremes:
             ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
             self._at = (state, (ego, c, s, ego_vx, ego_vy))
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
-        elapsed, duration = t - float(traffic.t0[i]), float(traffic.duration[i])
+        t0, _, _, speed0, _, speed1, duration = traffic.row(i)
+        elapsed = t - t0
         moving = elapsed < duration
-        speed_rate = (float(traffic.speed1[i]) - float(traffic.speed0[i])) / duration if moving else 0.0
+        speed_rate = (speed1 - speed0) / duration if moving else 0.0
         size = self._sizes.get(i)
         if size is None:
             size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
@@ -194,19 +205,18 @@ class Extremes:
         d, rate, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
         motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego)
         if d > RANGE:
-            return {"min_distance": d}, (rate, math.nan, math.nan, math.nan), motion
+            return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
         value = ttc(ego, dx, dy, vx, vy, length, width)
         ego_ax = state.ax * c - state.ay * s
         gap_time = headway(ego, dx, dy, ego_vx, -speed, length, width)
-        values = {"min_distance": d, "min_ttc": value, "min_headway": gap_time}
         headway_change = math.nan if gap_time == INF else \
             headway_rate_known(ego, gap_time, ego_vx, -speed, ego_ax, state.yaw_rate)
         if not 0.0 < value < INF:
-            return values, (rate, math.nan, math.nan, headway_change), motion
+            return (d, value, math.nan, gap_time), (rate, math.nan, math.nan, headway_change), motion
         ax, ay = -speed_rate - ego_ax, -(state.ax * s + state.ay * c)
-        values["max_drac"] = drac(value, vx, vy)
         value_rate = ttc_rate_known(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
-        return values, (rate, value_rate, -drac_rate_known(value, value_rate, vx, vy, ax, ay), headway_change), motion
+        return ((d, value, drac(value, vx, vy), gap_time),
+                (rate, value_rate, -drac_rate_known(value, value_rate, vx, vy, ax, ay), headway_change), motion)
 
     def rates(self, traffic, i: int, state) -> tuple[float, float, float, float]:
         """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
@@ -247,12 +257,20 @@ class Extremes:
         triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
-        values, rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left, ego) = \
+        (d, value, drac_value, gap_time), rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate,
+                                                  transition_left, ego) = \
             self._evaluate(traffic, i, state) if evaluated is None else evaluated
         t = state.time
-        for name, value in values.items():
-            self.offer(name, i, t, value)
+        offer = self.offer
+        offer("min_distance", i, t, d)
+        if value < INF:
+            offer("min_ttc", i, t, value)
+        if gap_time < INF:
+            offer("min_headway", i, t, gap_time)
+        if drac_value == drac_value:
+            offer("max_drac", i, t, drac_value)
         near = d <= RANGE
+        self.course = INF
         if near and (rates[1] == rates[1] or rates[3] == rates[3]):
             self.quiet = 0.0
             return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
@@ -260,7 +278,7 @@ class Extremes:
         # (what the builtins return, nan included), without their calls
         turn = radius * yaw_rate_bound
         relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
-        new_minimum = reach_time_scalar(d - (float(self.value["min_distance"][i]) - FLAT), turn - frozen, relative)
+        new_minimum = reach_time_scalar(d - (self.value["min_distance"][i] - FLAT), turn - frozen, relative)
         # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
         approach_end = INF if rates[0] >= 0.0 else 0.0
         if frozen < -turn:
@@ -272,12 +290,12 @@ class Extremes:
             if approach_end > new_minimum:
                 new_minimum = approach_end
         if not near:
-            # a collision course can be seen only within RANGE
+            # a collision course or a headway counts only within RANGE: checked (course_check) from when the
+            # vehicle can come within it
             entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
-            quiet = approach_end if approach_end < entering else entering
-            self.quiet = transition_left if transition_left < quiet else quiet
-            horizon = new_minimum if new_minimum < entering else entering
-            return rates, transition_left if transition_left < horizon else horizon
+            self.course = transition_left if transition_left < entering else entering
+            self.quiet = transition_left if transition_left < approach_end else approach_end
+            return rates, transition_left if transition_left < new_minimum else new_minimum
         # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
         longest = approach_end if approach_end > new_minimum else new_minimum
         if transition_left < longest:
@@ -286,11 +304,49 @@ class Extremes:
             self.quiet = 0.0
             return rates, 0.0
         reach_x, reach_y, _, _ = axis_reaches(ego, length, width)
-        course = course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative)
-        quiet = transition_left if transition_left < approach_end else approach_end
-        self.quiet = course if course < quiet else quiet
-        horizon = transition_left if transition_left < new_minimum else new_minimum
-        return rates, course if course < horizon else horizon
+        self.course = course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative)
+        self.quiet = transition_left if transition_left < approach_end else approach_end
+        return rates, transition_left if transition_left < new_minimum else new_minimum
+
+    def course_check(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
+                     radius: float) -> float:
+        """Between two looks at vehicle i off any collision course and headway within RANGE, whether one has begun
+        (the follower checks at every communication point once the bound `course` of its last look or check has
+        ended): nan if the vehicle is now within RANGE on a collision course or with a headway (it then needs a
+        look, and a course's start, or its coming within RANGE on one, is located); else a new bound (s from now)
+        on when that can be: `course_horizon`, or beyond RANGE on a course or behind a vehicle ahead, when it can
+        come within RANGE. The same operations as `_evaluate`'s for the quantities it reads (the same
+        decisions)."""
+        t = state.time
+        at = self._at
+        if at[0] is state:
+            ego, c, s, ego_vx, ego_vy = at[1]
+        else:
+            c, s = math.cos(state.psi), math.sin(state.psi)
+            ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
+            ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
+            self._at = (state, (ego, c, s, ego_vx, ego_vy))
+        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
+        t0, _, _, speed0, _, speed1, duration = traffic.row(i)
+        elapsed = t - t0
+        moving = elapsed < duration
+        speed_rate = (speed1 - speed0) / duration if moving else 0.0
+        length, width = self._sizes[i]
+        dx, dy = station - state.x, -lateral - state.y
+        vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
+        value = ttc(ego, dx, dy, vx, vy, length, width)
+        transition_left = duration - elapsed if moving else INF
+        relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
+        turn = radius * yaw_rate_bound
+        if 0.0 < value < INF or headway(ego, dx, dy, ego_vx, -speed, length, width) != INF:
+            d, _, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
+            if d <= RANGE:
+                return math.nan
+            # beyond RANGE: checked again from when it can come within it
+            entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
+            return transition_left if transition_left < entering else entering
+        reach_x, reach_y, _, _ = axis_reaches(ego, length, width)
+        return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
 
     # -- post-encroachment time
 
@@ -362,36 +418,44 @@ class Extremes:
 
     # -- the results
 
-    def summary(self, vehicle_ids, to_scenario_units) -> dict:
-        """summary.json's `criticality` object (docs/results.md): run-wide extremes and one entry per vehicle,
-        lengths (and DRAC, a length per s^2) through `to_scenario_units` (units.from_si), null where a measure
-        never applied.
-        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s."""
+    def summary(self, vehicle_ids) -> dict:
+        """summary.json's `criticality` object (docs/results.md) in SI (the results give the lengths, and DRAC, a
+        length per s^2, in the scenario's units: results/scenario_units.py): run-wide extremes and one entry per
+        vehicle, None (null) where a measure never applied.
+        Keys added to the first six: max_drac_time_s, min_headway_s, min_headway_time_s, contact.
+        A vehicle the ego touched (its minimum distance 0: `contact` true) has no DRAC: DRAC grows without bound
+        toward a contact (closing speed / 2 TTC, TTC -> 0), so any finite value would only say how close to the
+        contact it was last evaluated; its max_drac and max_drac_time_s are null, and the run-wide max_drac is
+        that of the vehicles the ego did not touch."""
         def number(x):
             return None if x != x else float(x)
 
-        def entry(values: dict, times: dict) -> dict:
-            length = {"min_distance", "max_drac"}
+        def entry(values: dict, times: dict, contact: bool) -> dict:
             out = {}
             for name, key, time_key in (("min_distance", "min_distance", "min_distance_time_s"),
                                         ("min_ttc", "min_ttc_s", "min_ttc_time_s"),
                                         ("max_drac", "max_drac", "max_drac_time_s"),
                                         ("min_pet", "min_pet_s", None),
                                         ("min_headway", "min_headway_s", "min_headway_time_s")):
-                value = number(values[name])
-                out[key] = None if value is None else (to_scenario_units(value) if name in length else value)
+                out[key] = number(values[name])
                 if time_key:
                     out[time_key] = number(times[name])
+            out["contact"] = contact
             return out
 
         n = len(vehicle_ids)
         self._grow(n)  # a vehicle never looked at has all its measures null
-        vehicles = [{"vehicle": int(vehicle_ids[i]),
-                     **entry({k: self.value[k][i] for k in MEASURES}, {k: self.time[k][i] for k in MEASURES})}
+        touched = [self.value["min_distance"][i] == 0.0 for i in range(n)]
+        value = {name: [math.nan if name == "max_drac" and touched[i] else self.value[name][i] for i in range(n)]
+                 for name in MEASURES}
+        time = {name: [math.nan if name == "max_drac" and touched[i] else self.time[name][i] for i in range(n)]
+                for name in MEASURES}
+        vehicles = [{"vehicle": int(vehicle_ids[i]), **entry({k: value[k][i] for k in MEASURES},
+                                                            {k: time[k][i] for k in MEASURES}, touched[i])}
                     for i in range(n)]
         overall_values, overall_times = {}, {}
         for name in MEASURES:
-            values, times = self.value[name][:n], self.time[name][:n]
+            values, times = np.array(value[name], dtype=float), np.array(time[name], dtype=float)
             if n == 0 or np.isnan(values).all():
                 overall_values[name] = overall_times[name] = math.nan
                 continue
@@ -400,5 +464,5 @@ class Extremes:
             near = np.abs(values - best) <= FLAT
             overall_values[name] = best
             overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
-        return {**entry(overall_values, overall_times), "vehicles": vehicles}
+        return {**entry(overall_values, overall_times, any(touched)), "vehicles": vehicles}
 

@@ -20,6 +20,7 @@ from .traffic import Traffic
 from .triggers import EgoBounds
 
 NO_LOOK = -math.inf  # a vehicle's next-look instant when it must be looked at now
+HEADWAY_DOMAIN = "headway"  # a change found in a step: the headway began or ceased to apply
 
 
 class CriticalityFollower:
@@ -31,14 +32,21 @@ class CriticalityFollower:
         self.ego, self.traffic, self.bounds, self.road = ego, traffic, bounds, road
         self.exact = exact  # whether the FMU can roll back (else extremes are taken at communication points)
         self.extremes = Extremes(bounds.length, bounds.width)
-        self.next_look = np.full(16, NO_LOOK)
+        self.next_look: list[float] = []  # per vehicle (traffic index), the instant it next needs a look
         self.earliest_look = NO_LOOK
         # per vehicle, the instant before which its located instants cannot be (Extremes.quiet), and the
         # earliest step end at which one can be found (at its next look and not before that instant): a step
         # ending before that needs no FMU snapshot to locate it from
-        self.quiet_until = np.full(16, NO_LOOK)
-        self.look_time = np.full(16, NO_LOOK)  # per vehicle, its last look at a communication point
-        self.earliest_quiet = NO_LOOK
+        self.quiet_until: list[float] = []
+        self.look_time: list[float] = []  # per vehicle, its last look at a communication point
+        # per vehicle, the instant before which no collision course or headway can begin (Extremes.course: from
+        # then on it is checked at every communication point between its looks, Extremes.course_check), and the
+        # instant of its last check or look
+        self.course_until: list[float] = []
+        self.check_time: list[float] = []
+        self.looks_quiet = NO_LOOK  # the earliest over the vehicles of max(next look, quiet_until)
+        self.earliest_course = math.inf  # the earliest course_until
+        self.earliest_quiet = NO_LOOK  # the earliest of the two: a step ending before needs no snapshot
         self.look_rates: dict[int, tuple] = {}
         self.leaves_lane: dict[int, float] = {}
         self.enters_lane: dict[int, float] = {}  # per vehicle, the instant its footprint will enter the ego's lane
@@ -49,11 +57,14 @@ class CriticalityFollower:
         self.criticality_uncertainty = 0.0
         self.located = 0  # instants located inside steps (probed from a saved FMU state)
         self.touched: set[int] = set()  # the vehicles something fired for at this instant (looked at after)
+        self._calm: float | None = None  # `_calm_until`, None: to be computed again
+        # traffic.active when the looks' minima and the course bounds' minimum were last taken over every vehicle
+        self._looks_of = self._courses_of = None
 
-    def summary(self, vehicle_ids, scenario_units) -> dict:
-        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
-        back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
-        summary = self.extremes.summary(vehicle_ids, scenario_units)
+    def summary(self, vehicle_ids) -> dict:
+        """summary.json's `criticality` (docs/results.md) in SI; with an FMU that cannot roll back, how exactly its
+        instants are known (`time_uncertainty_s`, as on the events)."""
+        summary = self.extremes.summary(vehicle_ids)
         if not self.exact:
             summary["time_uncertainty_s"] = self.criticality_uncertainty
         return summary
@@ -70,12 +81,22 @@ class CriticalityFollower:
         at the step's start, from which an extreme inside the step is located (only for an FMU that can roll
         back). The vehicles whose bound on their next located instant ends inside the step are looked at now
         first (a look moves that bound on: the step may then need no snapshot)."""
+        calm = self._calm
+        if calm is None:
+            calm = self._calm = self._calm_until()
+        if limit < calm:
+            return False  # none of the bounds below ends by `limit`: no look, no check, no snapshot
         if self.pet_pending and self.pet_due <= limit:
             self.pet_due = self.pet_horizon(state)
+            self._calm = None
         if not self.exact:
             return False
-        if self.earliest_quiet <= limit:
+        if self.looks_quiet <= limit:
             self.look(state, ahead=limit)
+        if self.earliest_course <= limit:
+            self._check_courses(state, limit)
+            if self.earliest_look == NO_LOOK:  # a check found a course (it cannot begin unseen: only rounding)
+                self.look(state)
         return bool(self.earliest_quiet <= limit or self.pet_pending or self.leaves_lane) \
             and self.criticality_due(state.time, limit)
 
@@ -106,6 +127,14 @@ class CriticalityFollower:
 
     # ---- inside
 
+    def _calm_until(self) -> float:
+        """The earliest step end for which `wants_snapshot` has anything to do: a PET horizon to compute again, and
+        with rollback a look's or a check's bound ending, a lane leave (recomputed when any of them changes)."""
+        calm = self.pet_due if self.pet_pending else math.inf
+        if self.exact:
+            calm = min(calm, self.earliest_quiet, min(self.leaves_lane.values(), default=math.inf))
+        return calm
+
     def criticality_due(self, t: float, limit: float) -> bool:
         """Whether an extreme could lie in a step from t to at most `limit` (then the step starts from an FMU
         snapshot): a vehicle's look comes due after the instant before which none of its located instants can
@@ -129,31 +158,84 @@ class CriticalityFollower:
             return
         traffic, bounds = self.traffic, self.bounds
         if len(self.next_look) < traffic.size:
-            self.next_look = np.concatenate([self.next_look, np.full(traffic.size, NO_LOOK)])
-            self.quiet_until = np.concatenate([self.quiet_until, np.full(traffic.size, NO_LOOK)])
-            self.look_time = np.concatenate([self.look_time, np.full(traffic.size, NO_LOOK)])
-        earliest = earliest_quiet = math.inf
+            self._grow()
+        next_look, quiet_until, look_time = self.next_look, self.quiet_until, self.look_time
+        course_until, check_time = self.course_until, self.check_time
         evaluated, self.evaluated = self.evaluated, {}
-        extremes = self.extremes
-        if only is not None:
+        extremes, look_rates = self.extremes, self.look_rates
+        if only is None:
+            vehicles = traffic.active_list()
+            due = vehicles if everyone else [
+                i for i in vehicles
+                if next_look[i] <= t or (ahead is not None and quiet_until[i] <= ahead and look_time[i] < t)]
+        else:
+            vehicles = due = sorted(i for i in only if traffic.present[i])
+        if not due and traffic.active is self._looks_of:
+            return  # no bound moved and no vehicle left: the minima below still hold
+        for i in due:
+            rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate, bounds.radius,
+                                           evaluated.get(i))
+            look_rates[i] = rates
+            next_look[i] = t + horizon
+            quiet_until[i] = t + extremes.quiet
+            course_until[i] = t + extremes.course
+            look_time[i] = check_time[i] = t
+        # per vehicle its next look, the earliest step end at which a located instant can be found (its next look,
+        # not before its quiet bound: max(instant, quiet)), its course bound; their minima
+        earliest = min([next_look[i] for i in vehicles], default=math.inf)
+        earliest_quiet = min([quiet_until[i] if quiet_until[i] > next_look[i] else next_look[i] for i in vehicles],
+                             default=math.inf)
+        earliest_course = min([course_until[i] for i in vehicles], default=math.inf)
+        if only is None:
+            self._looks_of = self._courses_of = traffic.active  # the minima over every vehicle on the road
+        else:
             # the others' instants are kept: the earliest so far stays a bound (at worst early: then a look
             # finds nothing due and recomputes it over every vehicle)
-            earliest, earliest_quiet = self.earliest_look, self.earliest_quiet
-            everyone = True
-        for i in (traffic.active.tolist() if only is None else sorted(i for i in only if traffic.present[i])):
-            instant = float(self.next_look[i])
-            if everyone or instant <= t or (ahead is not None and self.quiet_until[i] <= ahead
-                                            and self.look_time[i] < t):
-                rates, horizon = extremes.look(traffic, i, state, bounds.acceleration, bounds.yaw_rate,
-                                               bounds.radius, evaluated.get(i))
-                self.look_rates[i] = rates
-                instant = self.next_look[i] = t + horizon
-                self.quiet_until[i] = t + extremes.quiet
-                self.look_time[i] = t
-            earliest = min(earliest, instant)
-            earliest_quiet = min(earliest_quiet, max(instant, float(self.quiet_until[i])))
+            self._looks_of = self._courses_of = None
+            earliest = min(self.earliest_look, earliest)
+            earliest_quiet = min(self.looks_quiet, earliest_quiet)
+            earliest_course = min(self.earliest_course, earliest_course)
         self.earliest_look = earliest
-        self.earliest_quiet = earliest_quiet
+        self.looks_quiet, self.earliest_course = earliest_quiet, earliest_course
+        self.earliest_quiet = earliest_course if earliest_course < earliest_quiet else earliest_quiet
+        self._calm = None
+
+    def _grow(self) -> None:
+        size = self.traffic.size
+        if len(self.next_look) < size:
+            for table in (self.next_look, self.quiet_until, self.look_time, self.check_time):
+                table.extend([NO_LOOK] * (size - len(table)))
+            self.course_until.extend([math.inf] * (size - len(self.course_until)))
+
+    def _check_courses(self, state: EgoState, until: float) -> None:
+        """The vehicles whose bound on a collision course's or a headway's start (`course_until`) ends by `until`
+        (this instant: a step's end; or the coming step's end, checked at its start to move the bound on, so
+        that the step may need no snapshot), not due a look and neither looked at nor checked at this instant:
+        each checked (Extremes.course_check). One found on a course or with a headway is due a look at once (a
+        course that began inside the step is then located like any change: its rates at the last look had none)."""
+        if self.earliest_course > until:
+            return
+        t = state.time
+        traffic, bounds, extremes = self.traffic, self.bounds, self.extremes
+        next_look, course_until, check_time = self.next_look, self.course_until, self.check_time
+        vehicles = traffic.active_list()
+        due = [i for i in vehicles if course_until[i] <= until and check_time[i] < t and next_look[i] > t]
+        if not due and traffic.active is self._courses_of:
+            return  # no bound moved and no vehicle left: the minimum still holds
+        self._courses_of = traffic.active
+        for i in due:
+            check_time[i] = t
+            bound = extremes.course_check(traffic, i, state, bounds.acceleration, bounds.yaw_rate, bounds.radius)
+            if bound == bound:
+                course_until[i] = t + bound
+            else:  # due a look now (its look sets the bound again)
+                next_look[i] = self.earliest_look = self.looks_quiet = NO_LOOK
+                self._looks_of = None
+                course_until[i] = math.inf
+        earliest_course = self.earliest_course = min([course_until[i] for i in vehicles], default=math.inf)
+        looks_quiet = self.looks_quiet
+        self.earliest_quiet = earliest_course if earliest_course < looks_quiet else looks_quiet
+        self._calm = None
 
     def look_before_change(self, i: int, state: EgoState) -> None:
         """Vehicle i at this instant with the motion it had until now, before an action changes it or it leaves
@@ -169,6 +251,7 @@ class CriticalityFollower:
         without one, an FMU that cannot roll back, they are taken at this communication point, known within
         the step), then looks at the vehicles due (all of them: `everyone`, before something fires)."""
         t1 = state.time
+        self._check_courses(state, t1)
         if base is not None:
             self._locate_in_step(base, t0, state)
         elif not self.exact and (self._changes_in_step(t0, state) or self.pet_pending
@@ -189,20 +272,25 @@ class CriticalityFollower:
     def _changes_in_step(self, t0: float, state: EgoState) -> list:
         """What changed inside the step for the vehicles looked at now: (vehicle, rate index) where that rate
         turned from < 0 to >= 0 (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), and
-        (vehicle, None) where a collision course began or ended (TTC's rate turned nan or back)."""
+        (vehicle, None) where a collision course began or ended (TTC's rate turned nan or back), (vehicle,
+        HEADWAY_DOMAIN) where the headway began or ceased to apply (a vehicle ahead moving into or out of the
+        ego's path, coming to a stop or turning toward the ego, crossing RANGE)."""
         t1 = state.time
         changes = []
         if t1 < self.earliest_look:
             return changes
-        for i in self.traffic.active.tolist():
+        next_look = self.next_look
+        for i in [i for i in self.traffic.active_list() if next_look[i] <= t1]:
             previous = self.look_rates.get(i)
-            if previous is None or self.next_look[i] > t1:
+            if previous is None:
                 continue
             evaluated = self.evaluated[i] = self.extremes.evaluate(self.traffic, i, state)
             now = evaluated[1]
             changes += [(i, k) for k in range(4) if previous[k] < 0 <= now[k]]
             if math.isnan(previous[1]) != math.isnan(now[1]):
                 changes.append((i, None))
+            if math.isnan(previous[3]) != math.isnan(now[3]):
+                changes.append((i, HEADWAY_DOMAIN))
         return changes
 
     def _locate_in_step(self, base, t0: float, state: EgoState) -> None:
@@ -250,10 +338,12 @@ class CriticalityFollower:
             self.located += 1
 
         for i, k in changes:
-            if k is None:
-                off_course = math.isnan(self.look_rates[i][1])
-                before, at = bisect_instant(t0, t1, lambda p, i=i, was=off_course:
-                                            math.isnan(extremes.rates(traffic, i, p)[1]) != was)
+            if k is None or k == HEADWAY_DOMAIN:
+                # the start or end of a measure's domain: the instant its rate turns defined / undefined (nan)
+                which = 1 if k is None else 3
+                was = math.isnan(self.look_rates[i][which])
+                before, at = bisect_instant(t0, t1, lambda p, i=i, was=was, which=which:
+                                            math.isnan(extremes.rates(traffic, i, p)[which]) != was)
             else:
                 rate_of = (lambda p, i=i: extremes.distance_rate(traffic, i, p)) if k == 0 else \
                     (lambda p, i=i, k=k: extremes.rates(traffic, i, p)[k])
@@ -297,9 +387,11 @@ class CriticalityFollower:
         followed at every communication point (within extremes.RANGE)."""
         traffic = self.traffic
         ending = []
-        for i in self.traffic.active.tolist():
-            if self.next_look[i] <= t1 and traffic.duration[i] > 0.0:
-                end_time = float(traffic.t0[i] + traffic.duration[i])
+        next_look = self.next_look
+        for i in [i for i in traffic.active_list() if next_look[i] <= t1]:
+            start, _, _, _, _, _, duration = traffic.row(i)
+            if duration > 0.0:
+                end_time = start + duration
                 if t0 < end_time <= t1:
                     ending.append((i, end_time))
         return ending
@@ -320,6 +412,7 @@ class CriticalityFollower:
         leaving first; the ego leaving first: the far end of the area the vehicle will enter)."""
         traffic, road = self.traffic, self.road
         self.leaves_lane.pop(i, None)
+        self._calm = None
         lane = road.lane_at(-state.y)
         centre = road.lane_center(lane)
         enter, leave = band_times(float(traffic.t0[i]), float(traffic.lateral0[i]), float(traffic.lateral1[i]),
@@ -373,6 +466,7 @@ class CriticalityFollower:
         self.pet_station = min(float(stations.min()) if len(stations) else math.inf,
                                float(far.min()) + min(self.bounds.length, self.bounds.width) if len(far) else math.inf)
         self.pet_due = NO_LOOK
+        self._calm = None
 
     def pet_horizon(self, state: EgoState) -> float:
         """When the ego's front can first reach the pending conflict station: the front's station rate is at

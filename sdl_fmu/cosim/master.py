@@ -34,12 +34,12 @@ from pathlib import Path
 from typing import Callable, Literal
 
 from ..options import DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, MAX_TIME
-from ..run_result import RunResult
+from ..results import RunRecord
+from ..results.storage import EventLog
 from ..sdl.checks import attribute_without_tire, brk_ignored, rsa_without_effect
 from ..sdl.events import ApproachingVehicle, Brake, EndOfScenario, Scenario, SurfaceAttribute
 from ..sdl.vehicles import VehicleModel
-from ..storage import EventLog
-from ..units import FOOT, from_si
+from ..units import FOOT
 from ..vehicle import Dynamics, EgoModel, EgoState, shipped_map_path
 from ..vehicle.controller import ControllerModel
 from .brake import BrakeHold
@@ -51,7 +51,7 @@ from .follow import REACTION_TIME, FollowDriver
 from .follower import CriticalityFollower
 from .inputs import CONTROLLER_COLUMNS, Inputs
 from .locate import CRITICALITY_TOLERANCE, TIME_TOLERANCE  # noqa: F401 (CRITICALITY_TOLERANCE: the master's API)
-from .recorder import Recorder, ttc_series
+from .recorder import Recorder, lead_series, ttc_series
 from .road import surface_map, surface_sections, wheel_geometry
 from .schedule import TriggerSchedule
 from .signals import lead_of
@@ -155,9 +155,6 @@ class Cosimulation:
         inputs.counts = lambda: (self.collisions, len(self.events))
         return SampleClocks(periods), inputs
 
-    def _scenario_units(self, value: float) -> float:
-        return from_si(value, self.scenario.units)
-
     def _end_distance(self) -> tuple[float, EndReason]:
         """Where the run ends by distance, and why: ES, --until-distance, or a runout past the last event."""
         candidates = [(d, reason) for d, reason in ((self.scenario.end_distance, "scenario"),
@@ -172,7 +169,7 @@ class Cosimulation:
 
     # ---- the loop -------------------------------------------------------------------------------
 
-    def run(self) -> RunResult:
+    def run(self) -> RunRecord:
         """The loop (FMPy's simulateCS over its helpers): each pass steps the FMU to the next communication point
         (a sample of the driver or a controller, the `step` limit or the earliest trigger bound), fires what became
         true there, and records a sample with the inputs from that instant on."""
@@ -263,8 +260,8 @@ class Cosimulation:
     # ---- what happens at an instant -------------------------------------------------------------
 
     def log(self, code: str, action: str, state: EgoState, **extra) -> None:
-        entry = {"code": code, "action": action, "time_s": state.time, "distance": self._scenario_units(state.s),
-                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y), **extra}
+        entry = {"code": code, "action": action, "time_s": state.time, "distance": state.s, "speed": state.v,
+                 "lateral": -state.y, **extra}  # SI: the results give them in the scenario's units
         if not self.exact:
             entry["time_uncertainty_s"] = self.time_uncertainty
         self.events.append(entry)
@@ -344,9 +341,8 @@ class Cosimulation:
                                      f"{brake_hold.event.line} is still on")
             else:
                 self.inputs.brake_hold = BrakeHold(event, state.time, state.s, state.v)
-                magnitude = event.magnitude if event.threshold == "time" else self._scenario_units(event.magnitude)
                 self.log("BRK", "on", state, pedal=event.pedal * 100, threshold=event.threshold,
-                         magnitude=magnitude, line=event.line)
+                         magnitude=event.magnitude, line=event.line)
         elif isinstance(event, SurfaceAttribute):
             for lane, value in event.settings:
                 self.log("RSA", "set", state, lane=lane, value=value, line=event.line)
@@ -373,11 +369,10 @@ class Cosimulation:
 
     # ---- the result -----------------------------------------------------------------------------
 
-    def result(self, state: EgoState, wall: float) -> RunResult:
+    def result(self, state: EgoState, wall: float) -> RunRecord:
         recorder = self.recorder
         columns = recorder.columns()
-        final = {"time_s": state.time, "distance": self._scenario_units(state.s),
-                 "speed": self._scenario_units(state.v), "lateral": self._scenario_units(-state.y)}
+        final = {"time_s": state.time, "distance": state.s, "speed": state.v, "lateral": -state.y}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
                   "steps": self.steps, "samples": recorder.sample_count}
         model, bounds = self.model, self.bounds
@@ -385,17 +380,18 @@ class Cosimulation:
             "acceleration_m/s2": bounds.acceleration, "yaw_rate_rad/s": bounds.yaw_rate,
             "source": model.bounds["source"],
             "defaults": model.defaulted if model.bounds["acceleration"] is None else []}}
-        return RunResult(
+        return RunRecord(
             scenario_path=self.scenario.path, units=self.scenario.units, dynamics=model.name, vehicle=vehicle,
             friction_meaning=model.surface_meaning,
             seed=self.options.seed, road=self.road, columns=columns,
-            vehicles=recorder.vehicle_tracks(self.traffic, columns["time"]),
+            vehicles=recorder.vehicle_tracks(self.traffic, columns, self.bounds.length, self.bounds.width),
             events=self.events, collisions=self.collisions, collision_points=self.collision_points,
             surfaces=surface_sections(self.surfaces), warnings=self.warnings, final=final, timing=timing,
-            criticality=self.criticality_summary(),
+            criticality=self.follower.summary(self.recorder.vehicle_ids),
             controller=None if self.options.controller is None else self.options.controller.summary(),
             driver=self.driver_summary(),
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
+            lead_series=partial(lead_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
 
     def driver_summary(self) -> dict | None:
@@ -408,13 +404,8 @@ class Cosimulation:
                 "braking_m/s2": follow.BRAKING, "leader_braking_m/s2": follow.LEADER_BRAKING,
                 "standstill_gap_m": follow.STANDSTILL_GAP, "period_s": self.options.driver_period}
 
-    def criticality_summary(self) -> dict:
-        """summary.json's `criticality` (docs/results.md), lengths in the scenario's units; with an FMU that cannot roll
-        back, how exactly its instants are known (`time_uncertainty_s`, as on the events)."""
-        return self.follower.summary(self.recorder.vehicle_ids, self._scenario_units)
-
 
 def run_scenario(scenario: Scenario, model: EgoModel | Path, options: RunOptions,
-                 vehicle_table: dict[int, VehicleModel]) -> RunResult:
-    """Co-simulates a parsed scenario against an ego vehicle and returns what happened (SI inside)."""
+                 vehicle_table: dict[int, VehicleModel]) -> RunRecord:
+    """Co-simulates a parsed scenario against an ego vehicle and returns what happened (RunRecord: SI)."""
     return Cosimulation(scenario, model, options, vehicle_table).run()

@@ -29,7 +29,7 @@ distance/hw.py; https://criticality-metrics.readthedocs.io):
   when its rear passed that area's far end (`conflict_far_end`); PET = t_vehicle_enters - t_ego_left.
 - time headway (SUMO's TGAP = space gap / follower speed; CriMe thw.py for a constant ego speed): the
   bumper-to-bumper gap to a vehicle ahead in the ego's path (the footprints overlap laterally) moving the same
-  way, divided by the ego's speed along the road.
+  way or stopped, divided by the ego's speed along the road; 0 once the gap has closed (in contact).
 
 Frames: ISO 8855 inertial, x = station, y = -lateral (road.py). Relative quantities are vehicle - ego: centre
 (dx, dy), velocity (vx, vy), acceleration. A vehicle moving at `speed` toward decreasing station with a
@@ -59,6 +59,9 @@ INF = math.inf
 COURSE_WINDOW = 1.0
 COURSE_TRIES = 8
 COURSE_MARGIN = 1e-6
+# heading_horizon: how many times it tries to stretch its first bound, and by what factor
+HEADING_STRETCHES = 3
+HEADING_STRETCH = 1.5
 
 
 # ---- footprint distance ---------------------------------------------------------------------------------
@@ -269,22 +272,28 @@ def _axes(ego: Footprint, dx, dy, vx, vy, length, width):
 def ttc(ego: Footprint, dx: float, dy: float, vx: float, vy: float, length: float, width: float) -> float:
     """Constant-velocity time to collision (s): the projections on an axis overlap while |p + q t| < h, an
     interval (entry, exit) of t; the footprints overlap on the intersection of the four intervals. 0 when
-    they overlap now, inf when not on a collision course (the intersection is empty, or past)."""
+    they overlap now, inf when not on a collision course (the intersection is empty, or past). The road's axes
+    first: where their two intervals already leave nothing (the common case, a car in another lane), the ego's
+    axes are not needed (more axes can only narrow the intersection)."""
+    _, _, c, s = ego
+    hx, hy, hu, hv = axis_reaches(ego, length, width)
     entry, leave = -INF, INF
-    for p, q, h in _axes(ego, dx, dy, vx, vy, length, width):
-        if q == 0.0:
-            if abs(p) >= h:
-                return INF  # never overlapping along this axis
-            continue
-        t1, t2 = (-h - p) / q, (h - p) / q
-        if t2 < t1:
-            t1, t2 = t2, t1
-        if t1 > entry:
-            entry = t1
-        if t2 < leave:
-            leave = t2
-    if entry >= leave or leave <= 0.0:
-        return INF
+    for axes in (((dx, vx, hx), (dy, vy, hy)),
+                 ((dx * c + dy * s, vx * c + vy * s, hu), (-dx * s + dy * c, -vx * s + vy * c, hv))):
+        for p, q, h in axes:
+            if q == 0.0:
+                if abs(p) >= h:
+                    return INF  # never overlapping along this axis
+                continue
+            t1, t2 = (-h - p) / q, (h - p) / q
+            if t2 < t1:
+                t1, t2 = t2, t1
+            if t1 > entry:
+                entry = t1
+            if t2 < leave:
+                leave = t2
+        if entry >= leave or leave <= 0.0:
+            return INF
     return entry if entry > 0.0 else 0.0
 
 
@@ -379,17 +388,18 @@ def drac_rate_known(t: float, t_rate: float, vx: float, vy: float, ax: float, ay
 
 def headway(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
             length: float, width: float) -> float:
-    """Time headway (s) to a vehicle ahead in the ego's path moving the same way: the bumper-to-bumper gap
-    along the road (the vehicle's rear to the front of the ego's footprint) over the ego's speed along the
-    road (SUMO's TGAP). inf when the vehicle is not ahead in the ego's path (the footprints do not overlap
-    laterally, or it is not wholly ahead), not moving the ego's way, or the ego does not move forward."""
+    """Time headway (s) to a vehicle ahead in the ego's path moving the same way or stopped: the bumper-to-bumper
+    gap along the road (the vehicle's rear to the front of the ego's footprint) over the ego's speed along the
+    road (SUMO's TGAP); 0 once the two overlap along the road (in contact: the gap has closed, as TTC is 0 there).
+    inf when the vehicle is not ahead in the ego's path (the footprints do not overlap laterally, or its centre
+    is not ahead of the ego's), comes toward the ego, or the ego does not move forward."""
     a, b, c, s = ego
     ac, as_ = abs(c), abs(s)
     gap = dx - (a * ac + b * as_) - length / 2
-    if (gap <= 0.0 or abs(dy) >= a * as_ + b * ac + width / 2 or station_rate <= 0.0
-            or vehicle_station_rate <= 0.0):
+    if (not dx > 0.0 or abs(dy) >= a * as_ + b * ac + width / 2 or station_rate <= 0.0
+            or vehicle_station_rate < 0.0):
         return INF
-    return gap / station_rate
+    return gap / station_rate if gap > 0.0 else 0.0
 
 
 def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehicle_station_rate: float,
@@ -405,7 +415,9 @@ def headway_rate(ego: Footprint, dx: float, dy: float, station_rate: float, vehi
 
 def headway_rate_known(ego: Footprint, value: float, station_rate: float, vehicle_station_rate: float,
                   station_acceleration: float, yaw_rate: float) -> float:
-    """`headway_rate` where the headway `value` is known to be defined."""
+    """`headway_rate` where the headway `value` is known to be defined (0 where it is held at 0: in contact)."""
+    if value == 0.0:
+        return 0.0
     a, b, c, s = ego
     cos_rate = -math.copysign(1.0, c) * s * yaw_rate
     sin_rate = math.copysign(1.0, s) * c * yaw_rate
@@ -417,10 +429,10 @@ def headways(ego: Footprint, dx, dy, station_rate: float, vehicle_station_rate, 
     a, b, c, s = ego
     ac, as_ = abs(c), abs(s)
     gap = dx - (a * ac + b * as_) - length / 2
-    ahead = (gap > 0.0) & (np.abs(dy) < a * as_ + b * ac + width / 2) & (vehicle_station_rate > 0.0)
+    ahead = (dx > 0.0) & (np.abs(dy) < a * as_ + b * ac + width / 2) & (vehicle_station_rate >= 0.0)
     if station_rate <= 0.0:
         return np.full(np.shape(gap), INF)
-    return np.where(ahead, gap / station_rate, INF)
+    return np.where(ahead, np.where(gap > 0.0, gap / station_rate, 0.0), INF)
 
 
 # ---- post-encroachment time -------------------------------------------------------------------------------
@@ -559,7 +571,25 @@ def heading_horizon(dx: float, dy: float, vx: float, vy: float, radius_sum: floa
         within = slowing
     fastest = speed + acceleration * within
     bound = margin / (2 * fastest / rho + 2 * acceleration / speed)
-    return bound if bound < within else within
+    bound = bound if bound < within else within
+    # longer, where the angles themselves (not their rates) prove it: over tau the relative velocity moves by at
+    # most A tau (its direction by at most asin(A tau / |v0|), its size to at least |v0| - A tau), the centre
+    # offset by at most P = |v0| tau + A tau^2 / 2 (its direction by at most asin(P / rho0), its length to at least
+    # rho0 - P); the approach goes on while alpha0 + those turns + asin(radius_sum / (rho0 - P)) stays below
+    # acos(turn / (|v0| - A tau)). Each stretch of the bound is kept only if that holds at its end (every term
+    # worsens as tau grows, so it holds before it).
+    for _ in range(HEADING_STRETCHES):
+        longer = HEADING_STRETCH * bound
+        turned = acceleration * longer
+        moved = speed * longer + 0.5 * turned * longer
+        slowest, nearest = speed - turned, rho - moved
+        if not (turn < slowest and radius_sum < nearest and turned < speed and moved < rho):
+            break
+        if math.acos(turn / slowest) - math.asin(radius_sum / nearest) - math.asin(moved / rho) \
+                - math.asin(turned / speed) - alpha <= 0.0:
+            break
+        bound = longer
+    return bound
 
 
 def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, half_y: float, until: float,
@@ -590,16 +620,6 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
     side = 1.0 if dy > 0.0 else -1.0
     lateral, ahead, speed, gap = side * vy, abs(dx) + half_x, abs(vx), side * dy - half_y
 
-    def proven(horizon: float) -> bool:
-        drift = acceleration * horizon  # F
-        if speed <= drift:
-            return False
-        slip = 0.5 * drift * horizon  # E
-        grow = turn * horizon
-        reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
-        return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
-                > COURSE_MARGIN)
-
     # the test only gets harder as T grows (every term worsens). A first T from its leading terms (S ~ S0 =
     # (|dx| + half_x) / |vx|: gap + min(0, sigma vy) S0 - (A S0 + turn + max(0, -sigma vy)) T > 0), shortened
     # until the test passes
@@ -611,10 +631,23 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
         return 0.0
     horizon = min(min(until, COURSE_WINDOW), 0.9 * room / (acceleration * reach0 + turn + max(0.0, -lateral)))
     for _ in range(COURSE_TRIES):
-        if proven(horizon):
+        if _course_proven(horizon, lateral, ahead, speed, gap, turn, acceleration):
             return horizon
         horizon *= 0.75
     return 0.0
+
+
+def _course_proven(horizon: float, lateral: float, ahead: float, speed: float, gap: float, turn: float,
+                   acceleration: float) -> bool:
+    """`course_horizon`'s test for one T (`horizon`)."""
+    drift = acceleration * horizon  # F
+    if speed <= drift:
+        return False
+    slip = 0.5 * drift * horizon  # E
+    grow = turn * horizon
+    reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
+    return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
+            > COURSE_MARGIN)
 
 
 def distance_horizons(distance, frozen_rate, floor, turn: float, acceleration):

@@ -8,12 +8,13 @@ from array import array
 
 import numpy as np
 
-from ..run_result import VehicleTracks
-from ..storage import ChunkedTable, release_pages
+from ..results import VehicleTracks
+from ..results.storage import ChunkedTable, release_pages
 from ..vehicle import EgoState
 from .extremes import RANGE
 from .geometry import Footprint
 from .measures import distances, ttcs
+from .signals import bumper_gaps, extents, lead_track
 from .traffic import Traffic
 from .triggers import EgoBounds
 
@@ -59,22 +60,33 @@ class Recorder:
         table = self.ego_rows.finish()
         return {name: table[:, i] for i, name in enumerate((*EGO_COLUMNS, *self.wheel_columns, *self.extra_columns))}
 
-    def vehicle_tracks(self, traffic: Traffic, times: np.ndarray) -> VehicleTracks:
-        """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, into
-        one disk-backed table; the sample times are read in order and their pages released as it goes
-        (memory stays bounded)."""
+    def vehicle_tracks(self, traffic: Traffic, columns: dict, ego_length: float, ego_width: float) -> VehicleTracks:
+        """Each vehicle's samples from its closed-form motion, from its spawn to the sample it left at, and the
+        bumper gap to it (signals.bumper_gaps, the ego's extent along the road at each sample), into one
+        disk-backed table; the samples are read in order and their pages released as it goes (memory stays
+        bounded)."""
+        times, ego_x, psi = columns["time"], columns["x"], columns["psi"]
         first = np.array(self.spawn_sample, dtype=np.int64)
         last = np.array(self.leave_sample, dtype=np.int64)
         last[last < 0] = self.sample_count  # still on the road at the end
-        track_rows = ChunkedTable(3)
+        track_rows = ChunkedTable(4)
+        # the ego's extent ahead of its centre along the road at each sample (signals.extents, with math per sample)
+        along = np.array([extents(ego_length, ego_width, angle)[0] for angle in np.asarray(psi).tolist()]) \
+            if len(first) else np.zeros(0)
+        release_pages(psi)
         unreleased = 0
         for i in range(len(first)):
-            track_rows.extend(np.column_stack(traffic.track(i, np.asarray(times[first[i]:last[i]]))))
+            rows = slice(first[i], last[i])
+            station, lateral, speed = traffic.track(i, np.asarray(times[rows]))
+            gap = bumper_gaps(station - np.asarray(ego_x[rows]), along[rows], float(traffic.length[i]))
+            track_rows.extend(np.column_stack((station, lateral, speed, gap)))
             unreleased += last[i] - first[i]
             if unreleased > RELEASE_ROWS:
-                release_pages(times)
+                for column in (times, ego_x):
+                    release_pages(column)
                 unreleased = 0
-        release_pages(times)
+        for column in (times, ego_x):
+            release_pages(column)
         offsets = np.concatenate([[0], np.cumsum(last - first)])
         return VehicleTracks(track_rows.finish(), np.array(self.vehicle_ids, dtype=np.int64), traffic.models,
                              first, offsets)
@@ -88,7 +100,7 @@ def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: Eg
     """Per sample, the smallest time to collision over the vehicles within RANGE (s; nan where no vehicle is on
     a collision course): the plot's TTC curve, from the samples and the vehicles' closed-form motions (each
     vehicle from its first sample to the one it left at, -1: still on the road), computed when asked for
-    (RunResult.ttc_series), not during the run; not part of timeseries.csv."""
+    (RunRecord.ttc_series), not during the run; not part of timeseries.csv."""
     times = np.asarray(columns["time"])
     series = np.full(len(times), np.inf)
     last = np.where(last < 0, len(times), last)
@@ -121,3 +133,14 @@ def ttc_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: Eg
     series[~np.isfinite(series)] = np.nan
     return series
 
+
+def lead_series(traffic: Traffic, first: np.ndarray, last: np.ndarray, bounds: EgoBounds, columns: dict) -> dict:
+    """Per sample, the lead-vehicle signals (signals.lead_track: whether there is a vehicle ahead in the ego's
+    path, its index, the bumper gap to it, its speed along the road, ...) from the samples and the vehicles'
+    closed-form motions, computed when asked for (RunRecord.lead_series: the plot), not during the run."""
+    last = np.where(last < 0, len(columns["time"]), last)
+    times = np.asarray(columns["time"])
+    vehicles = ((i, int(first[i]), *traffic.track(i, times[first[i]:last[i]]), float(traffic.length[i]),
+                 float(traffic.width[i])) for i in range(len(first)))
+    return lead_track(columns["x"], columns["y"], columns["psi"], columns["vx"], columns["vy"], bounds.length,
+                      bounds.width, vehicles)

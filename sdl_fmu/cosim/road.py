@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from itertools import accumulate
 
 from ..lazy_sequence import LazySequence
-from ..run_result import SurfaceSection
+from ..results import SurfaceSection
 from ..sdl.events import Road, Scenario, SurfaceAttribute
 
 

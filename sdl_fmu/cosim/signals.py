@@ -29,6 +29,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 NO_TTC = 1000.0  # s: lead_ttc while the gap does not close or there is no lead vehicle (a finite sentinel)
 NO_GAP = 1000.0  # m: lead_gap without a lead vehicle (a finite sentinel)
 
@@ -100,3 +102,54 @@ def lead_of(state, ego_length: float, ego_width: float, traffic, t: float | None
     station, lateral, speed, _, _ = traffic.motion(active, t)
     return lead_vehicle(state.x, state.y, state.psi, state.vx, state.vy, ego_length, ego_width, station, lateral,
                         speed, traffic.length[active], traffic.width[active], active)
+
+
+def bumper_gaps(dx, along: np.ndarray | float, lengths):
+    """The bumper-to-bumper gap along the road to each vehicle (m; NumPy arrays or floats): for one ahead (dx, its
+    centre's station minus the ego's, > 0) `lead_gap`'s dx - the ego's extent ahead - its half length, 0 when the
+    footprints' road extents overlap; for one behind the same distance from its front to the ego's rear, negative
+    (dx + the ego's extent + its half length, 0 when they overlap). `along`: `extents`' first value."""
+    reach = along + lengths / 2
+    return np.where(dx > 0.0, np.maximum(dx - along - lengths / 2, 0.0), np.minimum(dx + reach, 0.0))
+
+
+def lead_track(ego_x, ego_y, ego_psi, ego_vx, ego_vy, ego_length: float, ego_width: float, vehicles) -> dict:
+    """`lead_vehicle` at every sample of a run, vectorised over the samples (the same operations in the same order:
+    the same bits, tested): the ego's sampled x, y, psi, vx, vy as arrays, and per traffic vehicle in ascending
+    index order (index, first sample, station, lateral, speed arrays from that sample on, length, width). The
+    ego's extents and cos / sin are taken with `math` per sample, as `lead_vehicle` takes them. Returns arrays
+    `present`, `index` (-1: none), `gap`, `speed`, `relative_speed`, `ttc` and `lateral_offset`, with
+    `lead_vehicle`'s values where there is no lead vehicle."""
+    ego_x, ego_y = np.asarray(ego_x, dtype=float), np.asarray(ego_y, dtype=float)
+    psi = np.asarray(ego_psi, dtype=float)
+    samples = len(psi)
+    a, b = ego_length / 2, ego_width / 2
+    cos = np.array([math.cos(p) for p in psi.tolist()])
+    sin = np.array([math.sin(p) for p in psi.tolist()])
+    c, s = np.abs(cos), np.abs(sin)
+    along, across = a * c + b * s, a * s + b * c
+    best = np.full(samples, -1, dtype=np.int64)
+    best_gap = np.full(samples, math.inf)
+    best_speed = np.zeros(samples)
+    best_lateral = np.zeros(samples)
+    for index, first, station, lateral, speed, length, width in vehicles:
+        rows = slice(first, first + len(station))
+        station, lateral = np.asarray(station, dtype=float), np.asarray(lateral, dtype=float)
+        with np.errstate(invalid="ignore"):
+            dx = station - ego_x[rows]
+            dy = -lateral - ego_y[rows]
+            gap = dx - along[rows] - length / 2
+            chosen = (dx > 0.0) & (np.abs(dy) < across[rows] + width / 2) & (gap < best_gap[rows])
+        where = np.flatnonzero(chosen) + first
+        best[where], best_gap[where] = index, gap[chosen]
+        best_speed[where], best_lateral[where] = np.asarray(speed, dtype=float)[chosen], lateral[chosen]
+    present = best >= 0
+    gap = np.where(present, np.where(best_gap > 0.0, best_gap, 0.0), NO_GAP)
+    speed = np.where(present, -best_speed, 0.0)
+    ego_along = np.asarray(ego_vx, dtype=float) * cos - np.asarray(ego_vy, dtype=float) * sin
+    relative = np.where(present, speed - ego_along, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ttc = np.where(present & (relative < 0.0), gap / -relative, NO_TTC)
+    offset = np.where(present, -best_lateral - ego_y, 0.0)
+    return {"present": present, "index": best, "gap": gap, "speed": speed, "relative_speed": relative, "ttc": ttc,
+            "lateral_offset": offset}

@@ -61,6 +61,10 @@ class Traffic:
         self.motion_owner = array("q")
         self._grouped = None  # the motions grouped by vehicle, built when the tracks are computed
         self.active = np.zeros(0, dtype=np.int64)  # indices of the vehicles on the road, ascending
+        # per vehicle, its current motion (`row`) in plain floats, read from the arrays when it begins: the plain-
+        # float forms read it instead of seven array elements
+        self._rows: dict[int, tuple[float, ...]] = {}
+        self._active_list = (None, [])
 
     def _grow(self) -> None:
         for name in (*self._FLOATS, "where", "next_action", "in_contact", "present"):
@@ -91,6 +95,15 @@ class Traffic:
         self.active = np.append(self.active, i)
         return i
 
+    def row(self, i: int) -> tuple[float, ...]:
+        """Vehicle i's current motion in plain floats: (t0, station0, lateral0, speed0, lateral1, speed1,
+        duration). Read from the arrays for a vehicle placed there directly (not by `add`)."""
+        row = self._rows.get(i)
+        if row is None:
+            row = (float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
+                   float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]))
+        return row
+
     def _arm(self, i: int) -> None:
         action = self.armed(i)
         self.trigger_seconds[i] = np.nan if action is None else action.trigger.seconds
@@ -99,6 +112,13 @@ class Traffic:
     def armed(self, i: int) -> Action | None:
         actions = self.events[i].actions
         return actions[self.next_action[i]] if self.next_action[i] < len(actions) else None
+
+    def active_list(self) -> list[int]:
+        """`active` as a list of ints (made once per change of `active`: the per-step loops read it)."""
+        cached = self._active_list
+        if cached[0] is not self.active:
+            cached = self._active_list = (self.active, self.active.tolist())
+        return cached[1]
 
     def remove(self, i: int) -> None:
         self.present[i] = False
@@ -123,9 +143,7 @@ class Traffic:
 
     def motion_of(self, i: int, t: float) -> tuple[float, float, float, float, float]:
         """`motion` of vehicle i in plain floats, operation for operation (both forms give the same bits)."""
-        t0, station0, lateral0, speed0, lateral1, speed1, duration = (
-            float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
-            float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]))
+        t0, station0, lateral0, speed0, lateral1, speed1, duration = self.row(i)
         elapsed = t - t0
         if elapsed < duration:
             fraction = elapsed / duration
@@ -141,9 +159,7 @@ class Traffic:
 
     def at(self, i: int, t: float) -> tuple[float, float, float]:
         """(station, lateral, speed) of vehicle i at time t, in plain floats: the motion law."""
-        t0, station0, lateral0, speed0, lateral1, speed1, duration = (
-            float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]), float(self.speed0[i]),
-            float(self.lateral1[i]), float(self.speed1[i]), float(self.duration[i]))
+        t0, station0, lateral0, speed0, lateral1, speed1, duration = self.row(i)
         elapsed = t - t0
         if elapsed < duration:
             fraction = elapsed / duration
@@ -168,8 +184,10 @@ class Traffic:
         return action
 
     def _record_motion(self, i: int) -> None:
-        self.motion_rows.extend((self.t0[i], self.station0[i], self.lateral0[i], self.speed0[i], self.lateral1[i],
-                                 self.speed1[i], self.duration[i]))
+        row = self._rows[i] = (float(self.t0[i]), float(self.station0[i]), float(self.lateral0[i]),
+                               float(self.speed0[i]), float(self.lateral1[i]), float(self.speed1[i]),
+                               float(self.duration[i]))
+        self.motion_rows.extend(row)
         self.motion_owner.append(i)
 
     def history(self, i: int) -> np.ndarray:

@@ -23,9 +23,9 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
-from ..fmu.cache import _compiler_identity, _remove_abandoned_builds, cache_directory
+from ..fmu.cache import compiler_identity, remove_abandoned_builds, build_lock, cache_directory
 from ..fmu.package import (FMI_HEADERS, LINUX_BINARY_DIRECTORY, MINGW_COMPILER, WINDOWS_BINARY_DIRECTORY, BuildError,
-                           FmiVersion, _binary_command, _run_compilers, fmi_headers, mingw_compiler)
+                           FmiVersion, binary_command, fmi_headers, mingw_compiler, run_compilers)
 from ..interface import INPUT, OUTPUT, PARAMETER, Interface, load_units, parse_interface
 
 MODEL_IDENTIFIER = "SdlScenario"
@@ -151,11 +151,11 @@ def binary_key(fmi_version: FmiVersion) -> str:
     compiler = os.environ.get("CC", "gcc")
     cross = mingw_compiler()
     for part in (f"sdl-fmu {__version__}", f"fmi {fmi_version}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
-                 _compiler_identity(compiler), f"mingw {cross}", _compiler_identity(cross) if cross else "",
+                 compiler_identity(compiler), f"mingw {cross}", compiler_identity(cross) if cross else "",
                  " ".join(EXTRA_FLAGS)):
         digest.update(part.encode() + b"\0")
     inputs = {**source_files(fmi_version), "SdlScenario.json": INTERFACE_FILE, "binary.py": Path(__file__),
-              "package.py": Path(sys.modules[_binary_command.__module__].__file__)}
+              "package.py": Path(sys.modules[binary_command.__module__].__file__)}
     for name in sorted(inputs):
         digest.update(name.encode() + b"\0")
         digest.update(hashlib.sha256(inputs[name].read_bytes()).digest())
@@ -181,39 +181,42 @@ def build_binaries(fmi_version: FmiVersion, out: Path) -> Path:
         shutil.copy(fmi_headers() / name, sources / name)
     compiled = compiled_sources(fmi_version)
     (sources / "buildDescription.xml").write_bytes(build_description(MODEL_IDENTIFIER, compiled))
-    commands = [_binary_command(sources, compiled, out / "binaries" / LINUX_BINARY_DIRECTORY[fmi_version] /
-                                binary_name(False), extra_flags=EXTRA_FLAGS)]
+    commands = [binary_command(sources, compiled, out / "binaries" / LINUX_BINARY_DIRECTORY[fmi_version] /
+                               binary_name(False), extra_flags=EXTRA_FLAGS)]
     cross = mingw_compiler()
     if cross:
-        commands.append(_binary_command(sources, compiled, out / "binaries" / WINDOWS_BINARY_DIRECTORY[fmi_version] /
-                                        binary_name(True), cross, windows=True, extra_flags=EXTRA_FLAGS))
+        commands.append(binary_command(sources, compiled, out / "binaries" / WINDOWS_BINARY_DIRECTORY[fmi_version] /
+                                       binary_name(True), cross, windows=True, extra_flags=EXTRA_FLAGS))
     else:
         wanted = os.environ.get("SDL_FMU_MINGW_CC", MINGW_COMPILER)
         print(f"sdl-fmu: {wanted} not found: the scenario FMU gets no Windows binary (Debian: apt-get install "
               "gcc-mingw-w64-x86-64)", file=sys.stderr)
-    _run_compilers(commands)
+    run_compilers(commands)
     return out
 
 
 def cached_binaries(fmi_version: FmiVersion = 2) -> Path:
     """The folder holding sources/ and binaries/ of the generic scenario binary for this FMI version, from the
-    per-user FMU cache (built on first use; two processes building at once never corrupt it)."""
+    per-user FMU cache (built on first use; a second process waits for a build in progress)."""
     if fmi_version not in FMI_LAYERS:
         raise BuildError(f"FMI version {fmi_version!r} is not supported: choose 2 or 3")
     folder = cache_directory() / f"{MODEL_IDENTIFIER}-fmi{fmi_version}-{binary_key(fmi_version)[:24]}"
-    if (folder / "binaries" / LINUX_BINARY_DIRECTORY[fmi_version] / binary_name(False)).is_file():
+    built = folder / "binaries" / LINUX_BINARY_DIRECTORY[fmi_version] / binary_name(False)
+    if built.is_file():
         return folder
-    root = cache_directory()
-    root.mkdir(parents=True, exist_ok=True)
-    _remove_abandoned_builds(root)
-    work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
-    try:
-        build_binaries(fmi_version, work / "entry")
+    with build_lock(f"{MODEL_IDENTIFIER}-fmi{fmi_version}"):  # a build in progress elsewhere: wait for it
+        if built.is_file():
+            return folder
+        root = cache_directory()
+        remove_abandoned_builds(root)
+        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
         try:
-            os.rename(work / "entry", folder)  # atomic; fails if another process got there first
-        except OSError:
-            if not (folder / "binaries").is_dir():
-                raise
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+            build_binaries(fmi_version, work / "entry")
+            try:
+                os.rename(work / "entry", folder)  # atomic; fails if another process got there first
+            except OSError:
+                if not (folder / "binaries").is_dir():
+                    raise
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
     return folder

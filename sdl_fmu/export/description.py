@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import html
-import time
 import xml.etree.ElementTree as ET
 
 from .. import __version__
@@ -80,8 +79,7 @@ def dependencies(interface: Interface) -> dict[str, list[str]]:
 def _root_attributes(interface: Interface, description: str) -> dict[str, str]:
     return {"description": description, "author": AUTHOR, "version": __version__, "copyright": COPYRIGHT,
             "license": LICENSE, "generationTool": f"sdl-fmu {__version__} (the generic scenario runtime)",
-            "generationDateAndTime": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "variableNamingConvention": "structured"}
+            "variableNamingConvention": "structured"}  # no generationDateAndTime: the same export, the same bytes
 
 
 def model_description(interface: Interface, guid: str, fmi_version: int, description: str, experiment: dict,
@@ -267,7 +265,11 @@ surfaces to the ego's inputs. With an ego vehicle FMU of sdl-fmu's interface (th
 accelerations, stopped): leave the input unconnected and set its <code>ego_*_connected</code> parameter to false; the
 FMU then derives it as <code>sdl-fmu run</code> does. A controller in the loop connects its requests to
 <code>request_*</code> and reads the <code>lead_*</code> signals; the arbitration parameters say which channels it
-takes over.</p>
+takes over (its requests may take any finite value: the arbitration limits them).</p>
+<p>The start (the events at distance 0, the driver's first sample) is taken from the inputs when the FMU leaves
+initialization mode and again from those of the first <code>doStep</code> (a warning in the log if they differ): an
+ego that fills its outputs only when it leaves initialization is still started right, but its own first step has
+the commands the master read before. Give the ego's outputs in initialization mode, as FMI 2.0 asks.</p>
 
 <h2>Stepping: triggers inside a step</h2>
 <p>With <code>trigger_prediction</code> (the default), <code>doStep(t, h)</code> knows the ego at t only (its inputs)
@@ -275,8 +277,9 @@ and predicts its path over the step from its pose, velocity, acceleration and ya
 distance, a BRK threshold or stop, a closure time, a contact, a departure, the run's end) is located on that path
 (to 1e-9 s) and fires there; <code>last_event_time</code> is its instant, and the outputs at t + h show what fired.
 In a master stepping at a fixed h, an event thus takes effect at the first communication point at or after its
-instant. The prediction's error over one step is at most (a jump of the ego's acceleration inside the step) x
-h<sup>2</sup> / 2 in position, so an instant is located within that distance divided by the closing speed of the
+instant; an instant within 1e-9 relative after a communication point (rounding: masters form their clocks
+differently) counts as that point's. The prediction's error over one step is at most (a jump of the ego's
+acceleration inside the step) x h<sup>2</sup> / 2 in position, so an instant is located within that distance divided by the closing speed of the
 trigger; only an event whose true instant lies that close to a communication point can fall on the neighbouring
 one. FMI 3.0: an importer that allows early return gets <code>fmi3DoStep</code> back at the instant of the first
 event (<code>earlyReturn</code>, <code>lastSuccessfulTime</code>) and can synchronise every FMU there. Without

@@ -16,12 +16,11 @@ import math
 import os
 import shutil
 import tempfile
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..fmu.documentation import LICENSE_ENTRY, license_text
-from ..fmu.package import LINUX_BINARY_DIRECTORY, WINDOWS_BINARY_DIRECTORY, FmiVersion
+from ..fmu.package import LINUX_BINARY_DIRECTORY, WINDOWS_BINARY_DIRECTORY, FmiVersion, zip_fmu
 from ..sdl.events import Scenario
 from ..sdl.parser import decode_text, describe
 from ..sdl.vehicles import VehicleModel, default_vehicle_table_path, load_vehicle_table
@@ -33,6 +32,15 @@ DATA_ENTRY = "resources/scenario.sdlfmu"
 TEXT_ENTRY = "resources/scenario.sdl"
 DOCUMENTATION_ENTRY = "documentation/index.html"
 MAX_SLOTS = 64
+# relative (of max(1 s, |t|)): an instant this close after a communication point t belongs to the step that ends at
+# t (runtime/scenario.h, TIE_TOLERANCE; docs/scenario-fmu.md, Stepping, ties)
+TIE_TOLERANCE = 1e-9
+
+
+def tie_tolerance(t: float) -> float:
+    """How far after the communication point t (s) an instant still shows at t: a driver sample, a trigger's located
+    instant (`last_event_time`), an end by time."""
+    return TIE_TOLERANCE * max(1.0, abs(t))
 
 
 class ScenarioFmuError(ValueError):
@@ -138,14 +146,9 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
             encoding="utf-8")
         (root / LICENSE_ENTRY).parent.mkdir(parents=True)
         (root / LICENSE_ENTRY).write_text(license_text(), encoding="utf-8")
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        partial = out_path.with_name(out_path.name + ".partial")
-        with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
-            for path in sorted(root.rglob("*")):
-                if path.is_file():
-                    archive.write(path, path.relative_to(root).as_posix())
-        partial.replace(out_path)  # atomic: a failed export never leaves a half-written FMU
+        zip_fmu(root, out_path)  # atomic, and the same scenario and options give the same bytes (no dates)
     return ScenarioFmu(out_path, {name: starts[name] for name in interface.names("parameter")}, guid)
 
 
-__all__ = ["MODEL_IDENTIFIER", "ScenarioFmu", "ScenarioFmuError", "write_scenario_fmu"]
+__all__ = ["MODEL_IDENTIFIER", "TIE_TOLERANCE", "ScenarioFmu", "ScenarioFmuError", "tie_tolerance",
+           "write_scenario_fmu"]

@@ -4,12 +4,14 @@ Location: $SDL_FMU_CACHE if set, else $XDG_CACHE_HOME/sdl-fmu, else ~/.cache/sdl
 (model, FMI version, input hash) holds `fmi<version>/<Model>.fmu`. A changed model, interface, tire
 file, runtime source, compiler or flag changes the hash, so a stale FMU is never found. Each build goes
 into a private temporary folder inside the cache that is renamed into place in one step, so two
-processes building at once never see or leave a half-built FMU (the loser of the race discards its copy);
-the temporary folder of a killed build is removed by the next build.
+processes building at once never see or leave a half-built FMU; a process that finds a build of the same model in
+progress waits for it (build_lock) instead of building the same FMU again. The temporary folder of a killed build is
+removed by the next build.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import os
@@ -17,6 +19,7 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Iterator
 
 from .. import __version__, paths
 from ..names import BUILT, SHIPPED_CONTROLLERS, Dynamics
@@ -28,7 +31,7 @@ BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
 
 
 @functools.lru_cache(maxsize=None)
-def _compiler_identity(compiler: str) -> str:
+def compiler_identity(compiler: str) -> str:
     """The compiler's own version banner (a different gcc builds a different binary)."""
     try:
         completed = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
@@ -72,8 +75,8 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     cross_compiler = mingw_compiler()  # None: the FMU gets no Windows binary, a different FMU
     for part in (f"sdl-fmu {__version__}", f"model {BUILT[dynamics]}", f"fmi {fmi_version}",
                  f"casadi {casadi.__version__}", f"fmpy {fmpy.__version__}", f"CC {compiler}",
-                 _compiler_identity(compiler), f"mingw {cross_compiler}",
-                 _compiler_identity(cross_compiler) if cross_compiler else ""):
+                 compiler_identity(compiler), f"mingw {cross_compiler}",
+                 compiler_identity(cross_compiler) if cross_compiler else ""):
         digest.update(part.encode() + b"\0")
     for name, path in _input_files(dynamics):
         digest.update(name.encode() + b"\0")
@@ -81,7 +84,7 @@ def build_key(dynamics: Dynamics, fmi_version: FmiVersion = 2) -> str:
     return digest.hexdigest()
 
 
-def _remove_abandoned_builds(root: Path) -> None:
+def remove_abandoned_builds(root: Path) -> None:
     """Temporary build folders of processes that no longer exist (killed during a build)."""
     for folder in root.glob(".building-*-*"):
         pid = folder.name.split("-")[1]
@@ -93,6 +96,37 @@ def _remove_abandoned_builds(root: Path) -> None:
             shutil.rmtree(folder, ignore_errors=True)
         except OSError:
             pass  # alive, someone else's
+
+
+@contextlib.contextmanager
+def build_lock(name: str) -> Iterator[None]:
+    """Held while the cache builds `name` (a model): a second process (or thread) building it waits here for the build
+    in progress, then finds its result instead of building it again. An advisory lock (flock) on the file
+    .lock-<name> in the cache, released by the system if its holder dies; the holder removes the file (a waiter that
+    locked a removed file locks the new one), so the cache holds no lock file between builds. Without flock
+    (Windows) there is no waiting: the renames into place still keep the cache whole."""
+    root = cache_directory()
+    root.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    path = root / f".lock-{name}"
+    while True:
+        handle = open(path, "a")
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            if os.stat(path).st_ino == os.fstat(handle.fileno()).st_ino:
+                break  # the file in place is the one locked
+        except FileNotFoundError:
+            pass  # its holder removed it on the way out: lock the next one
+        handle.close()
+    try:
+        yield
+    finally:
+        os.unlink(path)  # before the unlock: a waiter on this file retries on a new one
+        handle.close()
 
 
 def _cache_folder(dynamics: Dynamics, fmi_version: FmiVersion) -> Path:
@@ -107,27 +141,35 @@ def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, .
     folders = {version: _cache_folder(dynamics, version) for version in fmi_versions}
     targets = {version: fmu_path(folder, dynamics, version) for version, folder in folders.items()}
     missing = tuple(version for version, target in targets.items() if not target.is_file())
-    if missing:
-        root = cache_directory()
-        root.mkdir(parents=True, exist_ok=True)
-        _remove_abandoned_builds(root)
-        if announce is not None:
-            announce(targets[missing[0]])
-        work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
-        try:
-            build_fmus(dynamics, work / "all", missing)
-            for version in missing:
-                staging = work / f"fmi{version}-entry"
-                fmu_path(staging, dynamics, version).parent.mkdir(parents=True)
-                os.rename(fmu_path(work / "all", dynamics, version), fmu_path(staging, dynamics, version))
-                try:
-                    os.rename(staging, folders[version])  # atomic; fails if another process got there first
-                except OSError:
-                    if not targets[version].is_file():
-                        raise
-        finally:
-            shutil.rmtree(work, ignore_errors=True)
+    if not missing:
+        return [targets[version] for version in fmi_versions]
+    if announce is not None:
+        announce(targets[missing[0]])
+    with build_lock(BUILT[dynamics]):  # a build of this model in progress elsewhere: wait for it
+        missing = tuple(version for version, target in targets.items() if not target.is_file())
+        if missing:
+            _build_into_cache(dynamics, missing, folders, targets)
     return [targets[version] for version in fmi_versions]
+
+
+def _build_into_cache(dynamics: Dynamics, missing: tuple[FmiVersion, ...], folders: dict, targets: dict) -> None:
+    """Builds the missing FMI versions together into a temporary folder and renames each into its cache folder."""
+    root = cache_directory()
+    remove_abandoned_builds(root)
+    work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
+    try:
+        build_fmus(dynamics, work / "all", missing)
+        for version in missing:
+            staging = work / f"fmi{version}-entry"
+            fmu_path(staging, dynamics, version).parent.mkdir(parents=True)
+            os.rename(fmu_path(work / "all", dynamics, version), fmu_path(staging, dynamics, version))
+            try:
+                os.rename(staging, folders[version])  # atomic; fails if another process got there first
+            except OSError:
+                if not targets[version].is_file():
+                    raise
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
 
 
 def cached_fmu(dynamics: Dynamics = "simple", fmi_version: FmiVersion = 2, announce=None) -> Path:

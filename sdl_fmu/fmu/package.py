@@ -40,6 +40,8 @@ FMI_VERSIONS: tuple[FmiVersion, ...] = (2, 3)
 # binaries/<platform>/ of each binary, as each FMI version names the platform
 LINUX_BINARY_DIRECTORY = {2: "linux64", 3: "x86_64-linux"}
 WINDOWS_BINARY_DIRECTORY = {2: "win64", 3: "x86_64-windows"}
+# the date of every entry of an FMU's zip (the zip format's earliest): an FMU does not change with the clock
+ZIP_DATE = (1980, 1, 1, 0, 0, 0)
 # the standard's headers (BSD-2-Clause, shipped with fmpy), copied into sources/ so that one compiler line
 # rebuilds the binary anywhere, without an FMI SDK
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -88,9 +90,12 @@ def _object_command(sources_dir: Path, source: str, output: Path, compiler: str 
             str(sources_dir / source), "-o", str(output)]
 
 
-def _binary_command(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
-                    objects: tuple[Path, ...] = (), windows: bool = False,
-                    extra_flags: tuple[str, ...] = ()) -> list[str]:
+def binary_command(sources_dir: Path, sources: list[str], output: Path, compiler: str | None = None,
+                   objects: tuple[Path, ...] = (), windows: bool = False,
+                   extra_flags: tuple[str, ...] = ()) -> list[str]:
+    """The compiler line that compiles `sources` (in `sources_dir`) with `objects` into the shared library `output`
+    (a Linux .so, or with windows=True and a mingw-w64 `compiler` a DLL); -lm last, so that libm is a dependency of
+    the binary itself."""
     # a Windows DLL links libgcc statically, so that it needs system DLLs only (KERNEL32, msvcrt)
     link_flags = ["-static-libgcc", "-Wl,--no-insert-timestamp"] if windows else []
     output.parent.mkdir(parents=True, exist_ok=True)
@@ -98,9 +103,10 @@ def _binary_command(sources_dir: Path, sources: list[str], output: Path, compile
             *[str(sources_dir / s) for s in sources], *map(str, objects), "-o", str(output), "-lm"]
 
 
-def _run_compilers(commands: list[list[str]], progress: _Progress | None = None) -> None:
+def run_compilers(commands: list[list[str]], progress: _Progress | None = None) -> None:
     """Runs compiler commands side by side (gcc and mingw-w64 at once, each file its own process); raises
-    BuildError naming each failure. `progress` advances as each command ends."""
+    BuildError naming each failure by the file the command writes (its -o argument). `progress` advances as each
+    command ends."""
     failures = []
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(len(commands), 1)) as pool:
         running = {pool.submit(subprocess.run, command, capture_output=True, text=True): command
@@ -108,11 +114,16 @@ def _run_compilers(commands: list[list[str]], progress: _Progress | None = None)
         for done in concurrent.futures.as_completed(running):
             command, completed = running[done], done.result()
             if completed.returncode != 0:
-                failures.append(f"compiling {Path(command[-1]).name} failed:\n{' '.join(command)}\n{completed.stderr}")
+                failures.append(f"compiling {_output_of(command)} failed:\n{' '.join(command)}\n{completed.stderr}")
             if progress is not None:
                 progress.advance()
     if failures:
         raise BuildError("\n".join(failures))
+
+
+def _output_of(command: list[str]) -> str:
+    """The name of the file a compiler command writes (the argument after -o; a link line ends with -lm)."""
+    return Path(command[command.index("-o") + 1]).name if "-o" in command[:-1] else command[0]
 
 
 class _Progress:
@@ -149,7 +160,7 @@ def compile_binary(sources_dir: Path, sources: list[str], output: Path, compiler
                    objects: tuple[Path, ...] = (), windows: bool = False, extra_flags: tuple[str, ...] = ()) -> None:
     """Compiles and links the FMU's shared library (a Linux .so, or with windows=True and mingw-w64 a DLL);
     -lm last, so libm is a dependency of the binary itself."""
-    _run_compilers([_binary_command(sources_dir, sources, output, compiler, objects, windows, extra_flags)])
+    run_compilers([binary_command(sources_dir, sources, output, compiler, objects, windows, extra_flags)])
 
 
 def build_fmu(dynamics: Dynamics = "simple", out_dir: Path = Path("dist"), fmi_version: FmiVersion = 2) -> Path:
@@ -207,7 +218,7 @@ def _build(dynamics: Dynamics, equations, out_dir: Path, fmi_versions: tuple[Fmi
             commands += [_object_command(generated, source, output, cross, windows=True, optimization=level)
                          for source, output, level in zip(model_sources, windows_objects, levels)]
         shown.stage(f"compiling the model code ({len(commands)} compiler runs)")
-        _run_compilers(commands, shown)
+        run_compilers(commands, shown)
         nz = functions["event_indicators"].size1_out(0)
         table = variable_table(equations.interface, nz)
         dependencies = declared_dependencies(equations, table)
@@ -231,20 +242,20 @@ def _build(dynamics: Dynamics, equations, out_dir: Path, fmi_versions: tuple[Fmi
             (root / "modelDescription.xml").write_bytes(description)
             _write_documentation(root, equations, table, version, sources, module)
             runtime = list(runtime_sources(version))
-            links.append(_binary_command(sources_dir, runtime,
-                                         root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
-                                         objects=tuple(linux_objects)))
+            links.append(binary_command(sources_dir, runtime,
+                                        root / "binaries" / LINUX_BINARY_DIRECTORY[version] / f"{model}.so",
+                                        objects=tuple(linux_objects)))
             if cross:
-                links.append(_binary_command(sources_dir, runtime,
-                                             root / "binaries" / WINDOWS_BINARY_DIRECTORY[version] / f"{model}.dll",
-                                             cross, objects=tuple(windows_objects), windows=True))
+                links.append(binary_command(sources_dir, runtime,
+                                            root / "binaries" / WINDOWS_BINARY_DIRECTORY[version] / f"{model}.dll",
+                                            cross, objects=tuple(windows_objects), windows=True))
             roots.append((root, fmu_path(out_dir, dynamics, version)))
         shown.stage(f"compiling the runtime and linking ({len(links)} binaries)")
-        _run_compilers(links, shown)
+        run_compilers(links, shown)
         shown.stage("packaging")
         targets = []
         for root, target in roots:
-            targets.append(_zip_fmu(root, target))
+            targets.append(zip_fmu(root, target))
             shown.advance()
     return targets
 
@@ -262,12 +273,19 @@ def _write_documentation(root: Path, equations, table, version: int, sources: li
     licence.write_text(license_text(), encoding="utf-8")
 
 
-def _zip_fmu(root: Path, target: Path) -> Path:
+def zip_fmu(root: Path, target: Path) -> Path:
+    """Zips the FMU's folder `root` into `target`, written aside and renamed into place (a failed write never leaves
+    a half-written FMU). The same files give the same bytes: entries in sorted order, each dated ZIP_DATE and with
+    a fixed mode (binaries/ 0755, the rest 0644), whatever the files' own dates and modes."""
     target.parent.mkdir(parents=True, exist_ok=True)
-    partial = target.with_suffix(".fmu.partial")
+    partial = target.with_name(target.name + ".partial")
     with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as archive:
         for path in sorted(root.rglob("*")):
             if path.is_file():
-                archive.write(path, path.relative_to(root).as_posix())
-    partial.replace(target)  # atomic: a failed build never leaves a half-written FMU
+                name = path.relative_to(root).as_posix()
+                entry = zipfile.ZipInfo(name, ZIP_DATE)
+                entry.compress_type = zipfile.ZIP_DEFLATED
+                entry.external_attr = (0o755 if name.startswith("binaries/") else 0o644) << 16
+                archive.writestr(entry, path.read_bytes())
+    partial.replace(target)
     return target

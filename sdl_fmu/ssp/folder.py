@@ -1,4 +1,4 @@
-"""Export folders: a results folder (results_folder.py: written aside and moved into place whole, nothing sdl-fmu
+"""Export folders: a results folder (results/folder.py: written aside and moved into place whole, nothing sdl-fmu
 did not write is touched) of the kind `export`, that holds an SSP and, beside it, the FMUs it holds. `--out` may be a
 new folder, an empty one, or an earlier export folder; a folder of another command (a run's results, a test pack's, a
 sweep's), or a folder holding files sdl-fmu did not write, is refused."""
@@ -9,7 +9,7 @@ import os
 import shutil
 from pathlib import Path
 
-from ..results_folder import check_results_folder, write_results_folder
+from ..results.folder import check_results_folder, write_results_folder
 from .document import RESOURCES, System, write_ssp
 
 

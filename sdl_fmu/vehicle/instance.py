@@ -182,6 +182,11 @@ class EgoInstance:
             ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate")
         if model.can_roll_back:
             self._get_state, self._set_state, self._free_state = (function(name) for name in names)
+        # sdl-fmu's runtime updates a snapshot given to GetFMUstate in place (as FMI allows): a discarded snapshot is
+        # kept for the next save instead of freed and allocated again (0.3 µs against 6 µs a save and discard);
+        # other FMUs' snapshots are freed
+        own = (getattr(model.description, "generationTool", None) or "").startswith("sdl-fmu ")
+        self._spare_states: list | None = [] if own and model.can_roll_back else None
         self._prefix = prefix
 
     def _set_by_name(self, values: dict[str, float]) -> None:
@@ -362,7 +367,8 @@ class EgoInstance:
 
     def save(self):
         """A snapshot of the instance (FMI GetFMUstate) to step again from, with the FMU's outputs at it."""
-        state = c_void_p()
+        spare = self._spare_states
+        state = spare.pop() if spare else c_void_p()
         if self._get_state(self._component, byref(state)) > 1:
             raise FmuError(f"{self._prefix}GetFMUstate at t = {self.time:.6f} s failed")
         return state, self.time, None if self._direct else (self._memory, self._state), self._outputs_now()
@@ -380,7 +386,9 @@ class EgoInstance:
         if self._set_state(self._component, state) > 1:
             raise FmuError(f"{self._prefix}SetFMUstate to t = {time:.6f} s failed")
         now = self._outputs_now()
-        changed = next((i for i, (a, b) in enumerate(zip(now, outputs)) if a != b and not (a != a and b != b)), None)
+        # equal tuples: restored (one comparison in C); otherwise which output differs, a nan in both being equal
+        changed = None if now == outputs else \
+            next((i for i, (a, b) in enumerate(zip(now, outputs)) if a != b and not (a != a and b != b)), None)
         if changed is not None:
             quantity = self._real_outputs[changed]
             raise FmuError(f"it declares canGetAndSetFMUstate, but {self._prefix}SetFMUstate did not restore its state "
@@ -391,13 +399,18 @@ class EgoInstance:
             self._memory, self._state = derived
 
     def discard(self, snapshot) -> None:
-        if self._free_state(self._component, byref(snapshot[0])) > 1:
+        if self._spare_states is not None:
+            self._spare_states.append(snapshot[0])
+        elif self._free_state(self._component, byref(snapshot[0])) > 1:
             raise FmuError(f"{self._prefix}FreeFMUstate failed")
 
     def close(self) -> None:
         """Terminates and frees the instance (the unpacked FMU stays for the process's other instances)."""
         if getattr(self, "slave", None) is None:
             return
+        for state in getattr(self, "_spare_states", None) or ():
+            self._free_state(self._component, byref(state))
+        self._spare_states = None
         try:
             self.slave.terminate()
         except Exception:

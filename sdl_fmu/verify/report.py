@@ -13,11 +13,10 @@ from pathlib import Path
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
-from matplotlib.lines import Line2D
-
-from ..results_folder import write_results_folder
+from ..results.folder import write_results_folder
 from .drive import COLUMNS
 from .outcome import Outcome
 from .quantities import label, shown
@@ -277,7 +276,7 @@ def report_html(vehicle: dict, outcomes: list[Outcome], sheet: dict | None = Non
 
 
 def write(out, vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None, tool: dict | None = None) -> Path:
-    """Writes the results folder atomically (results_folder's rules); returns it."""
+    """Writes the results folder atomically (results/folder.py's rules); returns it."""
 
     def contents(folder: Path) -> None:
         (folder / JSON_NAME).write_text(json.dumps(document(vehicle, outcomes, sheet, tool), indent=2) + "\n",

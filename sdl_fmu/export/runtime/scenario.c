@@ -208,7 +208,7 @@ static void motion_at(const double *vh, double t, double *station, double *later
     double t0 = vh[V_T0], station0 = vh[V_STATION0], lateral0 = vh[V_LATERAL0], speed0 = vh[V_SPEED0];
     double lateral1 = vh[V_LATERAL1], speed1 = vh[V_SPEED1], duration = vh[V_DURATION];
     double elapsed = t - t0, travelled;
-    if (elapsed < duration) {
+    if (duration > 0.0 && elapsed < duration) { /* (a zero duration never divides, before its start neither) */
         double fraction = elapsed / duration;
         *speed = speed0 + (speed1 - speed0) * fraction;
         travelled = speed0 * elapsed + (speed1 - speed0) * python_square(elapsed) / (2 * duration);
@@ -232,7 +232,7 @@ static Motion motion_of(const double *vh, double t) {
     double t0 = vh[V_T0], station0 = vh[V_STATION0], lateral0 = vh[V_LATERAL0], speed0 = vh[V_SPEED0];
     double lateral1 = vh[V_LATERAL1], speed1 = vh[V_SPEED1], duration = vh[V_DURATION];
     double elapsed = t - t0, fraction, travelled;
-    if (elapsed < duration) {
+    if (duration > 0.0 && elapsed < duration) { /* (a zero duration never divides, before its start neither) */
         fraction = elapsed / duration;
         travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration);
         m.lateral_rate = (lateral1 - lateral0) / duration;
@@ -306,13 +306,14 @@ static Conditions vehicle_condition(const View *view, const double *d, int i, co
 }
 
 /* vehicle_horizon: a lower bound (s from the ego's instant) on when vehicle i's action, contact change or
- * departure could first become true, with |ego acceleration| <= a and |yaw rate| <= r_max. */
-static double vehicle_horizon(const View *view, const double *d, int i, const Kinematics *ego) {
+ * departure could first become true, with |ego acceleration| <= a and |yaw rate| <= yaw_rate (the ego's station and
+ * lateral rates being its position's derivatives). */
+static double vehicle_horizon(const View *view, const double *d, int i, const Kinematics *ego, double yaw_rate) {
     const double *vh = vehicle_const(view, d, i), *event = vehicle_event(view, i), *action = armed(view, d, i);
     Motion m = motion_of(vh, ego->time);
     double length = event[A_LENGTH], width = event[A_WIDTH];
     double ego_length = PARAMETER(view, EGO_LENGTH), ego_width = PARAMETER(view, EGO_WIDTH);
-    double radius = hypot(ego_length / 2, ego_width / 2), yaw_rate = PARAMETER(view, EGO_MAX_YAW_RATE);
+    double radius = hypot(ego_length / 2, ego_width / 2);
     double a = PARAMETER(view, EGO_MAX_ACCELERATION), relative_acceleration = a + m.speed_rate;
     double gap = m.station - ego->station, gap_rate = -m.speed - ego->station_rate;
     double closing = -gap_rate * (gap >= 0 ? 1.0 : -1.0);
@@ -389,15 +390,16 @@ static int release_reason(const View *view, const double *d, const Ego *e) {
     return REASON_NONE;
 }
 
-/* BrakeHold.earliest_release: a lower bound on the instant the brakes could come off. */
-static double earliest_release(const View *view, const double *d, const Ego *e, double acceleration) {
+/* BrakeHold.earliest_release: a lower bound on the instant the brakes could come off (s_rate: the rate of the
+ * distance travelled, the speed for an ego whose distance is its speed's integral). */
+static double earliest_release(const View *view, const double *d, const Ego *e, double s_rate, double acceleration) {
     const double *event = event_at(view, (int)d[D_BRK_EVENT]);
     int threshold = (int)event[BRK_THRESHOLD];
     double magnitude = event[BRK_MAGNITUDE], stop = e->time + e->v / acceleration, reach, margin;
     if (threshold == THRESHOLD_TIME) {
         reach = d[D_BRK_TIME_ON] + magnitude;
     } else if (threshold == THRESHOLD_DISTANCE) {
-        reach = e->time + reach_time(d[D_BRK_DISTANCE_ON] + magnitude - e->s, e->v, acceleration);
+        reach = e->time + reach_time(d[D_BRK_DISTANCE_ON] + magnitude - e->s, s_rate, acceleration);
     } else if (threshold == THRESHOLD_VELOCITY) {
         margin = e->v - magnitude;
         reach = e->time + (margin > 0.0 ? margin : 0.0) / acceleration;
@@ -812,28 +814,30 @@ static int triggered(const View *view, const double *d, const Ego *e) {
     return 0;
 }
 
-/* TriggerSchedule.horizons: a lower bound on the instant any trigger could become true (absolute time). */
-static double horizon(const View *view, const double *d, const Ego *e) {
+/* TriggerSchedule.horizons: a lower bound on the instant any trigger could become true (absolute time), for an
+ * ego whose distance travelled grows at s_rate (its speed, for the belief plus its fading offset's rate) and whose
+ * heading turns at most at yaw_rate. */
+static double horizon(const View *view, const double *d, const Ego *e, double s_rate, double yaw_rate) {
     double a = PARAMETER(view, EGO_MAX_ACCELERATION), bound = INFINITY, candidate, distance;
     int reason, i, n = (int)d[D_SPAWNED];
     if ((int)d[D_NEXT_EVENT] < view->n_events) {
-        candidate = e->time + reach_time(event_at(view, (int)d[D_NEXT_EVENT])[E_DISTANCE] - e->s, e->v, a);
+        candidate = e->time + reach_time(event_at(view, (int)d[D_NEXT_EVENT])[E_DISTANCE] - e->s, s_rate, a);
         if (candidate < bound) bound = candidate;
     }
     distance = end_distance(view, &reason);
     if (distance < INFINITY) {
-        candidate = e->time + reach_time(distance - e->s, e->v, a);
+        candidate = e->time + reach_time(distance - e->s, s_rate, a);
         if (candidate < bound) bound = candidate;
     }
     if (d[D_BRK_ACTIVE] != 0.0) {
-        candidate = earliest_release(view, d, e, a);
+        candidate = earliest_release(view, d, e, s_rate, a);
         if (candidate < bound) bound = candidate;
     }
     if (d[D_ACTIVE] > 0.0) {
         Kinematics kin = kinematics_of(e);
         for (i = 0; i < n; i++) {
             if (vehicle_const(view, d, i)[V_PRESENT] == 0.0) continue;
-            candidate = e->time + vehicle_horizon(view, d, i, &kin);
+            candidate = e->time + vehicle_horizon(view, d, i, &kin, yaw_rate);
             if (candidate < bound) bound = candidate;
         }
     }
@@ -843,18 +847,21 @@ static double horizon(const View *view, const double *d, const Ego *e) {
 /* ---- the belief of the ego's path over a step ------------------------------------------------------------------- */
 
 typedef struct {
-    double t, h;               /* the step */
+    double t, h, end;          /* the step: from t, h long, to end = t + h */
     Ego e;                     /* the ego's inputs at t */
     double xd, yd, xdd, ydd;   /* world-frame velocity and acceleration at t */
     double vdot, tau_stop;     /* rate of the speed; when the prediction comes to rest (inf: not in reach) */
     double offset[4];          /* the belief's offset from the inputs at t (x, y, psi, s), fading to 0 at t + h */
+    double drift[4];           /* the fading offset's rate over the step: -offset / h (m/s, m/s, rad/s, m/s) */
     int stopped_connected;
 } Prediction;
 
 static void prediction_make(Prediction *pr, const View *view, const Ego *e, const double *belief, double t, double h) {
     double c = cos(e->psi), s = sin(e->psi);
+    int k;
     pr->t = t;
     pr->h = h;
+    pr->end = t + h;
     pr->e = *e;
     pr->xd = e->vx * c - e->vy * s;
     pr->yd = e->vx * s + e->vy * c;
@@ -866,28 +873,40 @@ static void prediction_make(Prediction *pr, const View *view, const Ego *e, cons
     pr->offset[1] = belief[EGO_Y] - e->y;
     pr->offset[2] = belief[EGO_PSI] - e->psi;
     pr->offset[3] = belief[EGO_S] - e->s;
+    for (k = 0; k < 4; k++) pr->drift[k] = -pr->offset[k] / h;
     pr->stopped_connected = PARAMETER(view, EGO_STOPPED_CONNECTED) != 0.0;
 }
 
-/* The belief at the absolute time `time` in [t, t + h]. */
+/* The belief at the absolute time `time` in [t, t + h] (up to a tie's tolerance after it). Its body-frame velocity
+ * is its path's derivative over the step (the fading offset's rate included; at t + h and after it the derivative
+ * from the left, so that no rounding of `time` decides whether the offset's rate counts) turned into its heading:
+ * the station and lateral rates the trigger bounds start from are then the rates of the position they bound
+ * (docs/scenario-fmu.md, Stepping, the bound's proof). */
 static void predict(const Prediction *pr, double time, Ego *b) {
     const Ego *e = &pr->e;
-    double tau = time - pr->t, moving = tau < pr->tau_stop ? tau : pr->tau_stop;
-    double fade = pr->h > 0 ? 1.0 - tau / pr->h : 0.0;
+    /* at the step's end exactly h and a faded offset, whatever the rounding of (t + h) - t: the state a step hands
+     * on does not depend on where the master's clock puts t */
+    double tau = time == pr->end ? pr->h : time - pr->t, moving = tau < pr->tau_stop ? tau : pr->tau_stop;
+    double fade = pr->h > 0 ? (pr->end - time) / pr->h : 0.0, x_rate, y_rate, c, s;
+    int at_rest = tau >= pr->tau_stop;
     if (fade < 0.0) fade = 0.0;
     b->time = time;
     b->x = e->x + pr->xd * moving + pr->xdd * moving * moving / 2 + pr->offset[0] * fade;
     b->y = e->y + pr->yd * moving + pr->ydd * moving * moving / 2 + pr->offset[1] * fade;
     b->psi = e->psi + e->yaw_rate * moving + pr->offset[2] * fade;
     b->s = e->s + e->v * moving + pr->vdot * moving * moving / 2 + pr->offset[3] * fade;
-    if (tau >= pr->tau_stop) { /* come to rest: held there */
-        b->v = b->vx = b->vy = b->yaw_rate = b->ax = b->ay = 0.0;
+    x_rate = (at_rest ? 0.0 : pr->xd + pr->xdd * tau) + pr->drift[0];
+    y_rate = (at_rest ? 0.0 : pr->yd + pr->ydd * tau) + pr->drift[1];
+    c = cos(b->psi);
+    s = sin(b->psi);
+    b->vx = x_rate * c + y_rate * s;
+    b->vy = y_rate * c - x_rate * s;
+    if (at_rest) { /* come to rest: held there (but for the fading offset) */
+        b->v = b->yaw_rate = b->ax = b->ay = 0.0;
         b->stopped = 1;
         return;
     }
     b->v = e->v + pr->vdot * tau;
-    b->vx = e->vx + (e->ax + e->yaw_rate * e->vy) * tau;
-    b->vy = e->vy + (e->ay - e->yaw_rate * e->vx) * tau;
     b->yaw_rate = e->yaw_rate;
     b->ax = e->ax;
     b->ay = e->ay;
@@ -896,7 +915,9 @@ static void predict(const Prediction *pr, double time, Ego *b) {
 
 /* ---- the steps -------------------------------------------------------------------------------------------------- */
 
-static double time_tolerance(double t) { return 1e-9 * (fabs(t) > 1.0 ? fabs(t) : 1.0); }
+/* How close after a communication point t an instant still belongs to the step that ends at t: a driver sample, a
+ * trigger's located instant, an end by time (docs/scenario-fmu.md, Stepping, ties). */
+static double time_tolerance(double t) { return TIE_TOLERANCE * (fabs(t) > 1.0 ? fabs(t) : 1.0); }
 
 /* ---- the sample clocks (clocks.py): the driver every driver_period, the follow driver's decisions every
  * REACTION_TIME, each at k x its period from the start  */
@@ -978,6 +999,7 @@ void scenario_begin(const View *view, const double *u, double *d, const Logger *
     apply_brake_hold(view, d);
     ego_store(d + D_EGO, &e);
     d[D_STARTED] = 1.0;
+    d[D_START_PENDING] = 1.0;
 }
 
 /* Without prediction: the communication point t is evaluated with the ego's inputs there, as `sdl-fmu run`
@@ -1005,16 +1027,60 @@ static double bisect(const View *view, const double *d, const Prediction *pr, do
     return high;
 }
 
-/* With prediction: the triggers located on the belief over (t, t + h], fired there; the driver samples there. */
+static int over_budget(long *probes, double tau, const Logger *log) {
+    if (++*probes <= MAX_PROBES_PER_STEP) return 0;
+    if (log != NULL && log->instance != NULL)
+        instance_log(log->instance, STATUS_ERROR, "logStatusError",
+                     "doStep exceeded its budget of %ld looks at the predicted path at t = %.17g",
+                     (long)MAX_PROBES_PER_STEP, tau);
+    return 1;
+}
+
+/* Ties: what becomes true within time_tolerance(end) after the step's end belongs to this step, as a driver sample
+ * there does (docs/scenario-fmu.md, Stepping: masters form their communication points with different rounding, so
+ * an instant on a communication point would otherwise fall into one step in one master and into the next in
+ * another). Fired at its located instant on the belief (triggers bisected, the ends by time at theirs), in time
+ * order. Writes the last instant something fired at (end if nothing did) to `last`; returns -1 on the budget, else
+ * 0. */
+static int step_ties(const View *view, double *d, const Prediction *pr, double end, long *probes, const Logger *log,
+                     double *last) {
+    double reach = end + time_tolerance(end), until = PARAMETER(view, UNTIL_TIME), tau = end;
+    Ego b;
+    while (d[D_FINISHED] == 0.0) {
+        double at = reach;
+        if (until > 0.0 && until > tau && until < at) at = until;
+        if (MAX_TIME > tau && MAX_TIME < at) at = MAX_TIME;
+        predict(pr, at, &b);
+        if (triggered(view, d, &b)) {
+            at = bisect(view, d, pr, tau, at);
+            predict(pr, at, &b);
+            fire_due(view, d, &b, log);
+        } else if (!((until > 0.0 && at >= until) || at >= MAX_TIME)) {
+            break; /* nothing more in the window */
+        }
+        after_instant(view, d, &b, 0, 0.0, log); /* the ends by time, BRK's pedals */
+        tau = at;
+        if (over_budget(probes, tau, log)) return -1;
+    }
+    *last = tau;
+    return 0;
+}
+
+/* With prediction: the triggers located on the belief over (t, t + h], fired there; the driver samples there. The
+ * search starts at the state's own time when a tie put it a hair past t (the conditions were evaluated there). */
 static int step_predicted(const View *view, const double *u, double *d, double t, double h, int early_return,
                           const Logger *log, double *reached) {
-    double end = t + h, tau = t, until = PARAMETER(view, UNTIL_TIME);
+    double end = t + h, tau = t, until = PARAMETER(view, UNTIL_TIME), yaw_rate_bound, last;
     long probes = 0;
     Prediction pr;
     Ego actual, b;
     ego_from_inputs(view, u, d + D_MEMORY, t, &actual);
     warn_bounds(view, d, &actual, log);
     prediction_make(&pr, view, &actual, d + D_EGO, t, h);
+    if (d[D_TIME] > t && d[D_TIME] - t <= 3 * time_tolerance(t)) tau = d[D_TIME]; /* after a tie */
+    /* the belief turns at the ego's yaw rate plus its fading offset's: the bounds take both (its position's rates
+     * are its velocity's by construction, its distance's rate is its speed plus the fading offset's, below) */
+    yaw_rate_bound = PARAMETER(view, EGO_MAX_YAW_RATE) + fabs(pr.drift[2]);
     while (tau < end) {
         double limit = end, sample_at = INFINITY, next = sample_time(view, d), probe;
         int fired = 0;
@@ -1029,7 +1095,7 @@ static int step_predicted(const View *view, const double *u, double *d, double t
         if (d[D_FINISHED] == 0.0) {
             double earliest;
             predict(&pr, tau, &b);
-            earliest = horizon(view, d, &b);
+            earliest = horizon(view, d, &b, b.v + pr.drift[3], yaw_rate_bound);
             if (earliest - tau >= MIN_LOOKAHEAD || earliest >= limit) {
                 /* nothing can become true before `earliest`; something may be true exactly at it */
                 probe = earliest < limit ? earliest : limit;
@@ -1048,13 +1114,7 @@ static int step_predicted(const View *view, const double *u, double *d, double t
         predict(&pr, tau, &b);
         if (fired) fire_due(view, d, &b, log);
         after_instant(view, d, &b, tau >= sample_at, next, log);
-        if (++probes > MAX_PROBES_PER_STEP) {
-            if (log != NULL && log->instance != NULL)
-                instance_log(log->instance, STATUS_ERROR, "logStatusError",
-                             "doStep exceeded its budget of %ld looks at the predicted path at t = %.17g",
-                             (long)MAX_PROBES_PER_STEP, tau);
-            return -1;
-        }
+        if (over_budget(&probes, tau, log)) return -1;
         if (fired && early_return && tau < end) { /* FMI 3.0 early return at the instant something fired */
             ego_store(d + D_EGO, &b);
             d[D_TIME] = tau;
@@ -1062,15 +1122,36 @@ static int step_predicted(const View *view, const double *u, double *d, double t
             return 1;
         }
     }
-    predict(&pr, end, &b);
+    if (step_ties(view, d, &pr, end, &probes, log, &last) < 0) return -1;
+    /* the state at the last instant it was evaluated at (end, or a tie's instant a hair after it) */
+    predict(&pr, last, &b);
     ego_store(d + D_EGO, &b);
-    d[D_TIME] = end;
+    d[D_TIME] = last;
     *reached = end;
     return 0;
 }
 
+/* The first doStep takes the start again from its inputs: a master may have passed the ego's outputs on in
+ * initialization mode before the ego filled them (docs/scenario-fmu.md, Wiring); the start's events are logged here,
+ * once. Unchanged inputs give the same start bit for bit (scenario_begin is a function of the inputs). */
+static void take_start(const View *view, const double *u, double *d, const Logger *log) {
+    double before[EGO_FIELDS];
+    int k, changed = 0;
+    memcpy(before, d + D_EGO, sizeof(before));
+    scenario_begin(view, u, d, log);
+    d[D_START_PENDING] = 0.0;
+    for (k = 0; k < EGO_FIELDS; k++) changed |= before[k] != d[D_EGO + k];
+    if (changed && log != NULL && log->instance != NULL)
+        instance_log(log->instance, STATUS_WARNING, "logStatusWarning",
+                     "the ego's inputs changed between initialization and the first step (speed %.6g -> %.6g m/s, "
+                     "y %.6g -> %.6g m): the start is taken from those of the first step; the outputs read in "
+                     "initialization mode came from the earlier ones", before[EGO_V], d[D_EGO + EGO_V], before[EGO_Y],
+                     d[D_EGO + EGO_Y]);
+}
+
 int scenario_step(const View *view, const double *u, double *d, double t, double h, int early_return,
                   const Logger *log, double *reached) {
+    if (d[D_START_PENDING] != 0.0) take_start(view, u, d, log);
     if (PARAMETER(view, TRIGGER_PREDICTION) != 0.0)
         return step_predicted(view, u, d, t, h, early_return, log, reached);
     step_at_points(view, u, d, t, h, log);
@@ -1255,7 +1336,8 @@ int state_check(const View *view, const double *d, char *reason, size_t reason_s
     int i, spawned, active = 0, n = view->n_vehicles;
     const char *bad = NULL;
     if (!flag(d[D_STARTED]) || !flag(d[D_BRK_ACTIVE]) || !flag(d[D_FINISHED]) || !flag(d[D_BOUNDS_WARNED]) ||
-        !flag(d[D_EGO + EGO_STOPPED]) || !flag(d[D_FOLLOW_LIMITED]) || !flag(d[D_FOLLOW_LIMITING]))
+        !flag(d[D_EGO + EGO_STOPPED]) || !flag(d[D_FOLLOW_LIMITED]) || !flag(d[D_FOLLOW_LIMITING]) ||
+        !flag(d[D_START_PENDING]))
         bad = "a flag is neither 0 nor 1";
     else if (!whole_in(d[D_NEXT_EVENT], 0, view->n_events))
         bad = "the next event is out of range";

@@ -26,6 +26,8 @@
 #define MAX_TIME 3600.0            /* s, a run never goes beyond */
 #define MIN_LOOKAHEAD 1e-3         /* s, closer than this to a possible trigger the prediction is probed this often */
 #define TRIGGER_TOLERANCE 1e-9     /* s, how exactly a trigger's instant is located on the predicted path */
+#define TIE_TOLERANCE 1e-9         /* relative (of max(1 s, |t|)): an instant this close after a communication point
+                                      belongs to the step that ends there (a tie: docs/scenario-fmu.md, Stepping) */
 #define STOPPED_SPEED 0.01         /* m/s, the ego counts as stopped below this without an ego_stopped input */
 #define DEFAULT_MU_SURFACE 8.0     /* RSA value of a lane nobody set, friction meaning: 10 x the nominal mu 0.8 */
 #define DEFAULT_ATTRIBUTE 0.0      /* RSA value of a lane nobody set, attribute meaning */
@@ -103,7 +105,8 @@ enum { SL_LANE, SL_COUNT, SL_STARTS, SL_VALUES, SL_SIZE };
 
 /* ---- the dynamic state d ----------------------------------------------------------------------------------- */
 enum {
-    D_TIME,                 /* the time the state describes (the FMU's time) */
+    D_TIME,                 /* the time the state describes: the FMU's time, or up to a tie's tolerance after
+                               it when a step fired something there (scenario.c, ties) */
     D_STARTED,              /* 1 after the first communication point was processed */
     D_NEXT_EVENT,           /* index of the first event not yet fired */
     D_BRK_ACTIVE, D_BRK_EVENT, D_BRK_TIME_ON, D_BRK_DISTANCE_ON, D_BRK_SPEED_ON,
@@ -123,6 +126,8 @@ enum {
     D_FOLLOW_ACCELERATION,  /* m/s2, the law's, held since the last decision */
     D_FOLLOW_ALLOWED,       /* m/s, the law's safe speed at the last decision (with D_FOLLOW_LIMITED) */
     D_FOLLOW_LIMITING,      /* 1: the law set the last pedals (the lane driver's integral is then held) */
+    D_START_PENDING,        /* 1 from the exit of initialization mode to the first doStep, which takes the start
+                               again from its inputs (they may have changed since) and logs the start's events */
     D_HEADER
 };
 /* an ego state's fields (also the layout of D_EGO) */
@@ -168,7 +173,8 @@ size_t state_size(const View *view);
 /* Checks a state vector before it may reach an instance (indices, flags, counts in range): 0 if valid, else
  * writes why. */
 int state_check(const View *view, const double *d, char *reason, size_t reason_size);
-/* The state after the first communication point (t = start time), the ego at its inputs there. */
+/* The state after the first communication point (t = start time), the ego at its inputs there; the first doStep
+ * takes it again from its own inputs (D_START_PENDING). */
 void scenario_begin(const View *view, const double *u, double *d, const Logger *log);
 /* Advances d from its time to t + h. Returns 0 on success, 1 when it returned early at an event (early_return
  * allowed), -1 on a budget error (logged). */

@@ -194,10 +194,10 @@ static Logger logger_of(const Scenario *scenario) {
 
 Status scenario_exit_initialization(Scenario *scenario) {
     Instance *instance = scenario->instance;
-    Logger logger = logger_of(scenario);
     View view;
     view_make(&view, instance->now.p);
-    scenario_begin(&view, instance->now.u, instance->now.d, &logger);
+    /* the start from the inputs as they are; the first doStep takes it again from its own and logs its events */
+    scenario_begin(&view, instance->now.u, instance->now.d, NULL);
     instance->initial_state_valid = 1;
     instance->now.mode = MODE_STEP;
     instance_invalidate(instance);

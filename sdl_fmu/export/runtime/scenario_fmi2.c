@@ -293,8 +293,9 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
 
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size) {
     Instance *instance = checked(c, "fmi2SerializedFMUstateSize", MASK_fmi2SerializedFMUstateSize);
-    (void)FMUstate;
-    if (!instance || !present(instance, "fmi2SerializedFMUstateSize", size, "size")) return fmi2Error;
+    if (!instance || !present(instance, "fmi2SerializedFMUstateSize", size, "size") ||
+        !snapshot_handle_valid(instance, FMUstate, "fmi2SerializedFMUstateSize"))
+        return fmi2Error; /* a handle this instance did not issue, or freed: refused, as the ego FMUs do */
     *size = snapshot_serialized_size(instance);
     return fmi2OK;
 }

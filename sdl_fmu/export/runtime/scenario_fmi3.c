@@ -466,8 +466,9 @@ fmi3Status fmi3FreeFMUState(fmi3Instance c, fmi3FMUState *FMUState) {
 
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance c, fmi3FMUState FMUState, size_t *size) {
     Instance *instance = checked(c, "fmi3SerializedFMUStateSize", MASK_fmi3SerializedFMUStateSize);
-    (void)FMUState;
-    if (!instance || !present(instance, "fmi3SerializedFMUStateSize", size, "size")) return fmi3Error;
+    if (!instance || !present(instance, "fmi3SerializedFMUStateSize", size, "size") ||
+        !snapshot_handle_valid(instance, FMUState, "fmi3SerializedFMUStateSize"))
+        return fmi3Error; /* a handle this instance did not issue, or freed: refused, as the ego FMUs do */
     *size = snapshot_serialized_size(instance);
     return fmi3OK;
 }

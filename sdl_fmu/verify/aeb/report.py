@@ -13,7 +13,7 @@ from pathlib import Path
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ...results_folder import write_results_folder
+from ...results.folder import write_results_folder
 from ..quantities import shown
 from ..report import HTML_NAME, JSON_NAME, STYLE, _json_ready, datasheet_html, provenance_html, values_table
 from .outcome import TestOutcome
@@ -201,7 +201,7 @@ and ends at contact, when the ego stops or when it is slower than the target. Ta
 
 
 def write(out, outcomes: list[TestOutcome], vehicle: dict, sheet: dict, controller: dict | None, tool: dict) -> Path:
-    """Writes the results folder atomically (results_folder's rules); returns it."""
+    """Writes the results folder atomically (results/folder.py's rules); returns it."""
 
     def contents(folder: Path) -> None:
         (folder / JSON_NAME).write_text(json.dumps(document(outcomes, vehicle, sheet, controller, tool), indent=2)

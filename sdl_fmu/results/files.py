@@ -1,4 +1,6 @@
-"""Writing what a run produced (run_result.RunResult): timeseries.csv, summary.json, plot.png (atomically)."""
+"""Writing what a run produced (record.RunRecord, SI): timeseries.csv and summary.json in the scenario's units
+(summary.json's final state, events and criticality through scenario_units.py, the CSV's columns here), and
+plot.png, atomically."""
 
 from __future__ import annotations
 
@@ -8,11 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..names import WHEELS
+from ..units import Units, from_si, length_label, speed_label
+from . import scenario_units
+from .folder import write_results_folder
+from .record import RunRecord, VehicleTrack
 from .storage import release_pages
-from .results_folder import write_results_folder
-from .run_result import RunResult, VehicleTrack
-from .units import Units, from_si, length_label, speed_label
-from .names import WHEELS
 
 
 TIME_FORMAT = "%.6f"
@@ -20,12 +23,12 @@ LENGTH_FORMAT = "%.4f"  # distances, positions and speeds in ft, ft/s or m, m/s
 GENERAL_FORMAT = "%.6g"  # accelerations, angles, rates, pedals, mu
 
 
-def _ego_column(result: RunResult, name: str) -> np.ndarray:
-    """One ego time series as a float array; a missing column is a bug in whoever built the RunResult."""
+def _ego_column(result: RunRecord, name: str) -> np.ndarray:
+    """One ego time series as a float array; a missing column is a bug in whoever built the RunRecord."""
     try:
         return np.asarray(result.columns[name], dtype=float)
     except KeyError:
-        raise KeyError(f"RunResult.columns has no {name!r} (has {sorted(result.columns)})") from None
+        raise KeyError(f"RunRecord.columns has no {name!r} (has {sorted(result.columns)})") from None
 
 
 WIDE_VEHICLE_LIMIT = 100  # more traffic vehicles than this: their columns go to traffic.csv, one row per sample
@@ -33,16 +36,19 @@ CSV_CHUNK_ROWS = 5000  # rows formatted at a time (~6 MB of cells): memory stays
 
 
 def _vehicle_slice(track: VehicleTrack, name: str, first: int, stop: int) -> np.ndarray:
-    """Samples first..stop-1 of a vehicle's station / lateral / speed, NaN where it is not on the road."""
+    """Samples first..stop-1 of a vehicle's station / lateral / speed / bumper_gap, NaN where it is not on the
+    road (or the gap is not known)."""
     values = getattr(track, name)
     out = np.full(stop - first, np.nan)
+    if values is None:
+        return out
     low, high = max(track.first, first), min(track.first + len(values), stop)
     if high > low:
         out[low - first:high - first] = values[low - track.first:high - track.first]
     return out
 
 
-def _timeseries_columns(result: RunResult) -> list[tuple[str, object, str]]:
+def _timeseries_columns(result: RunRecord) -> list[tuple[str, object, str]]:
     """The timeseries.csv columns as (header with unit, values of samples [first, stop) in scenario units,
     printf format)."""
     units = result.units
@@ -98,23 +104,26 @@ def _timeseries_columns(result: RunResult) -> list[tuple[str, object, str]]:
     for track in result.vehicles:
         prefix = f"A{track.vehicle}"
 
-        def vehicle(name: str, track=track, gap: bool = False):
+        def vehicle(name: str, track=track, gap: bool = False, sign: float = 1.0):
             def values(first: int, stop: int) -> np.ndarray:
                 part = _vehicle_slice(track, name, first, stop)
                 if gap:
                     part = part - np.asarray(ego_station[first:stop], dtype=float)
-                return from_si(part, units)
+                return from_si(0.0 - part if sign < 0.0 else part, units)  # 0.0 - x: no -0.0 for a stopped one
             return values
+        # the speed along the road, + the ego's way (the record's track speed is + toward the ego, as SDL's A
+        # event gives it); the gap from centre to centre (station - the ego's) and from bumper to bumper
         table += [
             (f"{prefix}_station_{length}", vehicle("station"), LENGTH_FORMAT),
             (f"{prefix}_lateral_{length}", vehicle("lateral"), LENGTH_FORMAT),
-            (f"{prefix}_speed_{speed}", vehicle("speed"), LENGTH_FORMAT),
+            (f"{prefix}_speed_{speed}", vehicle("speed", sign=-1.0), LENGTH_FORMAT),
             (f"{prefix}_gap_{length}", vehicle("station", gap=True), LENGTH_FORMAT),
+            (f"{prefix}_bumper_gap_{length}", vehicle("bumper_gap"), LENGTH_FORMAT),
         ]
     return table
 
 
-def timeseries_table(result: RunResult) -> list[tuple[str, np.ndarray, str]]:
+def timeseries_table(result: RunRecord) -> list[tuple[str, np.ndarray, str]]:
     """The timeseries.csv columns as (header with unit, values in scenario units, printf format)."""
     samples = len(_ego_column(result, "time"))
     table = [(header, values(0, samples), fmt) for header, values, fmt in _timeseries_columns(result)]
@@ -129,7 +138,7 @@ def _format_column(values: np.ndarray, fmt: str) -> list[str]:
     return [fmt % value if math.isfinite(value) else "" for value in values.tolist()]
 
 
-def write_timeseries_csv(result: RunResult, path: Path) -> None:
+def write_timeseries_csv(result: RunRecord, path: Path) -> None:
     """timeseries.csv: one row per sample, units in the headers, scenario units for lengths and speeds;
     written CSV_CHUNK_ROWS rows at a time. With more than WIDE_VEHICLE_LIMIT traffic vehicles their
     columns would make the table unusably wide: they go to traffic.csv instead (`write_traffic_csv`)."""
@@ -151,14 +160,15 @@ def write_timeseries_csv(result: RunResult, path: Path) -> None:
         write_traffic_csv(result, Path(path).with_name("traffic.csv"))
 
 
-def write_traffic_csv(result: RunResult, path: Path) -> None:
+def write_traffic_csv(result: RunRecord, path: Path) -> None:
     """traffic.csv (runs with many vehicles): one row per vehicle per sample while it is on the road."""
     units = result.units
     length, speed = length_label(units), speed_label(units)
     time = _ego_column(result, "time")
     ego_station = _ego_column(result, "station")
     with open(path, "w", encoding="utf-8", newline="") as file:
-        file.write(f"time_s,vehicle,model,station_{length},lateral_{length},speed_{speed},gap_{length}\n")
+        file.write(f"time_s,vehicle,model,station_{length},lateral_{length},speed_{speed},gap_{length},"
+                   f"bumper_gap_{length}\n")
         unreleased = 0
         for track in result.vehicles:
             rows = slice(track.first, track.first + len(track.station))
@@ -167,9 +177,11 @@ def write_traffic_csv(result: RunResult, path: Path) -> None:
                      [str(track.vehicle)] * len(station), [str(track.model)] * len(station),
                      _format_column(from_si(station, units), LENGTH_FORMAT),
                      _format_column(from_si(np.asarray(track.lateral, dtype=float), units), LENGTH_FORMAT),
-                     _format_column(from_si(np.asarray(track.speed, dtype=float), units), LENGTH_FORMAT),
+                     _format_column(from_si(0.0 - np.asarray(track.speed, dtype=float), units), LENGTH_FORMAT),
                      _format_column(from_si(station - np.asarray(ego_station[rows], dtype=float), units),
-                                    LENGTH_FORMAT)]
+                                    LENGTH_FORMAT),
+                     _format_column(from_si(np.full(len(station), np.nan) if track.bumper_gap is None else
+                                            np.asarray(track.bumper_gap, dtype=float), units), LENGTH_FORMAT)]
             if len(station):
                 file.write("\n".join(",".join(row) for row in zip(*cells)) + "\n")
             unreleased += len(station)
@@ -179,7 +191,7 @@ def write_traffic_csv(result: RunResult, path: Path) -> None:
     _release_samples(result)
 
 
-def _release_samples(result: RunResult) -> None:
+def _release_samples(result: RunRecord) -> None:
     """Drops the disk-backed sample pages read so far from resident memory (`storage.release_pages`), so
     that writing a long run's files does not hold them all."""
     release_pages(_ego_column(result, "time"))
@@ -220,7 +232,7 @@ def key_units(units: Units) -> dict[str, str]:
             "timing.wall_s": "s", "timing.real_time_factor": "simulated s per wall-clock s"}
 
 
-def _summary_fields(result: RunResult, events) -> dict:
+def _summary_fields(result: RunRecord, events) -> dict:
     return {
         "scenario": str(result.scenario_path),
         "units": result.units,
@@ -228,26 +240,27 @@ def _summary_fields(result: RunResult, events) -> dict:
         "dynamics": result.dynamics,
         "seed": result.seed,
         "collisions": int(result.collisions),
-        "final": result.final,
+        "final": scenario_units.final(result.final, result.units),
         "events": events,
         "warnings": list(result.warnings),
         "timing": result.timing,
         **({"vehicle": result.vehicle} if result.vehicle else {}),
-        **({"criticality": result.criticality} if result.criticality is not None else {}),
+        **({"criticality": scenario_units.criticality(result.criticality, result.units)}
+           if result.criticality is not None else {}),
         **({"driver": result.driver} if result.driver is not None else {}),
         **({"controller": result.controller} if result.controller is not None else {}),
     }
 
 
-def summary(result: RunResult) -> dict:
+def summary(result: RunRecord) -> dict:
     """summary.json content (docs/results.md, The files): final state, events and warnings in scenario units."""
-    return _json_ready(_summary_fields(result, list(result.events)))
+    return _json_ready(_summary_fields(result, list(scenario_units.Events(result.events, result.units))))
 
 
 _EVENTS_KEY = '\n  "events": []'  # where the events go in summary.json (no JSON string holds a raw newline)
 
 
-def write_summary_json(result: RunResult, path: Path) -> None:
+def write_summary_json(result: RunRecord, path: Path) -> None:
     """summary.json, indented 2, strict JSON (no NaN): the same text as json.dumps(summary(result), indent=2),
     with the events streamed from the run's log one at a time instead of built as one list in memory."""
     text = json.dumps(_json_ready(_summary_fields(result, [])), indent=2, allow_nan=False)
@@ -255,7 +268,7 @@ def write_summary_json(result: RunResult, path: Path) -> None:
     with open(path, "w", encoding="utf-8") as file:
         file.write(head + _EVENTS_KEY[:-1])
         written = 0
-        for event in result.events:
+        for event in scenario_units.Events(result.events, result.units):
             # an element of the events list sits two levels deep: every line of its own dump 4 spaces in
             item = json.dumps(_json_ready(event), indent=2, allow_nan=False).replace("\n", "\n    ")
             file.write(("," if written else "") + "\n    " + item)
@@ -263,9 +276,9 @@ def write_summary_json(result: RunResult, path: Path) -> None:
         file.write(("\n  ]" if written else "]") + tail + "\n")
 
 
-def write_results(result: RunResult, out_dir: Path, plot: bool = True) -> Path:
+def write_results(result: RunRecord, out_dir: Path, plot: bool = True) -> Path:
     """Write timeseries.csv, summary.json and plot.png into out_dir atomically: all of them or nothing, and
-    nothing sdl-fmu did not write is touched (results_folder)."""
+    nothing sdl-fmu did not write is touched (folder.py)."""
     def write(folder: Path) -> None:
         write_timeseries_csv(result, folder / "timeseries.csv")
         write_summary_json(result, folder / "summary.json")

@@ -53,7 +53,7 @@ class ResultsFolderError(Exception):
 def read_manifest(folder: Path) -> list[str] | None:
     """The files in `folder` that sdl-fmu provably wrote (its signed manifest lists them and they are unchanged; a
     listed name with nothing there counts too), or None when it is not a results folder of this user's sdl-fmu."""
-    from . import ownership
+    from .. import ownership
 
     folder = Path(folder)
     try:
@@ -78,7 +78,7 @@ def read_manifest(folder: Path) -> list[str] | None:
 
 def _authentic_manifest(path: Path, format: str) -> dict | None:
     """A manifest of this format with this user's valid signature, or None."""
-    from . import ownership
+    from .. import ownership
 
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -121,7 +121,7 @@ def other_kind_text(shown: str, found: FolderKind, kind: FolderKind) -> str:
 
 
 def _write_manifest(folder: Path, files: list[str], complete: bool, kind: FolderKind = "run") -> None:
-    from . import ownership
+    from .. import ownership
 
     data = {"format": MANIFEST_FORMAT, "kind": kind, "complete": complete,
             "files": {name: ownership.record(folder / name) for name in sorted(files)}}
@@ -235,7 +235,7 @@ def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None], 
     """Runs `write(folder)` into a fresh hidden folder, then puts its files in place at `out`: all of them or
     none, and nothing sdl-fmu did not write is removed; the folder is of the command `kind` (run, verify, export).
     Returns the results folder (absolute)."""
-    from . import ownership
+    from .. import ownership
 
     shown = os.fspath(out)
     target = check_results_folder(out, kind)
@@ -290,7 +290,7 @@ def _replace_files(new: Path, target: Path, files: list[str], kind: FolderKind) 
     """Updates a results folder that also holds the user's files: each of sdl-fmu's files is renamed into
     place (atomic per file), files of the old manifest that this run did not write are removed, the
     manifest comes last. The user's files are never touched."""
-    from . import ownership
+    from .. import ownership
 
     old = read_manifest(target) or []
     # while the files are exchanged, each is sdl-fmu's in its old form or its new one (or absent)

@@ -21,13 +21,14 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
-from .units import from_si, length_label, speed_label
-from .names import WHEELS
+from ..names import WHEELS
+from ..units import from_si, length_label, speed_label
+from . import scenario_units
 
 if TYPE_CHECKING:
-    from .run_result import RunResult
+    from .record import RunRecord
 
-LABEL_CHAR_PX = 6.5  # rough width of one 7.5 pt label character at 110 dpi
+LABEL_GAP_PX = 4.0  # pixels between two labels in one row
 LABEL_TOP = 0.97  # axis fraction of the first row of event labels
 LABEL_ROW = 0.075  # axis fraction per row of event labels
 MAX_LABEL_ROWS = 6
@@ -41,6 +42,7 @@ EVENT_COLORS = {"BRK": "tab:red", "A": "tab:purple", "RSA": "#9a7b00", "ES": "bl
 ATTRIBUTE_COLORS = ("#ffffff", "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
                     "#17becf", "#bcbd22")
 EGO_COLOR = "tab:blue"
+LEAD_COLOR = "tab:green"
 BRK_COLOR = "tab:red"
 LANE_FILL = "#f7f7f7"
 SHOULDER_FILL = "#d9d9d9"
@@ -82,9 +84,10 @@ def _event_color(event: dict) -> str:
     return EVENT_COLORS.get(event.get("code"), "tab:gray")
 
 
-def _timed_events(result: RunResult) -> list[dict]:
-    """Events that carry a finite time, in time order."""
-    timed = [e for e in result.events if isinstance(e.get("time_s"), (int, float)) and math.isfinite(e["time_s"])]
+def _timed_events(result: RunRecord) -> list[dict]:
+    """Events that carry a finite time, in time order, in the scenario's units."""
+    timed = [e for e in scenario_units.Events(result.events, result.units)
+             if isinstance(e.get("time_s"), (int, float)) and math.isfinite(e["time_s"])]
     return sorted(timed, key=lambda e: e["time_s"])
 
 
@@ -100,22 +103,22 @@ def _mark_events(ax, events: list[dict]) -> None:
                       linestyles=ls, colors=[_event_color(event) for event in chosen], zorder=1)
 
 
-def _label_rows(events: list[dict], t0: float, t1: float, axis_px: float) -> list[tuple[dict, int, str]]:
-    """(event, row, alignment) for each event label: greedily packed into rows so that labels do not overlap."""
-    row_ends: list[float] = []  # right end (axis fraction) of the last label in each row
+def _label_rows(spans: list[tuple[float, float]], right: float) -> list[tuple[int | None, str]]:
+    """(row, alignment) for labels of the given (x, width) in pixels, in time order: each drawn rightward from its
+    line, or leftward where it would pass the axes' right end at `right`, and greedily packed into the first of
+    MAX_LABEL_ROWS rows where it clears the previous label by LABEL_GAP_PX; row None: no row has room (the label
+    is left out rather than drawn over another)."""
+    row_ends: list[float] = []  # right end (pixels) of the last label in each row
     placed = []
-    for event in events:
-        x = (event["time_s"] - t0) / (t1 - t0)
-        width = (len(_event_label(event)) + 1) * LABEL_CHAR_PX / axis_px
-        start, end, align = (x, x + width, "left") if x + width <= 1.0 else (x - width, x, "right")
-        row = next((k for k, row_end in enumerate(row_ends) if row_end < start), None)
+    for x, width in spans:
+        start, end, align = (x, x + width, "left") if x + width <= right else (x - width, x, "right")
+        row = next((k for k, row_end in enumerate(row_ends) if row_end + LABEL_GAP_PX < start), None)
         if row is None and len(row_ends) < MAX_LABEL_ROWS:
-            row_ends.append(end)
+            row_ends.append(-math.inf)
             row = len(row_ends) - 1
-        elif row is None:  # out of rows: reuse the one that frees up first
-            row = int(np.argmin(row_ends))
-        row_ends[row] = max(row_ends[row], end)
-        placed.append((event, row, align))
+        if row is not None:
+            row_ends[row] = end
+        placed.append((row, align))
     return placed
 
 
@@ -123,23 +126,45 @@ LABEL_PRIORITY = {"collision": 0, "BRK": 1, "ES": 1, "RSA": 2, "maneuver": 3, "s
 MAX_EVENT_LABELS = 48  # more events than this (long runs, many vehicles): the most telling ones are labelled
 
 
-def _label_events(ax, events: list[dict], t0: float, t1: float, axis_px: float) -> int:
-    """Event labels in rows at the top of the panel; returns how many rows they take. With more than
-    MAX_EVENT_LABELS events only that many are labelled, collisions and BRK first, spawns and departures last."""
+def _label_events(ax, events: list[dict]) -> list:
+    """Event labels at the top of the panel, placed by `_pack_labels` once the figure's layout is known. With
+    more than MAX_EVENT_LABELS events only that many are labelled, collisions and BRK first, spawns and departures
+    last."""
     if len(events) > MAX_EVENT_LABELS:
         # within one priority, a low-discrepancy order (k x golden ratio mod 1) spreads the labels over the run
         ranked = sorted(range(len(events)), key=lambda k: (LABEL_PRIORITY.get(events[k].get("action"),
                                                            LABEL_PRIORITY.get(events[k].get("code"), 3)),
                                                            (k * 0.6180339887) % 1.0))
         events = [events[k] for k in sorted(ranked[:MAX_EVENT_LABELS])]
-    placed = _label_rows(events, t0, t1, axis_px)
     transform = ax.get_xaxis_transform()
-    for event, row, align in placed:
-        color = _event_color(event)
-        ax.text(event["time_s"], LABEL_TOP - row * LABEL_ROW, f" {_event_label(event)} ", transform=transform,
-                ha=align, va="top", fontsize=7.5, color=color, clip_on=True, zorder=3,
-                bbox=dict(boxstyle="square,pad=0.1", facecolor="white", edgecolor="none", alpha=0.8))
-    return 1 + max((row for _, row, _ in placed), default=-1)
+    return [ax.text(event["time_s"], LABEL_TOP, f" {_event_label(event)} ", transform=transform, ha="left",
+                    va="top", fontsize=7.5, color=_event_color(event), clip_on=True, zorder=3,
+                    bbox=dict(boxstyle="square,pad=0.1", facecolor="white", edgecolor="none", alpha=0.8))
+            for event in events]
+
+
+def _pack_labels(figure, ax, labels: list, top: float) -> None:
+    """Places the event labels in rows by their drawn widths (the layout settled by one draw), so that none
+    overlaps another (a label no row has room for is left out), and leaves the panel's curve (up to `top`) below
+    the rows."""
+    if labels:
+        figure.draw_without_rendering()
+        renderer = figure.canvas.get_renderer()
+        box = ax.get_window_extent(renderer)
+        spans = [(ax.transData.transform((label.get_position()[0], 0.0))[0],
+                  label.get_window_extent(renderer).width) for label in labels]
+        placed = _label_rows(spans, box.x1)
+        for label, (row, align) in zip(labels, placed):
+            if row is None:
+                label.set_visible(False)
+            else:
+                label.set_y(LABEL_TOP - row * LABEL_ROW)
+                label.set_horizontalalignment(align)
+        rows = 1 + max((row for row, _ in placed if row is not None), default=-1)
+    else:
+        rows = 0
+    free = LABEL_TOP - rows * LABEL_ROW - 0.03  # axis fraction left below the labels
+    ax.set_ylim(0, max(top, 1e-6) / max(free, 0.5))
 
 
 def _shade_brk(ax, time: np.ndarray, brk_runs: list[tuple[int, int]], label: bool) -> None:
@@ -152,9 +177,9 @@ def _shade_brk(ax, time: np.ndarray, brk_runs: list[tuple[int, int]], label: boo
                                      lw=0, label="BRK active" if label else None), autolim=False)
 
 
-def _final_text(result: RunResult, time: np.ndarray, distance: np.ndarray) -> str:
+def _final_text(result: RunRecord, time: np.ndarray, distance: np.ndarray) -> str:
     """'final: 1234.5 ft at t = 20.00 s' from the summary's final entry, else the last sample."""
-    final = result.final or {}
+    final = scenario_units.final(result.final or {}, result.units)
 
     def number(key: str, fallback: np.ndarray) -> float:
         value = final.get(key)
@@ -170,8 +195,9 @@ def _final_text(result: RunResult, time: np.ndarray, distance: np.ndarray) -> st
     return text
 
 
-def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs) -> None:
-    """Speed, distance, pedals + steer and friction over time."""
+def _plot_time_panels(result: RunRecord, axes: dict, time: np.ndarray, brk_runs, lead: dict | None) -> tuple:
+    """Speed (the lead vehicle's too), distance, pedals + steer and friction over time; returns the speed panel's
+    event labels and its highest speed (for `_pack_labels`)."""
     units = result.units
     cols = result.columns
     step = _stride(len(time))
@@ -182,12 +208,13 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
     speed = from_si(np.asarray(cols["v"], dtype=float), units)
     _shade_brk(ax, time, brk_runs, label=True)
     ax.plot(t, speed[::step], color=EGO_COLOR, lw=1.5, label="ego speed")
+    speed_top = np.nanmax(speed) if len(speed) and np.isfinite(speed).any() else 1.0
+    if lead is not None:
+        lead_speed = from_si(np.where(lead["present"], lead["speed"], np.nan), units)
+        ax.plot(t, lead_speed[::step], color=LEAD_COLOR, lw=1.3, ls="--", label="lead vehicle speed")
+        speed_top = max(speed_top, float(np.nanmax(lead_speed)))
     _mark_events(ax, events)
-    t0, t1 = time[0], time[-1] if time[-1] > time[0] else time[0] + 1.0
-    rows = _label_events(ax, events, t0, t1, axis_px=0.42 * 16 * 110)
-    top = np.nanmax(speed) if len(speed) and np.isfinite(speed).any() else 1.0
-    free = LABEL_TOP - rows * LABEL_ROW - 0.03  # axis fraction left below the labels
-    ax.set_ylim(0, max(top, 1e-6) / max(free, 0.5))
+    labels = _label_events(ax, events)
     ax.set_ylabel(f"speed [{speed_label(units)}]")
     ax.set_title("speed (BRK spans shaded, events marked)", fontsize=10, loc="left")
     ax.legend(loc="lower left", fontsize=8)
@@ -246,9 +273,10 @@ def _plot_time_panels(result: RunResult, axes: dict, time: np.ndarray, brk_runs)
     if values:
         ax.legend(loc="lower right", fontsize=8, ncols=4)
     ax.set_xlabel("time [s]")
+    return labels, speed_top
 
 
-def _plot_yaw_panel(result: RunResult, ax, time: np.ndarray, brk_runs) -> None:
+def _plot_yaw_panel(result: RunRecord, ax, time: np.ndarray, brk_runs, narrow: bool = False) -> None:
     """Heading, side slip and road-wheel steer (deg, left axis) and yaw rate (deg/s, right axis): a skid or
     spin and the driver's counter-steer at a glance. ISO 8855 signs: + left (counter-clockwise)."""
     cols = result.columns
@@ -275,12 +303,42 @@ def _plot_yaw_panel(result: RunResult, ax, time: np.ndarray, brk_runs) -> None:
     ax.set_ylim(-angle_limit, angle_limit)  # zero of both axes on one line
     handles = ax.get_legend_handles_labels()[0] + rate_ax.get_legend_handles_labels()[0]
     ax.legend(handles=handles, loc="upper right", fontsize=8, ncols=4)
-    ax.set_title("heading, side slip, steering and yaw rate (a skid: heading and yaw rate away from 0, "
-                 "counter-steer opposite)", fontsize=10, loc="left")
+    ax.set_title("heading, side slip, steering and yaw rate" + ("" if narrow else " (a skid: heading and yaw rate "
+                 "away from 0, counter-steer opposite)"), fontsize=10, loc="left")
     ax.set_xlabel("time [s]")
 
 
-def _surface_style(result: RunResult):
+def _plot_lead_panel(result: RunRecord, ax, time: np.ndarray, lead: dict) -> None:
+    """The lead vehicle (a vehicle ahead in the ego's path, docs/results.md): the bumper-to-bumper gap to it (left
+    axis) and its speed relative to the ego's along the road (right axis, negative while the gap closes), each
+    stretch named by the vehicle's id."""
+    units = result.units
+    step = _stride(len(time))
+    t = time[::step]
+    present = lead["present"]
+    gap = from_si(np.where(present, lead["gap"], np.nan), units)
+    relative = from_si(np.where(present, lead["relative_speed"], np.nan), units)
+    ax.plot(t, gap[::step], color=LEAD_COLOR, lw=1.5, label="bumper gap")
+    ax.set_ylim(0, max(float(np.nanmax(gap)), 1e-6) * 1.15)
+    ax.set_ylabel(f"gap to the lead [{length_label(units)}]")
+    for first, last in _runs(present):
+        # a new stretch where the lead vehicle changes: named at its start
+        index = lead["index"][first:last + 1]
+        for start in [first] + (np.flatnonzero(np.diff(index)) + first + 1).tolist():
+            ax.annotate(f"A{int(lead['index'][start]) + 1}", (time[start], gap[start]), xytext=(2, 4),
+                        textcoords="offset points", fontsize=8, color=LEAD_COLOR, fontweight="bold")
+    rate_ax = ax.twinx()
+    rate_ax.plot(t, relative[::step], color="tab:gray", lw=1.0, ls="--", label="lead speed - ego speed")
+    rate_ax.axhline(0.0, color="tab:gray", lw=0.6, alpha=0.5)
+    rate_ax.set_ylabel(f"relative speed [{speed_label(units)}]", color="tab:gray")
+    rate_ax.tick_params(axis="y", colors="tab:gray")
+    handles = ax.get_legend_handles_labels()[0] + rate_ax.get_legend_handles_labels()[0]
+    ax.legend(handles=handles, loc="upper right", fontsize=8)
+    ax.set_title("lead vehicle (ahead in the ego's path): gap and relative speed", fontsize=10, loc="left")
+    ax.set_xlabel("time [s]")
+
+
+def _surface_style(result: RunRecord):
     """(colour of a section value, colorbar mappable or None, legend handles) for the RSA patches."""
     values = [section.value for section in result.surfaces]
     if result.friction_meaning != "attribute":
@@ -302,7 +360,7 @@ MAX_LANE_LINES = 200  # lane lines drawn at most; more within the view would be 
 NEAR_LANES = 4  # lanes shown beyond the outermost path on either side (the rest of a wide road is not drawn)
 
 
-def _draw_road(ax, result: RunResult, x_min: float, x_max: float,
+def _draw_road(ax, result: RunRecord, x_min: float, x_max: float,
                shown: tuple[float, float]) -> tuple[float, float]:
     """Lanes, shoulders, lane lines and RSA patches between stations x_min..x_max and lateral positions
     shown[0]..shown[1] (scenario units): what lies beyond is not drawn, so the cost does not grow with lanes
@@ -353,7 +411,7 @@ def _draw_road(ax, result: RunResult, x_min: float, x_max: float,
     return left - width, right + width
 
 
-def _lateral_limits(result: RunResult) -> tuple[float, float]:
+def _lateral_limits(result: RunRecord) -> tuple[float, float]:
     """Lateral range shown: the road with shoulders as far as it lies within NEAR_LANES lanes of the ego's and
     the vehicles' paths, widened for any path that leaves it."""
     road, units = result.road, result.units
@@ -374,7 +432,7 @@ def _lateral_limits(result: RunResult) -> tuple[float, float]:
     return low - pad, high + pad
 
 
-def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, annotate: bool) -> list:
+def _draw_paths(ax, result: RunRecord, brk_runs, x_min: float, x_max: float, annotate: bool) -> list:
     """Ego path (red where BRK holds the pedals), traffic paths and collision points; legend handles."""
     units = result.units
     station = from_si(np.asarray(result.columns["station"], dtype=float), units)
@@ -435,15 +493,32 @@ def _draw_paths(ax, result: RunResult, brk_runs, x_min: float, x_max: float, ann
     return handles
 
 
-def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
-    """Sample to zoom on: the first collision, else the closest approach of the first traffic vehicle."""
+def _focus(result: RunRecord, time: np.ndarray) -> tuple[int, str] | None:
+    """Sample to zoom on: the run's criticality minimum (the smallest footprint distance to any vehicle and its
+    located instant, a first collision included: its distance is 0), else the first collision, else the closest
+    approach of the first traffic vehicle (a record without criticality)."""
+    if not len(time):
+        return None
+    criticality = scenario_units.criticality(result.criticality, result.units) or {}
+    instant, value = criticality.get("min_distance_time_s"), criticality.get("min_distance")
+    if instant is not None and value is not None:
+        index = int(np.clip(np.searchsorted(time, instant), 0, len(time) - 1))
+        if index > 0 and instant - time[index - 1] < time[index] - instant:
+            index -= 1  # the sample nearest the instant
+        who = [vehicle for vehicle in criticality.get("vehicles", [])
+               if vehicle.get("min_distance_time_s") == instant and vehicle.get("min_distance") is not None
+               and abs(vehicle["min_distance"] - value) <= 1e-9 * max(1.0, abs(value))]
+        name = next((track.name for track in result.vehicles if who and track.vehicle == who[0]["vehicle"]), "")
+        what = "collision" if value <= 0.0 else f"minimum distance {value:.4g} {length_label(result.units)}"
+        subject = f" to A{who[0]['vehicle']} {name}".rstrip() if who else ""
+        return index, f"{what}{subject}, t = {instant:.2f} s (the run's criticality minimum)"
     station = np.asarray(result.columns["station"], dtype=float)
     collisions = [e for e in _timed_events(result) if e.get("action") == "collision"]
-    if collisions and len(time):
+    if collisions:
         index = int(np.clip(np.searchsorted(time, collisions[0]["time_s"]), 0, len(time) - 1))
         who = f" with A{collisions[0]['vehicle']}" if "vehicle" in collisions[0] else ""
         return index, f"first collision{who}, t = {time[index]:.2f} s"
-    if result.collision_points and len(time):
+    if result.collision_points:
         target = result.collision_points[0][0]
         index = int(np.argmin(np.abs(station - target)))
         return index, f"first collision, t = {time[index]:.2f} s"
@@ -456,7 +531,7 @@ def _focus(result: RunResult, time: np.ndarray) -> tuple[int, str] | None:
     return None
 
 
-def _draw_footprints(ax, result: RunResult, index: int) -> None:
+def _draw_footprints(ax, result: RunRecord, index: int) -> None:
     """Traffic vehicles' footprints and the ego's position at one sample (zoom panel)."""
     units = result.units
     for number, track in enumerate(result.vehicles):
@@ -474,13 +549,14 @@ def _draw_footprints(ax, result: RunResult, index: int) -> None:
     ax.plot(ego_x, ego_y, "D", color=EGO_COLOR, mec="black", ms=8, zorder=6)
 
 
-def _plot_criticality(result: RunResult, axes: dict, time: np.ndarray) -> None:
+def _plot_criticality(result: RunRecord, axes: dict, time: np.ndarray) -> None:
     """The minimum-distance instant on the speed and distance panels; TTC over time where it is defined."""
-    instant = (result.criticality or {}).get("min_distance_time_s")
+    criticality = scenario_units.criticality(result.criticality, result.units) or {}
+    instant = criticality.get("min_distance_time_s")
     if instant is not None:
         for name in ("speed", "distance"):
             axes[name].axvline(instant, color="tab:red", ls=":", lw=1.3)
-        axes["distance"].annotate(f"min distance {result.criticality['min_distance']:.4g} "
+        axes["distance"].annotate(f"min distance {criticality['min_distance']:.4g} "
                                   f"{length_label(result.units)}", (instant, 0.02), xycoords=("data", "axes fraction"),
                                   fontsize=8, color="tab:red", ha="left")
     ttc = result.ttc_series() if result.ttc_series is not None else None
@@ -491,18 +567,18 @@ def _plot_criticality(result: RunResult, axes: dict, time: np.ndarray) -> None:
         twin.set_ylabel("time to collision [s] (red)", color="tab:red")
 
 
-def plot_run(result: RunResult, path: Path) -> None:
+def plot_run(result: RunRecord, path: Path) -> None:
     """Write plot.png: speed, distance, inputs, friction, heading and yaw over time, and the road from above.
     Values at the format's extremes (km-wide views of a lane) make matplotlib's arithmetic overflow harmlessly:
     its RuntimeWarnings are not the user's concern, so they are not printed."""
-    from .text import plain_text  # names (scenario, vehicle, map) are drawn as written: `$` is not mathtext
+    from ..text import plain_text  # names (scenario, vehicle, map) are drawn as written: `$` is not mathtext
 
     with warnings.catch_warnings(), np.errstate(all="ignore"), plain_text():
         warnings.simplefilter("ignore", RuntimeWarning)
         _plot_run(result, path)
 
 
-def _plot_run(result: RunResult, path: Path) -> None:
+def _plot_run(result: RunRecord, path: Path) -> None:
     units = result.units
     length = length_label(units)
     time = np.asarray(result.columns["time"], dtype=float)
@@ -511,19 +587,27 @@ def _plot_run(result: RunResult, path: Path) -> None:
 
     figure = Figure(figsize=(16, 13.5), dpi=110, layout="constrained")
     FigureCanvasAgg(figure)
+    lead = result.lead_series() if result.lead_series is not None and len(time) else None
+    if lead is not None and not lead["present"].any():
+        lead = None  # no vehicle was ever ahead in the ego's path
     grid = figure.add_gridspec(5, 2, height_ratios=[1.15, 1.0, 0.95, 1.05, 1.05])
     axes = {"speed": figure.add_subplot(grid[0, 0])}
     axes["distance"] = figure.add_subplot(grid[0, 1], sharex=axes["speed"])
     axes["pedals"] = figure.add_subplot(grid[1, 0], sharex=axes["speed"])
     axes["friction"] = figure.add_subplot(grid[1, 1], sharex=axes["speed"])
-    axes["yaw"] = figure.add_subplot(grid[2, :], sharex=axes["speed"])
+    axes["yaw"] = figure.add_subplot(grid[2, 0] if lead is not None else grid[2, :], sharex=axes["speed"])
+    if lead is not None:
+        axes["lead"] = figure.add_subplot(grid[2, 1], sharex=axes["speed"])
     road_ax = figure.add_subplot(grid[3, :] if focus else grid[3:, :])
     zoom_ax = figure.add_subplot(grid[4, :]) if focus else None
     for ax in axes.values():
         ax.grid(True, alpha=0.3)
+    labels, top = [], 1.0
     if len(time):
-        _plot_time_panels(result, axes, time, brk_runs)
-        _plot_yaw_panel(result, axes["yaw"], time, brk_runs)
+        labels, top = _plot_time_panels(result, axes, time, brk_runs, lead)
+        _plot_yaw_panel(result, axes["yaw"], time, brk_runs, narrow=lead is not None)
+        if lead is not None:
+            _plot_lead_panel(result, axes["lead"], time, lead)
         _plot_criticality(result, axes, time)
         axes["speed"].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1)
 
@@ -578,4 +662,5 @@ def _plot_run(result: RunResult, path: Path) -> None:
         first = result.warnings[0] if len(result.warnings[0]) <= 90 else result.warnings[0][:87] + "..."
         subtitle += f"  |  {len(result.warnings)} warning(s): {first}"
     figure.suptitle(f"{title}\n{subtitle}", fontsize=13)
+    _pack_labels(figure, axes["speed"], labels, top)
     figure.savefig(Path(path), format="png")

@@ -13,7 +13,7 @@ import tempfile
 
 import numpy as np
 
-from .lazy_sequence import LazySequence
+from ..lazy_sequence import LazySequence
 
 CHUNK_ROWS = 8192
 

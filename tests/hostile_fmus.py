@@ -255,7 +255,8 @@ def hosts_of(work) -> list[int]:
 
 def assert_clean(work) -> None:
     """$TMPDIR empty (the unpacked FMUs gone) and no process of this test left (a host reaped)."""
-    assert os.listdir(work / "tmp") == [], "the unpacked FMU (or a host's file) was left in $TMPDIR"
+    left = sorted(os.listdir(work / "tmp"))
+    assert left == [], f"the unpacked FMU (or a host's file) was left in $TMPDIR: {left}"
     deadline = time.monotonic() + HANG_LIMIT  # a killed host is reaped by its parent before it exits
     while hosts_of(work):
         assert time.monotonic() < deadline, f"processes left: {hosts_of(work)}"

@@ -25,7 +25,10 @@ import pytest
 from hostile_fmus import HANG_LIMIT, _capped, assert_clean, capped, capped_command, environment
 from sdl_fmu.hold import HOLD_VARIABLE
 
-pytestmark = pytest.mark.slow  # a command started and interrupted per case (some start a Dask cluster)
+pytestmark = [pytest.mark.slow,  # a command started and interrupted per case (some start a Dask cluster)
+              # the FMUs the commands take from the cache, built as setup: a command building one on first use
+              # says so on stderr
+              pytest.mark.usefixtures("simple_fmus", "example_aeb_fmus", "scenario_binaries")]
 SIGNALS = {"ctrl-c": (130, "interrupted (Ctrl-C)"), "sigterm": (143, "terminated (SIGTERM)")}
 
 

@@ -355,7 +355,33 @@ def isolation(results: Path) -> list[str]:
         "(Simple: demo, Advanced: demo_advanced; no plot), and the master loop's extra time per step.", "",
         *_table(["FMU", "host start s", "step µs (in process / host)", "demo run s (in process / host)",
                  "loop, extra µs per step"], rows), "",
-        _measured(data["measured"]), ""]
+        _measured(data["measured"]), "", *_controller_isolation(data.get("controller"))]
+
+
+def _controller_isolation(entry: dict | None) -> list[str]:
+    """Section 11's controller part: the example AEB in process against a foreign copy of it in a host."""
+    if entry is None:
+        return []
+    a, b, extra = entry["in_process"], entry["isolated"], entry["extra"]
+    row = [f"{b['first_instance_s']:.2f}", f"{a['sample_us']:.0f} / **{b['sample_us']:.0f}**",
+           f"{a['run_s']:.2f} / **{b['run_s']:.2f}**", f"{a['run_cpu_s']:.2f} / **{b['run_cpu_s']:.2f}**",
+           f"{extra['loop_per_sample_us']:.0f}",
+           f"{a['pack_wall_s']:.1f} / **{b['pack_wall_s']:.1f}**",
+           f"{a['pack_cpu_s'] + a['pack_host_cpu_s']:.1f} / **{b['pack_cpu_s'] + b['pack_host_cpu_s']:.1f}**"]
+    return [
+        "A controller FMU sdl-fmu did not build runs in a host too (`IsolatedController`, "
+        "`sdl_fmu/vehicle/controller.py`; [docs/controllers.md](docs/controllers.md)). Measured with the shipped "
+        "example AEB in sdl-fmu's process against a foreign copy of it (the same FMU, other bytes: its archive with a "
+        "zip comment), the Simple ego in process both ways, interleaved, medians: the host's start, one 10 ms sample "
+        "(two inputs set, a step, three outputs read), a CCRs test through `api.run` (50 km/h toward a stationary "
+        f"car, 8 s, {a['samples']} samples, {a['steps']} steps; CPU: this process and the host, whose start is in "
+        "it), the master loop's extra time per sample, and the whole AEB car-to-car grid "
+        f"(`verify --pack aeb-ccr --workers 0`: {a['pack_tests']} tests one after the other, one host for all; CPU: "
+        "this process and the host).", "",
+        *_table(["controller", "host start s", "sample µs (in process / host)", "CCRs run s (in process / host)",
+                 "CCRs run CPU s", "loop, extra µs per sample", "CCR grid s", "CCR grid CPU s"],
+                [["example AEB", *row]]), "",
+        _measured(entry["measured"]), ""]
 
 
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
@@ -385,7 +411,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/aeb_ccr.py --json benchmarks/results/aeb_ccr.json",
         "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
         "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
-        "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json",
+        "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json  # --part vehicles|controller",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

@@ -32,6 +32,7 @@ from fmpy import read_model_description
 from . import __version__
 from .cosim import master
 from .cosim.ego import FmuError
+from .hold import HOLD_VARIABLE, hold_here, holding  # noqa: F401 (HOLD_VARIABLE: the tests' name for it)
 from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
 from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DRIVERS, LIMITS, MAX_TIME, ON_COLLISION,
                       InputError, checked_choice, checked_option, checked_seed, option_error, regular_file)
@@ -168,6 +169,7 @@ def check(scenario: str | os.PathLike | Scenario, *, skip_unsupported: bool = Fa
     warnings = vehicle_warnings(loaded, vehicle_map.name or vehicle_map.label,
                                 None if friction is None else friction.meaning, vehicle_map.flags.get("brk_acts", True),
                                 known)
+    hold_here()  # the test hook (hold.py)
     return Check(loaded, [*loaded.warnings, *tire_warnings, *warnings])
 
 
@@ -354,14 +356,9 @@ def _progress_bar(enabled: bool | None, scenario: Scenario) -> Callable | None:
     return update
 
 
-# Test hook, for tests that must catch a run in progress whatever the machine's speed (Ctrl-C, timeouts, a
-# worker killed mid-run): when $SDL_FMU_TEST_HOLD names a file that exists, every run, after its first
-# communication step, appends its process id to that path + ".running" and then waits until the file is
-# removed, its timeout passes (RunTimeout) or it is interrupted.
-HOLD_VARIABLE = "SDL_FMU_TEST_HOLD"
-
-
-def _held(progress: Callable | None, hold: str) -> Callable:
+def _held(progress: Callable | None) -> Callable:
+    """The test hook's hold point of a run (sdl_fmu/hold.py): after its first communication step, until released,
+    its timeout passes (RunTimeout) or it is interrupted."""
     held = []
 
     def hold_once(cosimulation, state) -> None:
@@ -369,12 +366,8 @@ def _held(progress: Callable | None, hold: str) -> Callable:
             progress(cosimulation, state)
         if not held:
             held.append(True)
-            with open(hold + ".running", "a", encoding="utf-8") as running:
-                running.write(f"{os.getpid()}\n")
-            while os.path.exists(hold):
-                time.sleep(0.01)
-                if progress is not None:
-                    progress(cosimulation, state)  # the deadline's check
+            # while held, the deadline's check
+            hold_here(None if progress is None else lambda: progress(cosimulation, state))
 
     return hold_once
 
@@ -436,7 +429,7 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     options.until_not_closing = until_not_closing
     if out is not None:
         try:
-            check_results_folder(out)
+            check_results_folder(out, "run")
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
     model = ego_model(dynamics, fmu, vehicle_map if vehicle is not None else None)
@@ -444,14 +437,15 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     options.progress = _progress_bar(progress, scenario)
     if timeout is not None:
         options.progress = _with_deadline(options.progress, timeout)
-    if os.environ.get(HOLD_VARIABLE) and os.path.exists(os.environ[HOLD_VARIABLE]):
-        options.progress = _held(options.progress, os.environ[HOLD_VARIABLE])
+    if holding():
+        options.progress = _held(options.progress)
     try:
         with deadline(timeout):  # a foreign FMU's host is waited for at most until then, even inside a step
             raw = master.run_scenario(scenario, model, options, _vehicle_table())
-    except FmuTimeout as error:
-        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): the FMU "
-                         f"{model.fmu_path.name} {_first_line(error)}") from None  # "did not answer in fmi2DoStep ..."
+    except FmuTimeout as error:  # the ego's, or the controller's (its subject names it)
+        raise RunTimeout(f"the run exceeded its time limit of {timeout:g} s (wall clock): "
+                         f"{error.subject or 'the FMU ' + model.fmu_path.name} {_first_line(error)}"
+                         ) from None  # "did not answer in fmi2DoStep ..."
     except ControllerError as error:  # the controller's binary, or values it refused or returned
         raise InputError("controller", _first_line(error)) from None
     except FmuError as error:  # a broken binary, or values the model cannot simulate
@@ -566,7 +560,7 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
         raise InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {_first_line(error)}") from None
     if out is not None:
         try:
-            check_results_folder(out)
+            check_results_folder(out, "verify")
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
     identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,

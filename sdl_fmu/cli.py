@@ -15,6 +15,7 @@ from pathlib import Path
 
 from . import __version__, api
 from . import sweep as sweeping
+from .hold import hold_here
 from .names import SHIPPED
 from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
 from .sdl import ScenarioError, describe
@@ -40,26 +41,53 @@ class _ArgumentError(Exception):
 
 def _build(args) -> int:
     """Builds the FMUs into the per-user cache that `run` and `verify` use (what is there already is kept: the cache
-    is keyed by every build input) and copies them to --out."""
+    is keyed by every build input) and copies them to --out. Interrupted, or failing, it leaves no partial copy and
+    no folder it made that stayed empty; the FMUs it printed are whole."""
     from .fmu.cache import cached_fmus  # the build side: CasADi and the compilers
     from .fmu.package import fmu_path
 
     names = list(SHIPPED) if args.dynamics == "all" else [args.dynamics]
     versions = tuple(map(int, FMI_VERSIONS)) if args.fmi_version == "all" else (int(args.fmi_version),)
     out = Path(args.out)
+    made: list[Path] = []  # the folders this command made, outermost first
+    written: list[Path] = []
     try:
-        out.mkdir(parents=True, exist_ok=True)  # fails now rather than after compiling
+        made += _made_by_mkdir(out)  # fails now rather than after compiling
         for dynamics in names:
             for version, cached in zip(versions, cached_fmus(dynamics, versions)):
                 target = fmu_path(out, dynamics, version)
-                target.parent.mkdir(parents=True, exist_ok=True)
+                made += _made_by_mkdir(target.parent)
                 partial = target.with_suffix(".fmu.partial")
-                shutil.copyfile(cached, partial)
-                partial.replace(target)  # atomic: never a half-copied FMU
+                try:
+                    shutil.copyfile(cached, partial)
+                    hold_here()  # the test hook (sdl_fmu/hold.py)
+                    partial.replace(target)  # atomic: never a half-copied FMU
+                finally:
+                    partial.unlink(missing_ok=True)  # a full disk, Ctrl-C, SIGTERM: no partial copy is left
+                written.append(target)
                 print(target)
-    except OSError as error:
-        raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
+    except BaseException as error:
+        for folder in reversed(made):
+            try:
+                folder.rmdir()  # only if it stayed empty
+            except OSError:
+                pass
+        if isinstance(error, OSError):
+            raise InputError("out", f"--out {args.out}: cannot write there: {error.strerror or error}") from None
+        if isinstance(error, KeyboardInterrupt) and written:  # the FMUs printed above are whole and stay
+            how = "terminated (SIGTERM)" if isinstance(error, Terminated) else "interrupted (Ctrl-C)"
+            print(f"sdl-fmu: build {how}; only the FMUs listed above were written", file=sys.stderr)
+            return EXIT_TERMINATED if isinstance(error, Terminated) else EXIT_INTERRUPTED
+        raise
     return 0
+
+
+def _made_by_mkdir(folder: Path) -> list[Path]:
+    """Makes `folder` and its missing parents (an error if a file is in the way); returns those it made, outermost
+    first."""
+    missing = [path for path in (folder, *folder.parents) if not path.exists()][::-1]
+    folder.mkdir(parents=True, exist_ok=True)
+    return missing
 
 
 def _check(args) -> int:
@@ -274,7 +302,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")
     _loop_arguments(run)
-    run.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
+    run.add_argument("--out", help="results folder: new, empty, or an earlier run's results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)
 
@@ -326,7 +354,7 @@ def parser() -> argparse.ArgumentParser:
     where.add_argument("--scheduler", help="aeb-ccr: address of an existing Dask scheduler (tcp://host:port)")
     verify.add_argument("--strict", action="store_true", help="exit 1 when a criterion fails (a manoeuvre fails; "
                         "aeb-ccr: a test scores less than its full points)")
-    verify.add_argument("--out", help="results folder: new, empty, or an earlier results folder "
+    verify.add_argument("--out", help="results folder: new, empty, or an earlier verify folder "
                                       "(default: verify/<vehicle>, verify/<vehicle>-aeb-ccr)")
     verify.set_defaults(handler=_verify)
 

@@ -10,8 +10,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
+import logging
 import os
 import re
+import signal
 import tempfile
 from pathlib import Path
 
@@ -149,10 +151,51 @@ def client(workers: int | None, scheduler: str | None, runs: int | None = None):
         return connected, [connected]
     check_workers(workers)
     count = workers or os.cpu_count() or 1
+    scratch = _Scratch()  # the workers' files (Dask's dask-scratch-space and its lock files): removed after them
     try:
-        cluster = LocalCluster(n_workers=count if runs is None else max(1, min(count, runs)), threads_per_worker=1,
-                               processes=True, dashboard_address=None)
+        import dask
+
+        with dask.config.set({"temporary-directory": str(scratch.path)}):  # the scheduler's workspace too
+            # silence_logs: Dask's warnings (a worker killed as the cluster closes after Ctrl-C, a task cancelled)
+            # are not the user's business; its errors still show
+            # preload: dask_setup below, in each worker process. No dashboard; the scheduler's HTTP server (its
+            # health routes, started all the same) on a free port: on its default, 8787, it warns when another
+            # cluster of the machine holds it
+            cluster = LocalCluster(n_workers=count if runs is None else max(1, min(count, runs)),
+                                   threads_per_worker=1, processes=True, dashboard_address=None,
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                   local_directory=str(scratch.path), silence_logs=logging.ERROR,
+                                   preload=[__name__])
     except (OSError, RuntimeError) as error:
+        scratch.close()
         raise ClusterError(f"cannot start a local Dask cluster: {str(error).splitlines()[0]}") from None
+    except BaseException:
+        scratch.close()
+        raise
     connected = Client(cluster)
-    return connected, [connected, cluster]
+    return connected, [connected, cluster, scratch]
+
+
+def dask_setup(worker) -> None:
+    """Run by Dask in each worker process of a local cluster started here (its preload): Ctrl-C is ignored there. A
+    terminal's Ctrl-C reaches the whole process group, and each worker would end with a KeyboardInterrupt traceback
+    on the user's terminal; sdl-fmu itself handles it and closes the cluster, which ends the workers."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class _Scratch:
+    """What a local cluster's workers leave, removed by close() once the cluster is closed: a private temporary folder
+    for them ($TMPDIR/sdl-fmu-dask-*; by default Dask keeps a dask-scratch-space folder with lock files in $TMPDIR
+    for good), and the FMUs unpacked by workers the cluster had to kill (an interrupted sweep: a worker busy with a
+    run does not stop in time), which their own exit would have removed (vehicle/unpack.py)."""
+
+    def __init__(self):
+        self.path = Path(tempfile.mkdtemp(prefix="sdl-fmu-dask-"))
+
+    def close(self) -> None:
+        import shutil
+
+        from .vehicle.unpack import remove_leftovers
+
+        shutil.rmtree(self.path, ignore_errors=True)
+        remove_leftovers()

@@ -40,6 +40,7 @@ from typing import Callable, Literal
 
 import numpy as np
 
+from .results.folder import SWEEP_MANIFEST_FORMAT, SWEEP_MANIFEST_NAME, folder_kind, other_kind_text
 from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
 from .shipping import one_file as _one_file, passed_on as _passed_on
 from .shipping import check_scheduler, check_workers, max_workers  # noqa: F401 (the command line checks with them)
@@ -51,7 +52,7 @@ TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME = (
     "sweep.parquet", "sweep.csv", "sweep-rows.jsonl", "sweep.json", "sweep.png")
 OWN_FILES = {TABLE_NAME, CSV_NAME, JOURNAL_NAME, SPEC_NAME, PLOT_NAME}
 # the files above, each with its size and SHA-256 (the journal: its start), signed with the user's key (ownership.py)
-MANIFEST_NAME, MANIFEST_FORMAT = ".sdl-fmu-sweep.json", "sdl-fmu sweep 1"
+MANIFEST_NAME, MANIFEST_FORMAT = SWEEP_MANIFEST_NAME, SWEEP_MANIFEST_FORMAT
 PARTIAL = ".partial"  # a file being written: renamed into place when whole
 RUN_OPTIONS = {"speed", "seed", "until_distance", "until_time"}
 DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
@@ -413,6 +414,9 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
         raise SweepError(f"--out {out}: exists and is not a folder")
     if not out.exists():
         return []
+    kind = folder_kind(out)
+    if kind not in (None, "sweep"):  # a run's, a test pack's or an export's folder
+        raise SweepError(f"--out {other_kind_text(str(out), kind, 'sweep')}")
     names = sorted(entry.name for entry in out.iterdir())
     proved = _proved(out)
     leftovers = [name for name in names if name.endswith(PARTIAL) and name[:-len(PARTIAL)] in

@@ -1,10 +1,13 @@
 """Hostile inputs built at test time: the hostile car (tests/vehicles/hostile_car.c, compiled with gcc, an FMI 2.0
 co-simulation FMU that hangs, crashes, exits, outputs NaN, lies about its FMU state, logs garbage on demand) with
-its model description and vehicle map, variants of both, and the command line run under a memory cap.
+its model description and vehicle map, variants of both; the hostile controller (tests/controllers/hostile_aeb.c, an
+AEB that does the same on demand) with its controller map; and the command line run under a memory cap.
 
     fmu = hostile_fmu(folder)                     # the honest description; keywords change it (a unit, the GUID, ...)
     car = hostile_map(folder, mode=2)             # its map; mode picks the misbehaviour (see hostile_car.c)
     completed = capped("run", "demo", "--fmu", fmu, "--vehicle", car)   # the real command line, capped
+    aeb = hostile_controller(folder)              # the hostile controller, and its map (see hostile_aeb.c)
+    completed = capped("run", "demo", "--controller", aeb, "--controller-map", hostile_controller_map(folder, "nan"))
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import os
 import resource
 import subprocess
 import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -32,14 +36,14 @@ VARIABLES = [  # name, causality, variability, start (None: an output)
     ("trigger_time", "parameter", "fixed", 1.0)]
 
 
-def library(folder: Path) -> Path:
-    """The hostile car's shared library, compiled once into `folder`."""
+def library(folder: Path, source: Path = SOURCE, identifier: str = IDENTIFIER) -> Path:
+    """The hostile car's shared library (or another source's), compiled once into `folder`."""
     from sdl_fmu.fmu.package import fmi_headers
 
-    built = folder / f"{IDENTIFIER}.so"
+    built = folder / f"{identifier}.so"
     if not built.exists():
         subprocess.run(["gcc", "-std=c99", "-O1", "-shared", "-fPIC", "-Wall", "-Wextra", "-Werror",
-                        f"-I{fmi_headers()}", str(SOURCE), "-o", str(built), "-lm"], check=True)
+                        f"-I{fmi_headers()}", str(source), "-o", str(built), "-lm"], check=True)
     return built
 
 
@@ -123,6 +127,74 @@ speed = {{ variable = "v_init" }}
     return path
 
 
+CONTROLLER_SOURCE = Path(__file__).parent / "controllers" / "hostile_aeb.c"
+CONTROLLER_GUID = "{5d1e7f3a-4b2c-4e8d-9a61-0c3f2b7e4a10}"
+CONTROLLER_IDENTIFIER = "HostileAeb"
+CONTROLLER_MODES = {"honest": 0, "hang": 1, "crash": 2, "exit": 3, "nan": 4, "inf": 5, "lie": 6}
+CONTROLLER_VARIABLES = [  # name, causality, variability, start (None: an output); SI, no units declared
+    ("ttc", "input", "continuous", 1000.0), ("brake", "output", "discrete", None),
+    ("mode", "parameter", "fixed", 0.0), ("trigger_time", "parameter", "fixed", 1.0),
+    ("ttc_trigger", "parameter", "fixed", 1.0)]
+
+
+def hostile_controller(folder: Path, name: str = "HostileAeb") -> Path:
+    """The hostile controller as an FMU `folder/name.fmu` (FMI 2.0 co-simulation; its XML declares
+    canGetAndSetFMUstate, which mode 6 of hostile_aeb.c lies about)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    binary = library(folder, CONTROLLER_SOURCE, CONTROLLER_IDENTIFIER).read_bytes()
+    variables = []
+    for index, (variable, causality, variability, start) in enumerate(CONTROLLER_VARIABLES):
+        attributes = f' start="{start!r}"' if start is not None else ""
+        initial = ' initial="exact"' if causality == "output" else ""
+        start_value = ' start="0.0"' if causality == "output" else attributes
+        variables.append(f'    <ScalarVariable name="{variable}" valueReference="{index}" causality="{causality}" '
+                         f'variability="{variability}"{initial}><Real{start_value}/></ScalarVariable>')
+    outputs = "".join(f'<Unknown index="{i + 1}"/>' for i, v in enumerate(CONTROLLER_VARIABLES) if v[1] == "output")
+    xml = f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="Hostile AEB" guid="{CONTROLLER_GUID}"
+  generationTool="tests/hostile_fmus.py" numberOfEventIndicators="0">
+  <CoSimulation modelIdentifier="{CONTROLLER_IDENTIFIER}" canGetAndSetFMUstate="true"
+    canHandleVariableCommunicationStepSize="true"/>
+  <ModelVariables>
+{chr(10).join(variables)}
+  </ModelVariables>
+  <ModelStructure><Outputs>{outputs}</Outputs></ModelStructure>
+</fmiModelDescription>
+"""
+    path = folder / f"{name}.fmu"
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as fmu:
+        fmu.writestr("modelDescription.xml", xml)
+        fmu.writestr(f"binaries/linux64/{CONTROLLER_IDENTIFIER}.so", binary)
+    return path
+
+
+def hostile_controller_map(folder: Path, mode: str | int = "honest", trigger_time: float = 1.0,
+                           ttc_trigger: float = 1.0, *, name: str = "hostile-aeb", period: float = 0.01) -> Path:
+    """A controller map of the hostile controller: the lead TTC in, a brake request out (rule max); `mode` (a name
+    of CONTROLLER_MODES or a number) starts at `trigger_time` (s)."""
+    mode = CONTROLLER_MODES.get(mode, mode)
+    text = f"""period = {period!r}
+
+[inputs]
+lead_ttc = {{ variable = "ttc" }}
+
+[outputs]
+brake = {{ variable = "brake" }}
+
+[arbitration]
+brake = "max"
+
+[parameters]
+mode = {float(mode)!r}
+trigger_time = {float(trigger_time)!r}
+ttc_trigger = {float(ttc_trigger)!r}
+"""
+    path = folder / f"{name}.toml"
+    folder.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
 def _capped() -> None:
     """In the child before exec: the memory cap, and Ctrl-C's default action (a background test run may start the
     child with SIGINT ignored)."""
@@ -158,3 +230,42 @@ def one_line(completed: subprocess.CompletedProcess, code: int, *needles: str) -
     assert "Traceback" not in completed.stderr
     assert all(needle in lines[0] for needle in needles), lines[0]
     return lines[0]
+
+
+# ---- the tests' surroundings: a private $TMPDIR, the processes a test started, a hang to wait for -------------
+
+
+def environment(work, **extra) -> dict:
+    return {"TMPDIR": str(work / "tmp"), "SDL_FMU_TEST_MARK": str(work), **extra}
+
+
+def hosts_of(work) -> list[int]:
+    """Processes started for this test (its mark in their environment) that are still there."""
+    found = []
+    mark = f"SDL_FMU_TEST_MARK={work}".encode()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if mark in (entry / "environ").read_bytes().split(b"\0"):
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
+def assert_clean(work) -> None:
+    """$TMPDIR empty (the unpacked FMUs gone) and no process of this test left (a host reaped)."""
+    left = sorted(os.listdir(work / "tmp"))
+    assert left == [], f"the unpacked FMU (or a host's file) was left in $TMPDIR: {left}"
+    deadline = time.monotonic() + HANG_LIMIT  # a killed host is reaped by its parent before it exits
+    while hosts_of(work):
+        assert time.monotonic() < deadline, f"processes left: {hosts_of(work)}"
+        time.sleep(0.05)
+
+
+def wait_for(path: Path, process) -> None:
+    deadline = time.monotonic() + HANG_LIMIT  # only against a hang: the loop ends when the FMU says it hangs
+    while not path.exists():
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() < deadline, "the FMU never reached its hang"
+        time.sleep(0.02)

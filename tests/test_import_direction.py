@@ -1,8 +1,9 @@
 """Imports flow one way: the output stage (the package sdl_fmu/results/: the record, the files, the plot, the results
 folder, the storage) never imports the run stage (sdl_fmu/cosim/, sdl_fmu/vehicle/), the run side's vehicle
 (vehicle/) never imports the build side (dynamics/, fmu/), the low modules (paths, units, names, options, tire_files,
-results/storage, lazy_sequence) import nothing of the package but each other (storage's EventLog is a
-lazy_sequence.LazySequence), and no module of the package imports itself through a circle.
+results/storage, lazy_sequence, hold) import nothing of the package but each other (storage's EventLog is a
+lazy_sequence.LazySequence), the build side never reaches the tests' hold points (hold.py: the build side's code is an
+input of the FMU cache's key), and no module of the package imports itself through a circle.
 
 Read from the source with `ast`, so every import counts: at the top, inside a function, under TYPE_CHECKING."""
 
@@ -14,7 +15,7 @@ import sdl_fmu
 PACKAGE = Path(sdl_fmu.__file__).parent
 OUTPUT_STAGE = ("sdl_fmu.results",)
 LOW = ("sdl_fmu.paths", "sdl_fmu.units", "sdl_fmu.names", "sdl_fmu.options", "sdl_fmu.tire_files",
-       "sdl_fmu.results.storage", "sdl_fmu.lazy_sequence")
+       "sdl_fmu.results.storage", "sdl_fmu.lazy_sequence", "sdl_fmu.hold")
 RUN_STAGE = ("sdl_fmu.cosim", "sdl_fmu.vehicle")
 BUILD_SIDE = ("sdl_fmu.dynamics", "sdl_fmu.fmu")
 
@@ -121,6 +122,21 @@ def test_the_low_modules_import_nothing_of_the_package_but_each_other():
     graph = import_graph(PACKAGE)
     for module in LOW:
         assert graph[module] <= set(LOW) - {module}, module
+
+
+def test_the_build_side_never_reaches_the_test_hook():
+    # a hold point there, or in a build input, would change every FMU's cache key (fmu/cache.py)
+    from sdl_fmu.fmu.cache import build_inputs
+
+    graph = import_graph(PACKAGE)
+    build = [module for module in graph if inside(module, BUILD_SIDE)]
+    assert len(build) >= 4
+    for module in build:
+        assert "sdl_fmu.hold" not in reached(graph, module), module
+    for dynamics in ("simple", "advanced", "example-aeb"):
+        files = [file for path in build_inputs(dynamics).values() for file in ([path] if path.is_file() else
+                                                                                path.rglob("*.py"))]
+        assert len(files) >= 4 and not [file for file in files if file.name == "hold.py"]
 
 
 def test_no_module_imports_itself_through_a_circle():

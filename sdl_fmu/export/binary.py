@@ -2,12 +2,13 @@
 sources, and copied into every exported scenario FMU (exporting needs no C compiler once it is there).
 
 The binary knows no scenario: it reads resources/scenario.sdlfmu at instantiation. Its sources are the scenario
-runtime (sdl_fmu/export/runtime/: the rules, the resources parser, the model adapter, one FMI layer per version)
-and the ego FMUs' generic instance layer (sdl_fmu/fmu/runtime/instance.c, instance.h, model.h: variable access with
-its range checks, logging, the FMU-state registry and serialization), plus two files generated here from the
-interface data (runtime/SdlScenario.json): scenario_interface.h (the variables' positions) and
-scenario_variables.c (the variable table). The ego FMUs' cache key does not include any of this folder, so a change
-of the scenario runtime never rebuilds them.
+runtime (sdl_fmu/export/runtime/: the rules, the resources parser, the scenario as a model with its hooks) and the
+ego FMUs' generic runtime, unchanged (sdl_fmu/fmu/runtime/: the instance layer with its variable access, range
+checks, logging, FMU-state registry and serialization, and the one FMI layer per version, fmi2Functions.c or
+fmi3Functions.c, with its state table; cosimulation.c and derivatives.c are linked for the ego models' paths the
+layers hold), plus two files generated here from the interface data (runtime/SdlScenario.json):
+scenario_interface.h (the variables' positions) and scenario_variables.c (the variable table). The ego FMUs' cache
+key does not include any of sdl_fmu/export/, so a change of the scenario runtime never rebuilds them.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..fmu.cache import compiler_identity, remove_abandoned_builds, build_lock, cache_directory
+from ..fmu.codegen import FMI_SOURCES, RUNTIME_HEADERS, RUNTIME_SOURCES
 from ..fmu.package import (FMI_HEADERS, LINUX_BINARY_DIRECTORY, MINGW_COMPILER, WINDOWS_BINARY_DIRECTORY, BuildError,
                            FmiVersion, binary_command, fmi_headers, mingw_compiler, run_compilers)
 from ..interface import INPUT, OUTPUT, PARAMETER, Interface, load_units, parse_interface
@@ -32,11 +34,12 @@ MODEL_IDENTIFIER = "SdlScenario"
 RUNTIME_DIRECTORY = Path(str(resources.files(__package__) / "runtime"))  # package data (pyproject.toml)
 EGO_RUNTIME_DIRECTORY = Path(str(resources.files("sdl_fmu.fmu") / "runtime"))
 INTERFACE_FILE = RUNTIME_DIRECTORY / "SdlScenario.json"
-SCENARIO_SOURCES = ("scenario.c", "scenario_data.c", "scenario_model.c", "scenario_fmi.c")
-FMI_LAYERS = {2: "scenario_fmi2.c", 3: "scenario_fmi3.c"}
-SCENARIO_HEADERS = ("scenario.h", "scenario_fmi.h")
-SHARED_SOURCES = ("instance.c",)  # from the ego FMUs' runtime, unchanged
-SHARED_HEADERS = ("instance.h", "model.h")
+SCENARIO_SOURCES = ("scenario.c", "scenario_data.c", "scenario_model.c")
+SCENARIO_HEADERS = ("scenario.h",)
+# from the ego FMUs' runtime, unchanged: the one generic runtime and the one FMI layer of each version
+SHARED_SOURCES = RUNTIME_SOURCES
+SHARED_HEADERS = RUNTIME_HEADERS
+FMI_LAYERS = FMI_SOURCES
 GENERATED = ("scenario_interface.h", "scenario_variables.c")
 # every bit of the replay's arithmetic as Python does it: no fused multiply-add
 EXTRA_FLAGS = ("-ffp-contract=off",)
@@ -132,8 +135,9 @@ def generated_sources() -> dict[str, str]:
 
 def source_files(fmi_version: FmiVersion) -> dict[str, Path]:
     """Every hand-written source of one FMI version's binary, by its name in sources/."""
-    files = {name: RUNTIME_DIRECTORY / name for name in (*SCENARIO_SOURCES, FMI_LAYERS[fmi_version], *SCENARIO_HEADERS)}
-    files.update({name: EGO_RUNTIME_DIRECTORY / name for name in (*SHARED_SOURCES, *SHARED_HEADERS)})
+    files = {name: RUNTIME_DIRECTORY / name for name in (*SCENARIO_SOURCES, *SCENARIO_HEADERS)}
+    files.update({name: EGO_RUNTIME_DIRECTORY / name for name in (*SHARED_SOURCES, FMI_LAYERS[fmi_version],
+                                                                   *SHARED_HEADERS)})
     return files
 
 

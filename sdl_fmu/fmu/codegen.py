@@ -184,7 +184,8 @@ const ModelInfo model_info = {{
     {solver_step},
     {solver_tolerance},
     {model_exchange},
-{function_fields}
+{function_fields},
+    NULL /* no hooks: the generic FMI layers do everything */
 }};
 """
     path = directory / f"{model}_model.c"

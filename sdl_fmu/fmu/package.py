@@ -106,17 +106,25 @@ def binary_command(sources_dir: Path, sources: list[str], output: Path, compiler
 def run_compilers(commands: list[list[str]], progress: _Progress | None = None) -> None:
     """Runs compiler commands side by side (gcc and mingw-w64 at once, each file its own process); raises
     BuildError naming each failure by the file the command writes (its -o argument). `progress` advances as each
-    command ends."""
+    command ends. The compilers' own temporary files go into a private folder (their $TMPDIR), removed once they have
+    all ended: a compiler interrupted mid-way (Ctrl-C reaches the whole process group) can leave its assembler file
+    (ccXXXXXX.s), which would otherwise stay in the user's $TMPDIR."""
     failures = []
-    with concurrent.futures.ThreadPoolExecutor(max_workers=max(len(commands), 1)) as pool:
-        running = {pool.submit(subprocess.run, command, capture_output=True, text=True): command
-                   for command in commands}
-        for done in concurrent.futures.as_completed(running):
-            command, completed = running[done], done.result()
-            if completed.returncode != 0:
-                failures.append(f"compiling {_output_of(command)} failed:\n{' '.join(command)}\n{completed.stderr}")
-            if progress is not None:
-                progress.advance()
+    scratch = tempfile.mkdtemp(prefix="sdl-fmu-cc-")
+    environment = {**os.environ, "TMPDIR": scratch}
+    try:
+        with concurrent.futures.ThreadPoolExecutor(max_workers=max(len(commands), 1)) as pool:
+            running = {pool.submit(subprocess.run, command, capture_output=True, text=True, env=environment): command
+                       for command in commands}
+            for done in concurrent.futures.as_completed(running):
+                command, completed = running[done], done.result()
+                if completed.returncode != 0:
+                    failures.append(f"compiling {_output_of(command)} failed:\n{' '.join(command)}\n"
+                                    f"{completed.stderr}")
+                if progress is not None:
+                    progress.advance()
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)  # after the pool: every compiler has ended
     if failures:
         raise BuildError("\n".join(failures))
 

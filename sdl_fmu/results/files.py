@@ -287,4 +287,4 @@ def write_results(result: RunRecord, out_dir: Path, plot: bool = True) -> Path:
 
             plots.plot_run(result, folder / "plot.png")
 
-    return write_results_folder(out_dir, write)
+    return write_results_folder(out_dir, write, "run")

@@ -11,6 +11,11 @@ user's working folder) and receives the files by rename. If the user added files
 earlier results folder, those stay where they are: sdl-fmu then replaces only the files its manifest
 lists, each one by an atomic rename. Hidden siblings left by a killed run (they carry the manifest and the dead
 process's id) are removed by the next run into the same place.
+
+Folders of one kind stay that kind: the manifest records which command wrote the folder (`kind`: run, verify or
+export; a sweep's folder has a manifest of its own, SWEEP_MANIFEST_NAME, written by sweep.py), and a folder sdl-fmu
+provably wrote is replaced only by a command of its own kind (`run --out` never replaces an export or a test pack's
+report); anything else is refused in one line naming the folder and what it holds.
 """
 
 from __future__ import annotations
@@ -21,10 +26,19 @@ import re
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Literal
 
 MANIFEST_NAME = ".sdl-fmu-results.json"
 MANIFEST_FORMAT = "sdl-fmu results 2"  # 1: names only, unsigned (proves nothing now)
+# a sweep's folder: its own manifest (sweep.py writes it; named here, where every command's --out is told apart)
+SWEEP_MANIFEST_NAME, SWEEP_MANIFEST_FORMAT = ".sdl-fmu-sweep.json", "sdl-fmu sweep 1"
+FolderKind = Literal["run", "verify", "export", "sweep"]  # the command that wrote a folder
+FOLDER_KINDS: tuple[FolderKind, ...] = ("run", "verify", "export", "sweep")
+# what a folder of each kind holds, and the words for an earlier one, as the refusals say them
+HOLDS = {"run": "a run's results (sdl-fmu run)", "verify": "a test pack's results (sdl-fmu verify)",
+         "export": "an export (sdl-fmu export: an SSP and its FMUs)", "sweep": "a sweep's table (sdl-fmu sweep)"}
+EARLIER = {"run": "an earlier run's results folder", "verify": "an earlier verify folder",
+           "export": "an earlier export folder", "sweep": "an interrupted sweep's folder"}
 # the names sdl-fmu writes into results folders (run, verify): one of them held by a file that is not sdl-fmu's is
 # refused before the run (it would have to be overwritten)
 RESULT_NAMES = ("timeseries.csv", "traffic.csv", "summary.json", "plot.png", "verify.json", "report.html")
@@ -62,10 +76,54 @@ def read_manifest(folder: Path) -> list[str] | None:
     return sorted(name for name, entry in files.items() if ours(name, entry))
 
 
-def _write_manifest(folder: Path, files: list[str], complete: bool) -> None:
+def _authentic_manifest(path: Path, format: str) -> dict | None:
+    """A manifest of this format with this user's valid signature, or None."""
     from .. import ownership
 
-    data = {"format": MANIFEST_FORMAT, "complete": complete,
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("format") != format or not ownership.authentic(data):
+        return None
+    return data
+
+
+def folder_kind(folder: Path) -> FolderKind | None:
+    """Which command provably wrote `folder` (a signed manifest of this user's sdl-fmu says so), or None. A results
+    manifest written before manifests recorded their kind is told by its files: an .ssp (export), verify.json
+    (verify), anything else (run)."""
+    folder = Path(folder)
+    if _authentic_manifest(folder / SWEEP_MANIFEST_NAME, SWEEP_MANIFEST_FORMAT) is not None:
+        return "sweep"
+    data = _authentic_manifest(folder / MANIFEST_NAME, MANIFEST_FORMAT)
+    if data is None:
+        return None
+    if data.get("kind") in FOLDER_KINDS:
+        return data["kind"]
+    names = [name for name in data.get("files") or {} if isinstance(name, str)]
+    if any(name.endswith(".ssp") for name in names):
+        return "export"
+    return "verify" if "verify.json" in names else "run"
+
+
+def _other_kind(folder: Path, shown: str, kind: FolderKind) -> None:
+    """Refuses (ResultsFolderError) a folder that sdl-fmu wrote for another command than `kind`."""
+    found = folder_kind(folder)
+    if found is not None and found != kind:
+        raise ResultsFolderError(other_kind_text(shown, found, kind))
+
+
+def other_kind_text(shown: str, found: FolderKind, kind: FolderKind) -> str:
+    """The refusal of a folder of the kind `found` as --out of the command `kind`."""
+    return (f"{shown}: holds {HOLDS[found]}, which sdl-fmu {kind} does not replace; give a new or empty folder or "
+            f"{EARLIER[kind]}")
+
+
+def _write_manifest(folder: Path, files: list[str], complete: bool, kind: FolderKind = "run") -> None:
+    from .. import ownership
+
+    data = {"format": MANIFEST_FORMAT, "kind": kind, "complete": complete,
             "files": {name: ownership.record(folder / name) for name in sorted(files)}}
     ownership.write_json(folder / MANIFEST_NAME, ownership.signed(data))
 
@@ -90,8 +148,9 @@ def _probe_writable(folder: Path, shown: str) -> None:
         raise ResultsFolderError(f"{shown}: cannot write in {folder}: {error.strerror or error}") from None
 
 
-def check_results_folder(out: str | os.PathLike) -> Path:
-    """Refuses (ResultsFolderError) an `--out` that sdl-fmu may not or cannot write; returns it absolute.
+def check_results_folder(out: str | os.PathLike, kind: FolderKind = "run") -> Path:
+    """Refuses (ResultsFolderError) an `--out` that sdl-fmu may not or cannot write for the command `kind` (run,
+    verify, export); returns it absolute.
 
     Call before the simulation, so a refusal costs nothing."""
     shown = os.fspath(out)
@@ -106,6 +165,7 @@ def check_results_folder(out: str | os.PathLike) -> Path:
         if not target.is_dir():
             raise ResultsFolderError(f"{shown}: exists and is not a folder")
         try:
+            _other_kind(target, shown, kind)
             own = read_manifest(target) or []
             foreign = _foreign_entries(target, own)
         except OSError as error:
@@ -113,7 +173,7 @@ def check_results_folder(out: str | os.PathLike) -> Path:
         if foreign and not own:
             listed = ", ".join(repr(name) for name in foreign[:3]) + (" ..." if len(foreign) > 3 else "")
             raise ResultsFolderError(f"{shown}: holds files sdl-fmu did not write ({listed}); give a new or empty "
-                                     "folder or an earlier results folder")
+                                     f"folder or {EARLIER[kind]}")
         clash = [name for name in foreign if name in RESULT_NAMES]
         if clash:
             raise ResultsFolderError(_clash(shown, clash[0]))
@@ -171,13 +231,14 @@ def _sibling(target: Path, kind: str) -> Path:
     return Path(tempfile.mkdtemp(prefix=f".{target.name}.{kind}-{os.getpid()}-", dir=target.parent))
 
 
-def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None]) -> Path:
+def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None], kind: FolderKind = "run") -> Path:
     """Runs `write(folder)` into a fresh hidden folder, then puts its files in place at `out`: all of them or
-    none, and nothing sdl-fmu did not write is removed. Returns the results folder (absolute)."""
+    none, and nothing sdl-fmu did not write is removed; the folder is of the command `kind` (run, verify, export).
+    Returns the results folder (absolute)."""
     from .. import ownership
 
     shown = os.fspath(out)
-    target = check_results_folder(out)
+    target = check_results_folder(out, kind)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         partial = _sibling(target, _PARTIAL)
@@ -185,12 +246,12 @@ def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None]) 
         raise ResultsFolderError(f"{shown}: cannot write: {error.strerror or error}") from None
     try:
         os.chmod(partial, 0o755)  # mkdtemp makes it private; results are ordinary files
-        _write_manifest(partial, [], complete=False)  # marks it as ours from the first moment
+        _write_manifest(partial, [], complete=False, kind=kind)  # marks it as ours from the first moment
         write(partial)
         files = sorted(entry.name for entry in partial.iterdir() if entry.name != MANIFEST_NAME)
-        _write_manifest(partial, files, complete=True)
+        _write_manifest(partial, files, complete=True, kind=kind)
         with ownership.locked(target.parent, wait=True):  # one run at a time puts its results in place here
-            target = check_results_folder(out)  # again: another run may have finished meanwhile
+            target = check_results_folder(out, kind)  # again: another run may have finished meanwhile
             clean_leftovers(target)
             own = read_manifest(target) if os.path.lexists(target) else None
             foreign = _foreign_entries(target, own or []) if own is not None else []
@@ -202,7 +263,7 @@ def write_results_folder(out: str | os.PathLike, write: Callable[[Path], None]) 
             elif own is not None and not foreign:
                 _swap(partial, target)  # an earlier results folder: replaced as a whole
             else:
-                _replace_files(partial, target, files)
+                _replace_files(partial, target, files, kind)
     except OSError as error:
         shutil.rmtree(partial, ignore_errors=True)
         raise ResultsFolderError(f"{shown}: cannot write the results: {error.strerror or error}; the folder is as it "
@@ -225,7 +286,7 @@ def _swap(new: Path, target: Path) -> None:
     shutil.rmtree(aside, ignore_errors=True)
 
 
-def _replace_files(new: Path, target: Path, files: list[str]) -> None:
+def _replace_files(new: Path, target: Path, files: list[str], kind: FolderKind) -> None:
     """Updates a results folder that also holds the user's files: each of sdl-fmu's files is renamed into
     place (atomic per file), files of the old manifest that this run did not write are removed, the
     manifest comes last. The user's files are never touched."""
@@ -236,7 +297,8 @@ def _replace_files(new: Path, target: Path, files: list[str]) -> None:
     entries = {name: [ownership.record(target / name) if name in old else None, ownership.record(new / name)]
                for name in files}
     entries.update({name: [ownership.record(target / name), None] for name in set(old) - set(files)})
-    ownership.write_json(target / MANIFEST_NAME, ownership.signed({"format": MANIFEST_FORMAT, "complete": False,
+    ownership.write_json(target / MANIFEST_NAME, ownership.signed({"format": MANIFEST_FORMAT, "kind": kind,
+                                                                   "complete": False,
                                                                    "files": entries}))
     for name in files:
         os.replace(new / name, target / name)

@@ -1,7 +1,7 @@
 """Export folders: a results folder (results/folder.py: written aside and moved into place whole, nothing sdl-fmu
-did not write is touched) that holds an SSP and, beside it, the FMUs it holds. `--out` may be a new folder, an empty
-one, or an earlier export folder (sdl-fmu's manifest lists an .ssp); a results folder of another command, or a folder
-holding files sdl-fmu did not write, is refused."""
+did not write is touched) of the kind `export`, that holds an SSP and, beside it, the FMUs it holds. `--out` may be a
+new folder, an empty one, or an earlier export folder; a folder of another command (a run's results, a test pack's, a
+sweep's), or a folder holding files sdl-fmu did not write, is refused."""
 
 from __future__ import annotations
 
@@ -9,21 +9,13 @@ import os
 import shutil
 from pathlib import Path
 
-from ..results.folder import ResultsFolderError, check_results_folder, read_manifest, write_results_folder
+from ..results.folder import check_results_folder, write_results_folder
 from .document import RESOURCES, System, write_ssp
 
 
 def check_export_folder(out: str | os.PathLike) -> Path:
     """Refuses (ResultsFolderError, one line) an `--out` that export may not or cannot write; returns it absolute."""
-    try:
-        target = check_results_folder(out)
-    except ResultsFolderError as error:  # the same rules, said of an export folder
-        raise ResultsFolderError(str(error).replace("an earlier results folder", "an earlier export folder")) from None
-    files = read_manifest(target) if target.is_dir() else None
-    if files and not any(name.endswith(".ssp") for name in files):
-        raise ResultsFolderError(f"{os.fspath(out)}: holds the results of another sdl-fmu command, not an export; "
-                                 "give a new or empty folder or an earlier export folder")
-    return target
+    return check_results_folder(out, "export")
 
 
 def write_export(out: str | os.PathLike, ssp_name: str, system: System) -> Path:
@@ -39,4 +31,4 @@ def write_export(out: str | os.PathLike, ssp_name: str, system: System) -> Path:
             shutil.copyfile(component.fmu, folder / name)
         write_ssp(system, folder / ssp_name)
 
-    return write_results_folder(out, write)
+    return write_results_folder(out, write, "export")

@@ -1,6 +1,7 @@
 """ControllerModel: a controller FMU (AEB, ACC, lane keeping, a driver model) and its controller map
 (controller_map.py, docs/controllers.md), resolved against each other once per run, beside EgoModel and asked the same
-way; and ControllerInstance, its co-simulation instance, stepped at its period.
+way; and ControllerInstance, its co-simulation instance, stepped at its period;
+IsolatedController, the same instance in a host process for a controller FMU sdl-fmu did not build (isolated.py).
 
 At each sample instant t_k = k x period (an instant the master steps to) the instance is given the signals at t_k,
 stepped over [t_k, t_(k+1)] and read: its requests (`Request`, SI) hold from t_k until the next sample. It is never
@@ -15,6 +16,7 @@ from typing import Literal, Mapping, NamedTuple
 from .controller_map import (REQUESTS, SIGNALS, ControllerMap, ControllerMapError, Kind, Rule,
                              load_controller_map)
 from .instance import FmuError
+from .isolated import FmuTimeout, Hosted, HostEnded, runs_in_process
 from .model import INTEGER_TYPES, REAL_TYPES, read_description, si_conversion
 from .vehicle_map import Channel, VehicleMapError
 
@@ -80,6 +82,7 @@ class ControllerModel:
             if variable.type in INTEGER_TYPES and value != int(value):
                 self._fail(f"parameters.{name}", f"{value!r}: {name!r} is {variable.type} (a whole number)")
         self.parameters = dict(controller_map.parameters)
+        self._unzipped: str | None = None
 
     @classmethod
     def open(cls, fmu: str | Path | None = None, controller_map: str | Path | ControllerMap | None = None
@@ -142,8 +145,19 @@ class ControllerModel:
                 "can_roll_back": self.can_roll_back, "inputs": [port.name for port in self.inputs],
                 "outputs": [port.name for port in self.outputs], "arbitration": dict(self.rules)}
 
-    def instantiate(self, instance_name: str = "controller") -> ControllerInstance:
-        return ControllerInstance(self, instance_name)
+    def unzipped(self) -> str:
+        """The FMU unpacked once for all of this process's instances of it (vehicle/unpack.py, as EgoModel's)."""
+        if self._unzipped is None:
+            from .unpack import unpacked
+
+            self._unzipped = str(unpacked(self.fmu_path))
+        return self._unzipped
+
+    def instantiate(self, instance_name: str = "controller") -> ControllerInstance | IsolatedController:
+        """An initialized instance: in this process for an FMU sdl-fmu built (the shipped example AEB), else in a
+        host process (vehicle/isolated.py: a crash, an exit or a hang of the controller is one line)."""
+        kind = ControllerInstance if runs_in_process(self.fmu_path) else IsolatedController
+        return kind(self, instance_name)
 
     def __repr__(self) -> str:
         return f"ControllerModel({self.name!r}, {self.fmu_path}, FMI {self.fmi_version})"
@@ -166,12 +180,12 @@ class ControllerInstance:
 
     def __init__(self, model: ControllerModel, instance_name: str = "controller"):
         from .fmu_log import FmuLog
-        from .unpack import UnpackError, unpacked
+        from .unpack import UnpackError
 
         self.model = model
         self.fmi3 = model.fmi_version == "3.0"
         try:  # once per process, with the archive's limits; removed at the process's end (vehicle/unpack.py)
-            self._unzipped = str(unpacked(model.fmu_path))
+            self._unzipped = model.unzipped()
         except UnpackError as error:
             raise ControllerError(f"--controller {error}") from None
         self._log = FmuLog(model.fmu_path.name)  # its log lines: stderr, decoded leniently, escaped, bounded
@@ -241,13 +255,15 @@ class ControllerInstance:
             read = {}
             for accessor, references, ports in self._outputs:
                 for port, raw in zip(ports, getattr(slave, f"get{accessor}")(references)):
+                    value = raw if accessor == "Boolean" else float(raw)
+                    if port.kind != "boolean":
+                        value = port.factor * value + port.offset
+                    if not math.isfinite(value):  # a Real `active` too: NaN is neither on nor off
+                        raise ControllerError(f"its output {port.variable!r} ({port.name}) is {raw} at "
+                                              f"t = {t:.6f} s: not a finite number")
                     if port.kind == "boolean":
-                        read[port.name] = bool(raw) if accessor == "Boolean" else float(raw) > 0.5
+                        read[port.name] = bool(value) if accessor == "Boolean" else value > 0.5
                     else:
-                        value = port.factor * float(raw) + port.offset
-                        if not math.isfinite(value):
-                            raise ControllerError(f"its output {port.variable!r} ({port.name}) is {raw} at "
-                                                  f"t = {t:.6f} s")
                         read[port.name] = value
         except ControllerError as error:
             raise ControllerError(f"the controller {self.model.fmu_path.name} failed: {error}") from None
@@ -277,6 +293,49 @@ class ControllerInstance:
         self.close()
 
 
+class ControllerTimeout(FmuTimeout, ControllerError):
+    """The wall-clock deadline passed while the controller was working (its host was killed)."""
+
+    def __init__(self, text: str, model: ControllerModel):
+        super().__init__(text)
+        self.subject = f"the controller {model.fmu_path.name}"
+
+
+class IsolatedController(Hosted):
+    """A ControllerInstance in a host process (vehicle/isolated.py), for a controller FMU sdl-fmu did not build:
+    `sample(k, signals)` is one request (the signals the map reads, out; the requests, back). What ends its host (a
+    crash, an exit) or outlasts the deadline is a ControllerError naming the controller, the call and the instant."""
+
+    def __init__(self, model: ControllerModel, instance_name: str = "controller"):
+        self.model = model
+        self._names = tuple(port.name for port in model.inputs)
+        self._translated(lambda: self._open(model, ("open-controller", instance_name)))
+
+    def _error(self, text: str) -> ControllerError:
+        return ControllerError(f"--controller {text}")
+
+    def _translated(self, call):
+        """The call, its errors as the controller's: the FMU's own refusals as the host words them (as
+        ControllerInstance does), the end of its host with the controller named, a timeout as ControllerTimeout."""
+        try:
+            return call()
+        except FmuTimeout as error:
+            raise ControllerTimeout(_first_line(error), self.model) from None
+        except HostEnded as error:
+            raise ControllerError(f"the controller {self.model.fmu_path.name} failed: {_first_line(error)}") from None
+        except ControllerError:
+            raise
+        except FmuError as error:
+            raise ControllerError(_first_line(error)) from None
+
+    def sample(self, k: int, signals: Mapping[str, float]) -> Request:
+        """As ControllerInstance.sample, in the host."""
+        period = self.model.period
+        where = f"in {self._prefix}DoStep from t = {k * period:.6f} s to {(k + 1) * period:.6f} s"
+        request = ("sample", None, None, (k, {name: signals[name] for name in self._names}))
+        return Request(*self._translated(lambda: self._send(request, where)))
+
+
 def _grouped(ports, fmi3: bool) -> list[tuple[str, list[int], list[Port]]]:
     """The ports grouped by their fmpy accessor: (accessor, value references, ports)."""
     groups: dict[str, tuple[list, list]] = {}
@@ -292,4 +351,5 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0]
 
 
-__all__ = ["ControllerModel", "ControllerInstance", "ControllerMapError", "ControllerError", "Request", "NO_REQUEST"]
+__all__ = ["ControllerModel", "ControllerInstance", "IsolatedController", "ControllerMapError", "ControllerError",
+           "ControllerTimeout", "Request", "NO_REQUEST"]

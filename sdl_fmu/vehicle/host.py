@@ -1,10 +1,12 @@
-"""The host process of an isolated FMU (sdl_fmu.vehicle.isolated): one EgoInstance at a time, driven by requests
-on a pipe, each answered on another.
+"""The host process of an isolated FMU (sdl_fmu.vehicle.isolated): one instance at a time (an EgoInstance or a
+ControllerInstance), driven by requests on a pipe, each answered on another.
 
 A request is (kind, controls, friction, argument), pickled behind an 8-byte length: the controls and surfaces set
 since the last request are applied first, then `kind`: open (argument-less; the request carries the pickled
 EgoModel, the unpacked folder, start and parameter values), read, step (to the time `argument`), save, restore and
-discard (a snapshot number), close. The answer is ("ok", value) or ("error", the FmuError's text). The host ignores
+discard (a snapshot number), close; for a controller (vehicle/controller.py) open-controller (the pickled
+ControllerModel, the folder, the instance name) and sample (`argument`: k and the input signals by name; the answer:
+the Request as a tuple). The answer is ("ok", value) or ("error", the FmuError's text). The host ignores
 Ctrl-C (sdl-fmu decides), dies with its parent (Linux: PR_SET_PDEATHSIG), and ends when the request pipe closes.
 The FMU's own prints (its stdout) go to sdl-fmu's stderr; its log messages too (fmu_log)."""
 
@@ -72,6 +74,14 @@ def serve(requests: int, replies: int) -> None:
                 adopt(model.fmu_path, folder)
                 instance, snapshots = EgoInstance(model, start, parameters, name), {}
                 value = (instance.warnings, tuple(instance.read()))
+            elif kind == "open-controller":
+                from .controller import ControllerInstance
+
+                _, model, folder, name = request
+                model = pickle.loads(model)
+                adopt(model.fmu_path, folder)
+                instance, snapshots = ControllerInstance(model, name), {}
+                value = None
             else:
                 _, controls, friction, argument = request
                 if instance is None:
@@ -81,7 +91,9 @@ def serve(requests: int, replies: int) -> None:
                 if friction is not None:
                     instance.set_friction(friction)
                 value = None
-                if kind == "step":
+                if kind == "sample":  # a controller's sample: (k, its input signals by name)
+                    value = tuple(instance.sample(*argument))
+                elif kind == "step":
                     instance.step_to(argument)
                     value = tuple(instance.read())
                 elif kind == "read":

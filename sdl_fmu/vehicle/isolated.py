@@ -3,7 +3,8 @@
 An FMU is native code from anyone: in sdl-fmu's own process, a segmentation fault would kill it without a word, an
 `exit(0)` would end the run with exit status 0 and nothing written, and a loop inside fmi2DoStep would hold it for
 ever, deaf to Ctrl-C (the signal is handled only when the call returns). So an FMU that sdl-fmu did not build runs
-in a host process (`sdl_fmu.vehicle.host`), and `IsolatedInstance` stands in for its EgoInstance here: the same
+in a host process (`sdl_fmu.vehicle.host`), and `IsolatedInstance` stands in for its EgoInstance here (a controller
+FMU's IsolatedController, in controller.py, for its ControllerInstance, on the same `Hosted` machinery): the same
 methods, each a request over a pipe (about 10 µs; the controls and surfaces set since the last request travel with
 the next one). What the host reports or how it ends becomes one FmuError line naming the call and the instant:
 "it crashed (SIGSEGV) in fmi2DoStep from t = 1.000000 s to 1.050000 s", "its process ended (exit status 0) ...".
@@ -12,7 +13,8 @@ While sdl-fmu waits for an answer, Ctrl-C and SIGTERM are handled at once and th
 parent (PR_SET_PDEATHSIG on Linux), so a hung FMU never outlives sdl-fmu.
 
 Which FMUs: `runs_in_process(fmu)` is true only for an FMU whose bytes are those of an FMU sdl-fmu built into its
-FMU cache (the shipped models, also as a sweep ships them to its workers); everything else is isolated.
+FMU cache (the shipped models and the example AEB, also as a sweep ships them to its workers); everything else is
+isolated.
 SDL_FMU_ISOLATION=always isolates every FMU (the benchmark of the cost, and the test that both ways give identical
 results). The decision and the measured cost: docs/decisions.md. A host serves one instance at a time and is kept
 for the next instance of the same FMU in the same thread (the vehicle test pack starts dozens), so its start (about
@@ -46,7 +48,14 @@ _deadline: contextvars.ContextVar[float | None] = contextvars.ContextVar("sdl_fm
 
 
 class FmuTimeout(FmuError):
-    """The wall-clock deadline passed while the FMU was working (its host was killed)."""
+    """The wall-clock deadline passed while the FMU was working (its host was killed). `subject`: the FMU as the
+    message names it (None: the ego FMU, which the caller names)."""
+
+    subject: str | None = None
+
+
+class HostEnded(FmuError):
+    """The host process ended while the FMU was working: a crash (a signal) or an exit of the FMU's."""
 
 
 @contextlib.contextmanager
@@ -175,8 +184,8 @@ class _Host:
                 name = signal.Signals(-code).name
             except ValueError:
                 name = f"signal {-code}"
-            raise FmuError(f"it crashed ({name}) {where}")
-        raise FmuError(f"its process ended (exit status {code}) {where}; an FMU must not end the process it runs in")
+            raise HostEnded(f"it crashed ({name}) {where}")
+        raise HostEnded(f"its process ended (exit status {code}) {where}; an FMU must not end the process it runs in")
 
     @property
     def alive(self) -> bool:
@@ -236,45 +245,89 @@ def _end_hosts() -> None:
         _idle.clear()
 
 
-# ---- the instance ---------------------------------------------------------------------------------------------
+# ---- an instance in a host --------------------------------------------------------------------------------------
 
 
-class IsolatedInstance:
-    """An EgoInstance in a host process (see the module): read, step_to, step, set_controls, set_friction, save,
-    restore, discard, close, `time`, `warnings`."""
+class Hosted:
+    """What every instance in a host does (the vehicle's IsolatedInstance, the controller's IsolatedController in
+    controller.py): take a host for its FMU (a kept one, or a new one), open the instance there, send requests, and
+    close it, the host then kept for the next instance. `opened(value)` takes the open request's answer."""
 
-    def __init__(self, model, start: dict[str, float], parameters: dict[str, float], instance_name: str = "ego"):
+    def _open(self, model, request: tuple) -> object:
+        """Unpacks the FMU here (once per process; the host uses the folder) and sends the open request `request`
+        (its kind, then its arguments; the model pickled and the folder are put first); returns the answer."""
         from .unpack import UnpackError
 
-        self.model = model
-        self.time = 0.0
         self._prefix = "fmi3" if model.fmi_version == "3.0" else "fmi2"
-        self._controls = self._friction = None
+        self._host = None
         try:
-            folder = model.unzipped()  # here, once per process: the host uses the folder
+            folder = model.unzipped()
         except UnpackError as error:
-            raise FmuError(str(error)) from None
+            raise self._error(str(error)) from None
         self._key = (threading.get_ident(), str(Path(model.fmu_path).resolve()))
         try:
             self._host = _host_for(self._key)
         except OSError as error:
-            raise FmuError(f"its host process cannot be started: {error.strerror or error}") from None
+            raise self._error(f"its host process cannot be started: {error.strerror or error}") from None
+        kind, *arguments = request
         try:
-            self.warnings, state = self._host.call(
-                ("open", pickle.dumps(model), str(folder), dict(start), dict(parameters), instance_name),
-                "while it was instantiated and initialised", limit=START_LIMIT)
+            return self._host.call((kind, pickle.dumps(model), str(folder), *arguments),
+                                   "while it was instantiated and initialised", limit=START_LIMIT)
         except BaseException:
             self._host.kill()
             self._host = None
             raise
+
+    def _error(self, text: str) -> FmuError:
+        """The error of a failure before the FMU was opened (its unpack, its host's start)."""
+        return FmuError(text)
+
+    def _send(self, request: tuple, where: str):
+        if self._host is None:
+            raise FmuError("the instance is closed")
+        return self._host.call(request, where)
+
+    def close(self) -> None:
+        """Terminates and frees the FMU in its host (killed if it is stuck, crashed or was interrupted mid-call),
+        which is then kept for the next instance."""
+        host, self._host = getattr(self, "_host", None), None
+        if host is None:
+            return
+        if not host.alive:
+            host.kill()
+            return
+        try:
+            host.call(("close", None, None, None), "while it was terminated and freed", limit=CLOSE_GRACE)
+        except Exception:  # noqa: BLE001 - a close that fails must not hide what ended the run: the host goes
+            host.kill()
+            return
+        except BaseException:
+            host.kill()
+            raise
+        _release(self._key, host)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class IsolatedInstance(Hosted):
+    """An EgoInstance in a host process (see the module): read, step_to, step, set_controls, set_friction, save,
+    restore, discard, close, `time`, `warnings`."""
+
+    def __init__(self, model, start: dict[str, float], parameters: dict[str, float], instance_name: str = "ego"):
+        self.model = model
+        self.time = 0.0
+        self._controls = self._friction = None
+        self.warnings, state = self._open(model, ("open", dict(start), dict(parameters), instance_name))
         self._state = _make_state(state)
 
     def _call(self, kind: str, where: str, argument=None):
-        if self._host is None:
-            raise FmuError("the instance is closed")
         request = (kind, self._controls, self._friction, argument)
         self._controls = self._friction = None
-        return self._host.call(request, where)
+        return self._send(request, where)
 
     # ---- what the master and the test pack ask ----------------------------------------------------------------
 
@@ -308,28 +361,3 @@ class IsolatedInstance:
 
     def discard(self, snapshot) -> None:
         self._call("discard", f"in {self._prefix}FreeFMUstate at t = {self.time:.6f} s", snapshot[0])
-
-    def close(self) -> None:
-        """Terminates and frees the FMU in its host (killed if it is stuck, crashed or was interrupted mid-call),
-        which is then kept for the next instance."""
-        host, self._host = self._host, None
-        if host is None:
-            return
-        if not host.alive:
-            host.kill()
-            return
-        try:
-            host.call(("close", None, None, None), "while it was terminated and freed", limit=CLOSE_GRACE)
-        except Exception:  # noqa: BLE001 - a close that fails must not hide what ended the run: the host goes
-            host.kill()
-            return
-        except BaseException:
-            host.kill()
-            raise
-        _release(self._key, host)
-
-    def __enter__(self) -> IsolatedInstance:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()

@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..hold import hold_here
 from ..units import KILOMETRE_PER_HOUR
 
 SAMPLE_PERIOD = 0.01  # s: the driver's and the recorder's period (100 Hz, as ISO 7401 / FMVSS 126 data rates)
@@ -91,6 +92,7 @@ def drive(model, entry_speed: float, law: Callable, duration: float, *, paramete
     rows: list[tuple] = []
     time = 0.0
     try:
+        hold_here()  # the test hook (sdl_fmu/hold.py)
         if friction is not None:
             ego.set_friction(friction)
         state = ego.read()

@@ -286,4 +286,4 @@ def write(out, vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None
                 write_csv(folder / f"{o.name}.csv", o)
         (folder / HTML_NAME).write_text(report_html(vehicle, outcomes, sheet, tool), encoding="utf-8")
 
-    return write_results_folder(out, contents)
+    return write_results_folder(out, contents, "verify")

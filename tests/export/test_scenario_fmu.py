@@ -659,29 +659,81 @@ def test_the_windows_binary_under_wine_runs_as_the_linux_one(hosts, wine, tmp_pa
     assert value(linux[-1][1]) < value(linux[0][1]) and value(linux[-1][-1]) == 1.0  # approaching, the lead vehicle
 
 
-# ---- the state tables ------------------------------------------------------------------------------------------
+# ---- one FMI layer: the ego FMUs' ----------------------------------------------------------------------------------
 
-MODEL_EXCHANGE = {"EnterEventMode", "NewDiscreteStates", "EnterContinuousTimeMode", "CompletedIntegratorStep",
-                  "SetTime", "SetContinuousStates", "GetEventIndicators", "GetContinuousStates", "GetDerivatives",
-                  "GetNominalsOfContinuousStates", "UpdateDiscreteStates", "GetContinuousStateDerivatives",
-                  "GetNumberOfEventIndicators", "GetNumberOfContinuousStates"}
+MODEL_EXCHANGE = {2: ("EnterEventMode", "NewDiscreteStates", "EnterContinuousTimeMode", "CompletedIntegratorStep",
+                      "SetTime", "SetContinuousStates", "GetEventIndicators", "GetContinuousStates", "GetDerivatives",
+                      "GetNominalsOfContinuousStates"),
+                  3: ("EnterEventMode", "UpdateDiscreteStates", "EnterContinuousTimeMode", "CompletedIntegratorStep",
+                      "SetTime", "SetContinuousStates", "GetContinuousStateDerivatives", "GetEventIndicators",
+                      "GetContinuousStates", "GetNominalsOfContinuousStates", "GetNumberOfEventIndicators",
+                      "GetNumberOfContinuousStates")}
+SIZE, VRS, REALS = ctypes.c_size_t, ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_double)
+NOT_PROVIDED = {2: {"GetDirectionalDerivative": (VRS, SIZE, VRS, SIZE, REALS, REALS)},
+                3: {name: (VRS, SIZE, VRS, SIZE, REALS, SIZE, REALS, SIZE)
+                    for name in ("GetDirectionalDerivative", "GetAdjointDerivative")}}
+EXTRA_SIGNATURES = {3: {"GetNumberOfEventIndicators": (ctypes.POINTER(SIZE),),
+                        "GetNumberOfContinuousStates": (ctypes.POINTER(SIZE),)}}
 
 
 @pytest.mark.parametrize("version", [2, 3])
-def test_the_scenario_fmus_state_tables_are_the_standards(version):
-    """The scenario FMU's MASK_ lines (scenario_fmi2.c, scenario_fmi3.c) are the standard's co-simulation rows;
-    its model-exchange functions refuse on every call (there is no model-exchange instance) and have none."""
-    from fmi_state_tables import FMI2, FMI2_DEVIATIONS, FMI3, FMI3_DEVIATIONS, mask_table
+def test_the_scenario_fmu_runs_on_the_ego_fmus_fmi_layer(demo_fmus, version, tmp_path):
+    """One FMI layer per version serves every FMU (docs/fmu-runtime.md): the scenario FMU is built from the ego FMUs'
+    fmi2Functions.c / fmi3Functions.c as they are, so its state table is the one tests/fmu/test_state_tables.py compares
+    with the standard's. What differs is the model's data (ModelHooks): it has no model-exchange interface, so every
+    model-exchange function of that layer refuses, in every state, with a message, and it provides no partial
+    derivatives."""
+    from sdl_fmu.export.binary import EGO_RUNTIME_DIRECTORY
 
-    from sdl_fmu.export.binary import RUNTIME_DIRECTORY
+    folder = unzipped(demo_fmus[version].path, tmp_path)
+    sources = folder / "sources"
+    layer = f"fmi{version}Functions.c"
+    assert (sources / layer).read_bytes() == (EGO_RUNTIME_DIRECTORY / layer).read_bytes()
+    assert sorted(path.name for path in sources.glob("fmi*Functions.c")) == [layer]
+    library = fmi_fuzz.load_library(folder / "binaries" / ("linux64" if version == 2 else "x86_64-linux") /
+                                    f"{MODEL_IDENTIFIER}.so", version)
+    token = read_model_description(str(folder)).guid.encode()
+    messages = []
+    if version == 2:
+        callbacks = fmi_fuzz.fmi2_callbacks(fmi_fuzz.Logger(
+            lambda env, name, status, category, message, argument: messages.append(ctypes.string_at(argument))))
+        component = library.fmi2Instantiate(b"x", fmi_fuzz.CS, token, (folder / "resources").as_uri().encode(),
+                                            ctypes.byref(callbacks), 0, 0)
+    else:
+        logger = fmi_fuzz.LogMessage3(lambda env, status, category, message: messages.append(message))
+        component = library.fmi3InstantiateCoSimulation(b"x", token, (str(folder / "resources") + "/").encode(),
+                                                        False, False, False, False, None, 0, None, logger, None)
+    assert component
+    prefix = f"fmi{version}"
 
-    table = mask_table(version, RUNTIME_DIRECTORY / f"scenario_fmi{version}.c")
-    expected = {**(FMI2 if version == 2 else FMI3), **(FMI2_DEVIATIONS if version == 2 else FMI3_DEVIATIONS)}
-    expected = {name: states for name, states in expected.items() if name not in MODEL_EXCHANGE
-                and (version == 2 or "Derivative" not in name)}
-    assert set(table) == set(expected) if version == 2 else set(expected) <= set(table)
-    for function, states in expected.items():
-        assert set(table[function]) == set(states), (function, table[function], states)
+    def refused(name, argtypes, reason):
+        function = getattr(library, prefix + name)
+        if argtypes is not None:
+            function.restype, function.argtypes = ctypes.c_int, [ctypes.c_void_p, *argtypes]
+        arguments = [0.0 if kind in (ctypes.c_double,) else 0 if kind in (ctypes.c_int, SIZE, ctypes.c_bool)
+                     else None for kind in function.argtypes[1:]]
+        messages.clear()
+        assert function(component, *arguments) == fmi_fuzz.ERROR, name
+        assert any(reason in message for message in messages), (name, messages)
+
+    def refuse_all(derivatives=False):
+        for name in MODEL_EXCHANGE[version]:
+            refused(name, EXTRA_SIGNATURES.get(version, {}).get(name), b"co-simulation only")
+        for name, argtypes in NOT_PROVIDED[version].items() if derivatives else ():  # where the state table allows
+            refused(name, argtypes, b"not provided")
+
+    refuse_all()  # Instantiated
+    if version == 2:
+        assert library.fmi2SetupExperiment(component, 0, 0.0, 0.0, 0, 0.0) == fmi_fuzz.OK
+        assert library.fmi2EnterInitializationMode(component) == fmi_fuzz.OK
+        refuse_all()  # Initialization Mode
+        assert library.fmi2ExitInitializationMode(component) == fmi_fuzz.OK
+    else:
+        assert library.fmi3EnterInitializationMode(component, False, 0.0, 0.0, False, 0.0) == fmi_fuzz.OK
+        refuse_all()
+        assert library.fmi3ExitInitializationMode(component) == fmi_fuzz.OK
+    refuse_all(derivatives=True)  # Step Mode
+    getattr(library, f"{prefix}FreeInstance")(component)
 
 
 @pytest.mark.parametrize("version", [2, 3])

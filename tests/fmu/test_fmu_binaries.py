@@ -1,8 +1,10 @@
 """Both FMUs as files: valid for fmpy, native (no Python, no CasADi), rebuildable from their sources."""
 
+import os
 import re
 import shutil
 import subprocess
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -128,3 +130,24 @@ def test_a_failed_compile_names_the_file_it_was_to_write(tmp_path):
     first = str(raised.value).splitlines()[0]
     assert first == "compiling Broken.so failed:", first
     assert "broken.c" in str(raised.value)  # the compiler's own message follows
+
+
+def test_the_compilers_temporary_files_go_with_their_private_folder(tmp_path, monkeypatch):
+    # a compiler that leaves a file in its $TMPDIR, as gcc interrupted mid-way can (its ccXXXXXX.s), then compiles:
+    # its $TMPDIR was a private folder, gone afterwards with the file, and the user's $TMPDIR stays empty
+    from sdl_fmu.fmu.package import binary_command, run_compilers
+
+    users = tmp_path / "tmp"
+    users.mkdir()
+    monkeypatch.setenv("TMPDIR", str(users))
+    monkeypatch.setattr(tempfile, "tempdir", str(users))
+    compiler = tmp_path / "leaving-gcc"
+    compiler.write_text('#!/bin/sh\necho "$TMPDIR" > "$(dirname "$0")/tmpdir"\ntouch "$TMPDIR/ccLeft01.s"\n'
+                        'exec gcc "$@"\n')
+    compiler.chmod(0o755)
+    (tmp_path / "fine.c").write_text("int fine(void) { return 1; }\n")
+    run_compilers([binary_command(tmp_path, ["fine.c"], tmp_path / "out" / "Fine.so", str(compiler))])
+    private = Path((tmp_path / "tmpdir").read_text().strip())
+    assert (tmp_path / "out" / "Fine.so").is_file()
+    assert private.parent == users and private.name.startswith("sdl-fmu-cc-") and not private.exists()
+    assert os.listdir(users) == []

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from hostile_fmus import (GUID, HANG_LIMIT, IDENTIFIER, capped, hostile_fmu, hostile_map, library, one_line,
-                          popen_capped)
+from hostile_fmus import (GUID, HANG_LIMIT, IDENTIFIER, assert_clean, capped, environment, hostile_fmu, hostile_map,
+                          hosts_of, library, one_line, popen_capped, wait_for)
 
 SCENARIO = "English\n300,BRK,100,1,50\n600,ES\n"
 SLOW = pytest.mark.slow  # the fast loop keeps a crash and a hang under Ctrl-C; the rest runs in CI  # a BRK whose threshold is bisected: FMU states saved and restored
@@ -40,32 +40,6 @@ def work(tmp_path):
     (tmp_path / "tmp").mkdir()
     (tmp_path / "work").mkdir()
     return tmp_path
-
-
-def environment(work, **extra) -> dict:
-    return {"TMPDIR": str(work / "tmp"), "SDL_FMU_TEST_MARK": str(work), **extra}
-
-
-def hosts_of(work) -> list[int]:
-    """Processes started for this test (its mark in their environment) that are still there."""
-    found = []
-    mark = f"SDL_FMU_TEST_MARK={work}".encode()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                if mark in (entry / "environ").read_bytes().split(b"\0"):
-                    found.append(int(entry.name))
-            except OSError:
-                continue
-    return found
-
-
-def assert_clean(work) -> None:
-    assert os.listdir(work / "tmp") == [], "the unpacked FMU (or a host's file) was left in $TMPDIR"
-    deadline = time.monotonic() + HANG_LIMIT  # a killed host is reaped by its parent before it exits
-    while hosts_of(work):
-        assert time.monotonic() < deadline, f"processes left: {hosts_of(work)}"
-        time.sleep(0.05)
 
 
 def run(car, work, mode, *more, **map_options):
@@ -106,14 +80,6 @@ def test_a_capability_lie_is_caught_by_the_state_round_trip(car, work):
     one_line(completed, 2, "sdl-fmu: the FMU HostileCar.fmu failed: it declares canGetAndSetFMUstate, but "
                            "fmi2SetFMUstate did not restore its state of t = ")
     assert_clean(work)
-
-
-def wait_for(path: Path, process) -> None:
-    deadline = time.monotonic() + HANG_LIMIT  # only against a hang: the loop ends when the FMU says it hangs
-    while not path.exists():
-        assert process.poll() is None, process.communicate()
-        assert time.monotonic() < deadline, "the FMU never reached its hang"
-        time.sleep(0.02)
 
 
 @pytest.mark.parametrize("how, verb", [("ctrl-c", "run"), pytest.param("timeout", "run", marks=SLOW),

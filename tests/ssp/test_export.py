@@ -218,7 +218,8 @@ def test_new_empty_and_earlier_export_folders_are_written(tmp_path, simple_fmu):
 
 @pytest.mark.parametrize("make, reason", [
     (lambda folder: (folder / "notes.txt").write_text("mine"), "did not write"),
-    (lambda folder: api.run("head_on", until_time=1.0, out=folder, plot=False), "another sdl-fmu command"),
+    (lambda folder: api.run("head_on", until_time=1.0, out=folder, plot=False),
+     r"holds a run's results \(sdl-fmu run\), which sdl-fmu export does not replace"),
 ], ids=["a user's file", "a run's results"])
 def test_a_folder_holding_anything_else_is_refused_and_left_alone(tmp_path, simple_fmu, make, reason):
     folder = tmp_path / "out"

@@ -184,9 +184,6 @@ void scenario_outputs(const View *view, const double *u, const double *d, double
 /* A doStep's argument rules beyond the generic ones: 0 if the step may run, else writes why. */
 int scenario_check_step(const View *view, double h, char *reason, size_t reason_size);
 
-/* scenario_model.c: the instance's model (ModelInfo) for one scenario */
-ModelInfo *scenario_model_info(const double *data, size_t data_size, const double *parameters, const char *guid,
-                               void *(*allocate)(size_t, size_t), void (*release)(void *));
-void scenario_model_free(ModelInfo *info, void (*release)(void *));
+/* scenario_model.c: the scenario as a model of the generic runtime (model_info, its hooks) */
 
 #endif

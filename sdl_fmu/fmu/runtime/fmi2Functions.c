@@ -1,9 +1,15 @@
-/* The FMI 2.0 API (model exchange and co-simulation) over the generic instance.
- * Each function checks the calling sequence of the standard and answers misuse with fmi2Error and a
- * log message; nothing here knows the model. */
+/* The FMI 2.0 API (model exchange and co-simulation) over the generic instance, for every FMU of sdl-fmu (the ego
+ * models and the scenario FMU alike). Each function checks the calling sequence of the standard and answers misuse
+ * with fmi2Error and a log message; nothing here knows the model. What a model does differently is its data and
+ * hooks (ModelHooks, instance.h): an FMU without model exchange refuses its functions in every state, a model that
+ * reads its resources gets their folder, a model with its own step is stepped by it. */
+#if defined(__MINGW32__) && !defined(__USE_MINGW_ANSI_STDIO)
+#define __USE_MINGW_ANSI_STDIO 1
+#endif
 #include "fmi2Functions.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "derivatives.h"
@@ -82,6 +88,11 @@ static Instance *checked_type(fmi2Component c, const char *function, int allowed
     Instance *instance;
     if (!component || !component->instance) return NULL;
     instance = component->instance;
+    if (type == MODEL_EXCHANGE_ONLY && !model_hooks(instance->info)->model_exchange) { /* refused in every state */
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "%s needs a model-exchange instance (this FMU is for co-simulation only)", function);
+        return NULL;
+    }
     if ((type == MODEL_EXCHANGE_ONLY && instance->is_cosimulation) ||
         (type == CO_SIMULATION_ONLY && !instance->is_cosimulation)) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "%s needs a %s instance", function,
@@ -134,42 +145,110 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
                                                   "fmi2SetDebugLogging");
 }
 
+static int hex_value(char c) {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+}
+
+/* fmuResourceLocation (a file: URI) as a native folder path, for a model that reads its resources; 0 and a reason if
+ * it is none. */
+static int resource_path(const char *uri, char *path, size_t size, char *reason, size_t reason_size) {
+    const char *p;
+    size_t n = 0;
+    if (!uri || !uri[0]) {
+        snprintf(reason, reason_size, "no resource location given (the model is read from the FMU's resources/)");
+        return 0;
+    }
+    if (strncmp(uri, "file:", 5) != 0 && strncmp(uri, "FILE:", 5) != 0) {
+        snprintf(reason, reason_size, "the resource location '%.200s' is not a file: URI", uri);
+        return 0;
+    }
+    p = uri + 5;
+    if (p[0] == '/' && p[1] == '/') { /* an authority: empty or localhost */
+        p += 2;
+        if (strncmp(p, "localhost/", 10) == 0) p += 9;
+        if (*p != '/') {
+            snprintf(reason, reason_size, "the resource location '%.200s' names another host", uri);
+            return 0;
+        }
+    }
+#if defined(_WIN32)
+    if (p[0] == '/' && ((p[1] >= 'A' && p[1] <= 'Z') || (p[1] >= 'a' && p[1] <= 'z')) && (p[2] == ':' || p[2] == '|'))
+        p++; /* file:///C:/dir -> C:/dir */
+#endif
+    for (; *p; p++) {
+        char c = *p;
+        if (c == '%') {
+            int high = hex_value(p[1]), low = high >= 0 ? hex_value(p[2]) : -1;
+            if (high < 0 || low < 0 || (high == 0 && low == 0)) {
+                snprintf(reason, reason_size, "the resource location '%.200s' has a bad %%-escape", uri);
+                return 0;
+            }
+            c = (char)(high * 16 + low);
+            p += 2;
+        }
+        if (n + 1 >= size) {
+            snprintf(reason, reason_size, "the resource location is too long");
+            return 0;
+        }
+        path[n++] = c;
+    }
+    path[n] = '\0';
+    return 1;
+}
+
+/* A refused instantiation's one line (as the argument of "%s": a '%' in it is no format). */
+static void instantiation_refused(const fmi2CallbackFunctions *functions, const char *name, const char *reason) {
+    char message[800];
+    snprintf(message, sizeof(message), "fmi2Instantiate: %s", reason);
+    if (functions->logger)
+        functions->logger(functions->componentEnvironment, name, fmi2Error, "logStatusError", "%s", message);
+}
+
 fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn) {
+    const ModelHooks *hooks = model_hooks(&model_info);
     Component *component;
-    (void)fmuResourceLocation;
+    char reason[700], path[4096];
     (void)visible;
     if (!functions || !functions->allocateMemory || !functions->freeMemory) return NULL;
     if (!instanceName || !instanceName[0]) {
-        if (functions->logger)
-            functions->logger(functions->componentEnvironment, "?", fmi2Error, "logStatusError",
-                              "fmi2Instantiate: missing instance name");
-        return NULL;
-    }
-    if (!fmuGUID || strcmp(fmuGUID, model_info.guid) != 0) {
-        if (functions->logger)
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
-                              "fmi2Instantiate: wrong GUID %s, expected %s", fmuGUID ? fmuGUID : "(null)",
-                              model_info.guid);
+        instantiation_refused(functions, "?", "missing instance name");
         return NULL;
     }
     if (fmuType != fmi2ModelExchange && fmuType != fmi2CoSimulation) {
-        if (functions->logger)
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
-                              "fmi2Instantiate: unknown fmuType");
+        instantiation_refused(functions, instanceName, "unknown fmuType");
+        return NULL;
+    }
+    if (fmuType == fmi2ModelExchange && !hooks->model_exchange) {
+        snprintf(reason, sizeof(reason), "%s is for co-simulation only (it has no model-exchange interface)",
+                 model_info.model_identifier);
+        instantiation_refused(functions, instanceName, reason);
         return NULL;
     }
     component = (Component *)functions->allocateMemory(1, sizeof(Component));
     if (!component) return NULL;
     component->callbacks = *functions;
-    component->instance = instance_create(&model_info, instanceName, fmuType == fmi2CoSimulation,
-                                          functions->allocateMemory, functions->freeMemory, log_to_importer,
-                                          &component->callbacks);
+    component->instance = NULL;
+    if (hooks->instantiate) { /* the model reads its resources and checks the GUID itself */
+        if (resource_path(fmuResourceLocation, path, sizeof(path), reason, sizeof(reason)))
+            component->instance = hooks->instantiate(instanceName, fmuGUID, path, fmuType == fmi2CoSimulation,
+                                                     functions->allocateMemory, functions->freeMemory,
+                                                     log_to_importer, &component->callbacks, reason, sizeof(reason));
+    } else if (!fmuGUID || strcmp(fmuGUID, model_info.guid) != 0) {
+        snprintf(reason, sizeof(reason), "wrong GUID %.200s, expected %s", fmuGUID ? fmuGUID : "(null)",
+                 model_info.guid);
+    } else {
+        component->instance = instance_create(&model_info, instanceName, fmuType == fmi2CoSimulation,
+                                              functions->allocateMemory, functions->freeMemory, log_to_importer,
+                                              &component->callbacks);
+        if (!component->instance) snprintf(reason, sizeof(reason), "out of memory");
+    }
     if (!component->instance) {
-        if (functions->logger)
-            functions->logger(functions->componentEnvironment, instanceName, fmi2Error, "logStatusError",
-                              "fmi2Instantiate: out of memory");
+        instantiation_refused(functions, instanceName, reason);
         functions->freeMemory(component);
         return NULL;
     }
@@ -203,6 +282,10 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     instance->now.time = startTime;
     instance->stop_time_defined = stopTimeDefined ? 1 : 0;
     instance->stop_time = stopTime;
+    if (model_hooks(instance->info)->start_time_parameter >= 0) { /* a parameter of the initial state */
+        instance->now.p[model_hooks(instance->info)->start_time_parameter] = startTime;
+        instance->initial_state_valid = 0;
+    }
     return fmi2OK;
 }
 
@@ -347,6 +430,11 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReferenc
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
     Instance *instance = checked(c, "fmi2GetDirectionalDerivative", MASK_fmi2GetDirectionalDerivative);
     if (!instance) return fmi2Error;
+    if (!model_hooks(instance->info)->partial_derivatives) {
+        instance_log(instance, STATUS_ERROR, "logStatusError",
+                     "fmi2GetDirectionalDerivative: not provided (providesDirectionalDerivative=\"false\")");
+        return fmi2Error;
+    }
     return (fmi2Status)instance_directional_derivative(instance, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown,
                                                        dvUnknown);
 }
@@ -482,9 +570,17 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2Real communicationStepSize,
                       fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
     Instance *instance = checked_cs(c, "fmi2DoStep", MASK_fmi2DoStep);
+    const ModelHooks *hooks;
+    int early;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!instance) return fmi2Error;
+    hooks = model_hooks(instance->info);
     /* wrong arguments change nothing, so the instance stays usable */
+    if (hooks->step) { /* the model's own step (FMI 2.0 has no early return: instance->early_return_allowed is 0) */
+        if (hooks->check_step(instance, currentCommunicationPoint, communicationStepSize, "fmi2DoStep") != STATUS_OK)
+            return fmi2Error;
+        return finish(instance, hooks->step(instance, currentCommunicationPoint, communicationStepSize, &early));
+    }
     if (instance_check_step(instance, currentCommunicationPoint, communicationStepSize) != STATUS_OK)
         return fmi2Error;
     if (instance->stop_time_defined &&
@@ -542,8 +638,8 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
     Instance *instance = checked_cs(c, "fmi2GetBooleanStatus", MASK_fmi2GetBooleanStatus);
     if (!instance || !present(instance, "fmi2GetBooleanStatus", value, "value")) return fmi2Error;
-    if (s == fmi2Terminated) {
-        *value = fmi2False;
+    if (s == fmi2Terminated) { /* true once the model has ended (the scenario: ES or the run's end) */
+        *value = instance_ended(instance) ? fmi2True : fmi2False;
         return fmi2OK;
     }
     return status_not_available(instance, "fmi2GetBooleanStatus", s);

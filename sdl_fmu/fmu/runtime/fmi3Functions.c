@@ -1,11 +1,18 @@
 /* The FMI 3.0 API (model exchange and co-simulation) over the generic instance, the sibling of
  * fmi2Functions.c: the same instance layer (instance.c), in-step solver (cosimulation.c) and partial
- * derivatives (derivatives.c) behind the FMI 3.0 calling sequence. Each function checks the state machine of
- * the standard and answers misuse with fmi3Error and a log message; nothing here knows the model.
+ * derivatives (derivatives.c) behind the FMI 3.0 calling sequence, for every FMU of sdl-fmu (the ego models and the
+ * scenario FMU alike). Each function checks the state machine of the standard and answers misuse with fmi3Error and
+ * a log message; nothing here knows the model. What a model does differently is its data and hooks (ModelHooks,
+ * instance.h): an FMU without model exchange refuses its functions in every state, a model with its own step may
+ * return early (earlyReturnAllowed) and end the simulation (terminateSimulation).
  * The independent variable `time` has value reference 0; the model's variables are numbered 1..n. */
+#if defined(__MINGW32__) && !defined(__USE_MINGW_ANSI_STDIO)
+#define __USE_MINGW_ANSI_STDIO 1
+#endif
 #include "fmi3Functions.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -86,9 +93,30 @@ static Instance *checked(fmi3Instance c, const char *function, int allowed_modes
     return instance;
 }
 
+/* The hooks of the instance's model (of this binary's model without an instance: its check refuses that). */
+static const ModelHooks *hooks_of(fmi3Instance c) {
+    const Component *component = (const Component *)c;
+    return model_hooks(component && component->instance ? component->instance->info : &model_info);
+}
+
+/* A model-exchange function of an FMU without model exchange (ModelHooks.model_exchange = 0): refused in every state
+ * (1, with a message; 0 otherwise, also without an instance: its check refuses that). */
+static int without_model_exchange(fmi3Instance c, const char *function) {
+    Component *component = (Component *)c;
+    if (!component || !component->instance || hooks_of(c)->model_exchange) return 0;
+    instance_log(component->instance, STATUS_ERROR, "logStatusError",
+                 "%s: needs a model-exchange instance (this FMU is for co-simulation only)", function);
+    return 1;
+}
+
+/* A model-exchange function an importer may also call on a co-simulation instance. */
+static Instance *checked_model_exchange(fmi3Instance c, const char *function, int allowed_modes) {
+    return without_model_exchange(c, function) ? NULL : checked(c, function, allowed_modes);
+}
+
 /* A function that exists only for one interface type (model exchange or co-simulation). */
 static Instance *checked_type(fmi3Instance c, const char *function, int allowed_modes, int cosimulation) {
-    Instance *instance = checked(c, function, allowed_modes);
+    Instance *instance = !cosimulation && without_model_exchange(c, function) ? NULL : checked(c, function, allowed_modes);
     if (instance && instance->is_cosimulation != cosimulation) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "%s needs a %s instance", function,
                      cosimulation ? "co-simulation" : "model exchange");
@@ -137,15 +165,17 @@ fmi3Status fmi3SetDebugLogging(fmi3Instance c, fmi3Boolean loggingOn, size_t nCa
                                                   "fmi3SetDebugLogging");
 }
 
-static fmi3Instance instantiate(fmi3String instanceName, fmi3String instantiationToken, fmi3Boolean loggingOn,
-                                fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
-                                int cosimulation) {
+static fmi3Instance instantiate(fmi3String instanceName, fmi3String instantiationToken, fmi3String resourcePath,
+                                fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
+                                fmi3LogMessageCallback logMessage, int cosimulation) {
+    const ModelHooks *hooks = model_hooks(&model_info);
     Component *component;
+    char reason[700], message[800];
     if (!instanceName || !instanceName[0]) {
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3Instantiate: missing instance name");
         return NULL;
     }
-    if (!instantiationToken || strcmp(instantiationToken, model_info.guid) != 0) {
+    if (!hooks->instantiate && (!instantiationToken || strcmp(instantiationToken, model_info.guid) != 0)) {
         if (logMessage)
             logMessage(instanceEnvironment, fmi3Error, "logStatusError",
                        "fmi3Instantiate: the instantiation token does not match this binary's modelDescription.xml");
@@ -155,10 +185,19 @@ static fmi3Instance instantiate(fmi3String instanceName, fmi3String instantiatio
     if (!component) return NULL;
     component->environment = instanceEnvironment;
     component->log_message = logMessage;
-    component->instance = instance_create(&model_info, instanceName, cosimulation, allocate_zeroed, release,
-                                          log_to_importer, component);
+    if (hooks->instantiate) { /* the model reads its resources and checks the token itself */
+        reason[0] = '\0';
+        component->instance = hooks->instantiate(instanceName, instantiationToken, resourcePath, cosimulation,
+                                                 allocate_zeroed, release, log_to_importer, component, reason,
+                                                 sizeof(reason));
+    } else {
+        component->instance = instance_create(&model_info, instanceName, cosimulation, allocate_zeroed, release,
+                                              log_to_importer, component);
+        snprintf(reason, sizeof(reason), "out of memory");
+    }
     if (!component->instance) {
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", "fmi3Instantiate: out of memory");
+        snprintf(message, sizeof(message), "fmi3Instantiate: %s", reason[0] ? reason : "failed");
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", message);
         free(component);
         return NULL;
     }
@@ -171,9 +210,16 @@ fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String in
                                           fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage) {
-    (void)resourcePath;
+    char message[300];
     (void)visible;
-    return instantiate(instanceName, instantiationToken, loggingOn, instanceEnvironment, logMessage, 0);
+    if (!model_hooks(&model_info)->model_exchange) {
+        snprintf(message, sizeof(message),
+                 "fmi3InstantiateModelExchange: %s is for co-simulation only (it has no model-exchange interface)",
+                 model_info.model_identifier);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", message);
+        return NULL;
+    }
+    return instantiate(instanceName, instantiationToken, resourcePath, loggingOn, instanceEnvironment, logMessage, 0);
 }
 
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
@@ -183,21 +229,34 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          size_t nRequiredIntermediateVariables,
                                          fmi3InstanceEnvironment instanceEnvironment, fmi3LogMessageCallback logMessage,
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
-    (void)resourcePath;
+    const ModelHooks *hooks = model_hooks(&model_info);
+    Component *component;
     (void)visible;
-    (void)earlyReturnAllowed; /* the FMU never returns early: events are handled inside fmi3DoStep */
     (void)requiredIntermediateVariables;
-    (void)nRequiredIntermediateVariables;
     (void)intermediateUpdate;
     if (eventModeUsed) {
         /* hasEventMode="false": events are located and handled inside the step, as in FMI 2.0 */
         if (logMessage)
             logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                       "fmi3InstantiateCoSimulation: event mode is not supported (hasEventMode=\"false\"); "
-                       "events are handled inside fmi3DoStep");
+                       hooks->early_return
+                           ? "fmi3InstantiateCoSimulation: event mode is not supported (hasEventMode=\"false\"); "
+                             "events are located and handled inside fmi3DoStep (earlyReturnAllowed: it returns at "
+                             "their instants)"
+                           : "fmi3InstantiateCoSimulation: event mode is not supported (hasEventMode=\"false\"); "
+                             "events are handled inside fmi3DoStep");
         return NULL;
     }
-    return instantiate(instanceName, instantiationToken, loggingOn, instanceEnvironment, logMessage, 1);
+    if (nRequiredIntermediateVariables > 0) { /* providesIntermediateUpdate="false" */
+        if (logMessage)
+            logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                       "fmi3InstantiateCoSimulation: the FMU provides no intermediate variables");
+        return NULL;
+    }
+    component = (Component *)instantiate(instanceName, instantiationToken, resourcePath, loggingOn, instanceEnvironment,
+                                         logMessage, 1);
+    /* the model's own step may return early; the in-step solver never does (events are handled inside doStep) */
+    if (component) component->instance->early_return_allowed = earlyReturnAllowed && hooks->early_return;
+    return component;
 }
 
 fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
@@ -216,7 +275,9 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
     (void)unlockPreemption;
     if (logMessage)
         logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                   "fmi3InstantiateScheduledExecution: the FMU supports model exchange and co-simulation only");
+                   model_hooks(&model_info)->model_exchange
+                       ? "fmi3InstantiateScheduledExecution: the FMU supports model exchange and co-simulation only"
+                       : "fmi3InstantiateScheduledExecution: the FMU is for co-simulation only");
     return NULL;
 }
 
@@ -243,6 +304,8 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefi
     instance->now.time = startTime;
     instance->stop_time_defined = stopTimeDefined ? 1 : 0;
     instance->stop_time = stopTime;
+    if (model_hooks(instance->info)->start_time_parameter >= 0) /* a parameter of the initial state */
+        instance->now.p[model_hooks(instance->info)->start_time_parameter] = startTime;
     instance->now.mode = MODE_INITIALIZATION;
     instance->initial_state_valid = 0;
     return fmi3OK;
@@ -520,7 +583,10 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance c, const fmi3Byte serializedStat
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                         size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
-    Instance *instance = checked(c, "fmi3GetDirectionalDerivative", MASK_fmi3GetDirectionalDerivative);
+    Instance *instance;
+    if (!hooks_of(c)->partial_derivatives)
+        return unsupported(c, "fmi3GetDirectionalDerivative", "not provided (providesDirectionalDerivatives=\"false\")");
+    instance = checked(c, "fmi3GetDirectionalDerivative", MASK_fmi3GetDirectionalDerivative);
     if (!instance) return fmi3Error;
     if (nSeed != nKnowns || nSensitivity != nUnknowns) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
@@ -535,7 +601,10 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance c, const fmi3ValueReference
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance c, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                     const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                     size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
-    Instance *instance = checked(c, "fmi3GetAdjointDerivative", MASK_fmi3GetAdjointDerivative);
+    Instance *instance;
+    if (!hooks_of(c)->partial_derivatives)
+        return unsupported(c, "fmi3GetAdjointDerivative", "not provided (providesAdjointDerivatives=\"false\")");
+    instance = checked(c, "fmi3GetAdjointDerivative", MASK_fmi3GetAdjointDerivative);
     if (!instance) return fmi3Error;
     if (nSeed != nUnknowns || nSensitivity != nKnowns) {
         instance_log(instance, STATUS_ERROR, "logStatusError",
@@ -710,7 +779,7 @@ static Instance *checked_vector(fmi3Instance c, const char *function, int allowe
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 derivatives[], size_t nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetContinuousStateDerivatives", MASK_fmi3GetContinuousStateDerivatives);
+    Instance *instance = checked_type(c, "fmi3GetContinuousStateDerivatives", MASK_fmi3GetContinuousStateDerivatives, 0);
     if (!instance) return fmi3Error;
     instance = checked_vector(c, "fmi3GetContinuousStateDerivatives", MASK_fmi3GetContinuousStateDerivatives, derivatives, nContinuousStates,
                               instance->info->nx);
@@ -719,7 +788,7 @@ fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance c, fmi3Float64 derivat
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
-    Instance *instance = checked(c, "fmi3GetEventIndicators", MASK_fmi3GetEventIndicators);
+    Instance *instance = checked_type(c, "fmi3GetEventIndicators", MASK_fmi3GetEventIndicators, 0);
     if (!instance) return fmi3Error;
     instance = checked_vector(c, "fmi3GetEventIndicators", MASK_fmi3GetEventIndicators, eventIndicators, nEventIndicators,
                               instance->info->nz);
@@ -728,7 +797,7 @@ fmi3Status fmi3GetEventIndicators(fmi3Instance c, fmi3Float64 eventIndicators[],
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 continuousStates[], size_t nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetContinuousStates", MASK_fmi3GetContinuousStates);
+    Instance *instance = checked_type(c, "fmi3GetContinuousStates", MASK_fmi3GetContinuousStates, 0);
     if (!instance) return fmi3Error;
     instance = checked_vector(c, "fmi3GetContinuousStates", MASK_fmi3GetContinuousStates, continuousStates, nContinuousStates,
                               instance->info->nx);
@@ -738,7 +807,7 @@ fmi3Status fmi3GetContinuousStates(fmi3Instance c, fmi3Float64 continuousStates[
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominals[], size_t nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetNominalsOfContinuousStates", MASK_fmi3GetNominalsOfContinuousStates);
+    Instance *instance = checked_type(c, "fmi3GetNominalsOfContinuousStates", MASK_fmi3GetNominalsOfContinuousStates, 0);
     if (!instance) return fmi3Error;
     instance = checked_vector(c, "fmi3GetNominalsOfContinuousStates", MASK_fmi3GetNominalsOfContinuousStates, nominals,
                               nContinuousStates,
@@ -749,7 +818,7 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance c, fmi3Float64 nominal
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *nEventIndicators) {
-    Instance *instance = checked(c, "fmi3GetNumberOfEventIndicators", MASK_fmi3GetNumberOfEventIndicators);
+    Instance *instance = checked_model_exchange(c, "fmi3GetNumberOfEventIndicators", MASK_fmi3GetNumberOfEventIndicators);
     if (!instance || !present(instance, "fmi3GetNumberOfEventIndicators", nEventIndicators, "nEventIndicators"))
         return fmi3Error;
     *nEventIndicators = (size_t)instance->info->nz;
@@ -757,7 +826,7 @@ fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance c, size_t *nEventIndicato
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance c, size_t *nContinuousStates) {
-    Instance *instance = checked(c, "fmi3GetNumberOfContinuousStates", MASK_fmi3GetNumberOfContinuousStates);
+    Instance *instance = checked_model_exchange(c, "fmi3GetNumberOfContinuousStates", MASK_fmi3GetNumberOfContinuousStates);
     if (!instance || !present(instance, "fmi3GetNumberOfContinuousStates", nContinuousStates, "nContinuousStates"))
         return fmi3Error;
     *nContinuousStates = (size_t)instance->info->nx;
@@ -786,27 +855,36 @@ fmi3Status fmi3DoStep(fmi3Instance c, fmi3Float64 currentCommunicationPoint, fmi
                       fmi3Boolean noSetFMUStatePriorToCurrentPoint, fmi3Boolean *eventHandlingNeeded,
                       fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn, fmi3Float64 *lastSuccessfulTime) {
     Instance *instance = checked_type(c, "fmi3DoStep", MASK_fmi3DoStep, 1);
+    const ModelHooks *hooks;
     Status status;
+    int early = 0;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (!instance) return fmi3Error;
     if (!eventHandlingNeeded || !terminateSimulation || !earlyReturn || !lastSuccessfulTime) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3DoStep: null argument");
         return fmi3Error;
     }
+    hooks = model_hooks(instance->info);
     /* wrong arguments change nothing, so the instance stays usable */
-    if (instance_check_step(instance, currentCommunicationPoint, communicationStepSize) != STATUS_OK)
-        return fmi3Error;
-    if (instance->stop_time_defined &&
-        currentCommunicationPoint + communicationStepSize > instance->stop_time + 1e-9 * (1.0 + instance->stop_time)) {
-        instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3DoStep would pass the stop time %.17g",
-                     instance->stop_time);
-        return fmi3Error;
+    if (hooks->step) { /* the model's own step: it may return early at an event's instant if the importer allows */
+        if (hooks->check_step(instance, currentCommunicationPoint, communicationStepSize, "fmi3DoStep") != STATUS_OK)
+            return fmi3Error;
+        status = hooks->step(instance, currentCommunicationPoint, communicationStepSize, &early);
+    } else {
+        if (instance_check_step(instance, currentCommunicationPoint, communicationStepSize) != STATUS_OK)
+            return fmi3Error;
+        if (instance->stop_time_defined && currentCommunicationPoint + communicationStepSize >
+                                               instance->stop_time + 1e-9 * (1.0 + instance->stop_time)) {
+            instance_log(instance, STATUS_ERROR, "logStatusError", "fmi3DoStep would pass the stop time %.17g",
+                         instance->stop_time);
+            return fmi3Error;
+        }
+        /* events inside the step are located and handled by the in-step solver, exactly as in FMI 2.0 */
+        status = instance_do_step(instance, currentCommunicationPoint, communicationStepSize);
     }
-    /* events inside the step are located and handled by the in-step solver, exactly as in FMI 2.0 */
-    status = instance_do_step(instance, currentCommunicationPoint, communicationStepSize);
     *eventHandlingNeeded = fmi3False;
-    *terminateSimulation = fmi3False;
-    *earlyReturn = fmi3False;
+    *terminateSimulation = status == STATUS_OK && instance_ended(instance) ? fmi3True : fmi3False;
+    *earlyReturn = early ? fmi3True : fmi3False;
     *lastSuccessfulTime = instance->now.time;
     return finish(instance, status);
 }

@@ -72,6 +72,16 @@ void instance_log(Instance *instance, Status status, const char *category, const
     instance->log(instance, status, category, message);
 }
 
+/* the hooks of a model without any: every FMI function generic, no function of the model's own */
+static const ModelHooks GENERIC_MODEL = {1, 1, 0, -1, -1, NULL, NULL, NULL, NULL, NULL};
+
+const ModelHooks *model_hooks(const ModelInfo *info) { return info->hooks ? info->hooks : &GENERIC_MODEL; }
+
+int instance_ended(const Instance *instance) {
+    int index = model_hooks(instance->info)->ended_state;
+    return index >= 0 && instance->now.d[index] != 0.0;
+}
+
 static void grow_work(const ModelFunction *function, casadi_int_t size[4]) {
     casadi_int_t sz[4] = {0, 0, 0, 0};
     int i;
@@ -149,9 +159,13 @@ Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimu
 
 void instance_free(Instance *instance) {
     FreeFn release;
+    const ModelHooks *hooks;
+    void *model_data;
     int i;
     if (!instance) return;
     release = instance->release;
+    hooks = model_hooks(instance->info);
+    model_data = instance->model_data; /* it may hold the ModelInfo: freed last */
     release(instance->name);
     release(instance->now.x);
     release(instance->now.d);
@@ -178,6 +192,7 @@ void instance_free(Instance *instance) {
     while (instance->n_issued > 0) snapshot_free(instance, instance->issued[instance->n_issued - 1]);
     release(instance->issued);
     release(instance);
+    if (model_data && hooks->free_model) hooks->free_model(model_data);
 }
 
 void instance_reset(Instance *instance) {
@@ -719,8 +734,10 @@ Status instance_get_state(Instance *instance, void **state, const char *function
 }
 
 Status instance_set_state(Instance *instance, const void *state, const char *function) {
+    const ModelHooks *hooks = model_hooks(instance->info);
     if (!snapshot_handle_valid(instance, state, function) || snapshot_check(instance, (const Snapshot *)state) != STATUS_OK)
         return STATUS_ERROR;
+    if (hooks->state_fits && !hooks->state_fits(instance, (const Snapshot *)state, function)) return STATUS_ERROR;
     snapshot_copy(instance, &instance->now, (const Snapshot *)state);
     instance->initial_state_valid = !(instance->now.mode & (MODE_INSTANTIATED | MODE_INITIALIZATION));
     instance_invalidate(instance);
@@ -754,6 +771,7 @@ Status instance_serialize_state(Instance *instance, const void *state, char *byt
 
 Status instance_deserialize_state(Instance *instance, const char *bytes, size_t size, void **state, int reuse_existing,
                                   const char *function) {
+    const ModelHooks *hooks = model_hooks(instance->info);
     Snapshot *snapshot;
     if (!state) {
         instance_log(instance, STATUS_ERROR, "logStatusError", "%s: null state pointer", function);
@@ -765,7 +783,8 @@ Status instance_deserialize_state(Instance *instance, const char *bytes, size_t 
         instance_log(instance, STATUS_ERROR, "logStatusError", "%s: out of memory", function);
         return STATUS_ERROR;
     }
-    if (snapshot_deserialize(instance, bytes, size, snapshot) != STATUS_OK) {
+    if (snapshot_deserialize(instance, bytes, size, snapshot) != STATUS_OK ||
+        (hooks->state_fits && !hooks->state_fits(instance, snapshot, function))) {
         snapshot_free(instance, snapshot);
         return STATUS_ERROR;
     }

@@ -38,8 +38,9 @@ typedef struct {
     double *x, *d, *u, *p;
 } Snapshot;
 
-typedef struct {
+typedef struct Instance {
     const ModelInfo *info;
+    void *model_data;      /* the model's own per-instance data (ModelHooks.instantiate; NULL for the ego models) */
     char *name;
     int is_cosimulation;
     int logging_on;        /* debug logging (OK-status messages) on */
@@ -59,6 +60,7 @@ typedef struct {
     double start_time;
     double stop_time;
     int stop_time_defined;
+    int early_return_allowed; /* FMI 3.0: the importer allows doStep to return early (ModelHooks.step may) */
 
     /* CasADi work arrays, sized for the largest function */
     const double **arg;
@@ -77,6 +79,37 @@ typedef struct {
     size_t n_issued, issued_capacity;
 } Instance;
 
+/* What a model that is more than equations does in the generic FMI layers' place (fmi2Functions.c,
+ * fmi3Functions.c, instance.c), as data and functions; ModelInfo.hooks, NULL for the ego models: everything
+ * generic. The scenario FMU (sdl_fmu/export/runtime/scenario_model.c) is such a model. */
+typedef struct ModelHooks {
+    int model_exchange;      /* 0: co-simulation only: no model-exchange instance, and every model-exchange
+                              * function refuses in every state, with a message */
+    int partial_derivatives; /* 0: GetDirectionalDerivative (and fmi3GetAdjointDerivative) refuse: not provided */
+    int early_return;        /* FMI 3.0: step may return at an event's instant when the importer allows it */
+    int start_time_parameter; /* index in p set to the start time at SetupExperiment (FMI 3.0: EnterInitializationMode),
+                               * -1: none */
+    int ended_state;          /* index in d, nonzero once the model has ended: fmi2GetBooleanStatus(fmi2Terminated)
+                               * and fmi3DoStep's terminateSimulation report it (-1: never) */
+    /* The instance, from the FMU's resources folder (a native path, '/'-terminated or not) and the GUID or
+     * instantiation token, in place of the generic GUID check and instance_create: NULL and a one-line reason on
+     * failure. The instance's model_data is then the model's, freed by free_model after the instance. */
+    Instance *(*instantiate)(const char *name, const char *token, const char *resources, int is_cosimulation,
+                             AllocateFn allocate, FreeFn release, LogFn log, void *log_context, char *reason,
+                             size_t reason_size);
+    void (*free_model)(void *model_data);
+    /* doStep in place of the in-step solver (cosimulation.c): its arguments (refused: nothing changes, the
+     * instance stays usable; `function` names the caller in messages), then the step, which sets the time it
+     * reached and whether it returned early (only with early_return_allowed). */
+    Status (*check_step)(Instance *instance, double t, double h, const char *function);
+    Status (*step)(Instance *instance, double t, double h, int *returned_early);
+    /* An FMU state the layer checked (snapshot_check) that the model must accept as well (else logs why, 0). */
+    int (*state_fits)(Instance *instance, const Snapshot *snapshot, const char *function);
+} ModelHooks;
+
+/* The model's hooks; those of a model without any (generic everything, no function) for the ego models. */
+const ModelHooks *model_hooks(const ModelInfo *info);
+
 Instance *instance_create(const ModelInfo *info, const char *name, int is_cosimulation, AllocateFn allocate,
                           FreeFn release, LogFn log, void *log_context);
 void instance_free(Instance *instance);
@@ -94,6 +127,9 @@ void instance_log(Instance *instance, Status status, const char *category, const
     __attribute__((format(printf, 4, 5)))
 #endif
     ;
+
+/* Whether the model has ended (ModelHooks.ended_state): the importer is asked to stop. */
+int instance_ended(const Instance *instance);
 
 /* Variable access by value reference; kind must match the variable's type. */
 Status instance_get(Instance *instance, const unsigned int vr[], size_t nvr, Kind kind, void *values);

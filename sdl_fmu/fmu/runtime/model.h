@@ -6,7 +6,8 @@
  *   u  inputs (Integer inputs are carried as doubles)
  *   p  parameters
  * The runtime (instance.c, cosimulation.c, derivatives.c, fmi2Functions.c, fmi3Functions.c) knows nothing of
- * vehicles.
+ * vehicles. A model that is more than equations (the scenario FMU: co-simulation only, its data read from the FMU's
+ * resources, its own step) adds hooks (ModelHooks, instance.h); the ego models have none.
  */
 #ifndef SDL_FMU_MODEL_H
 #define SDL_FMU_MODEL_H
@@ -14,6 +15,8 @@
 #include <stddef.h>
 
 typedef long long int casadi_int_t;
+
+struct ModelHooks; /* instance.h */
 
 typedef int (*CasadiEval)(const double **arg, double **res, casadi_int_t *iw, double *w, int mem);
 typedef int (*CasadiWork)(casadi_int_t *sz_arg, casadi_int_t *sz_res, casadi_int_t *sz_iw, casadi_int_t *sz_w);
@@ -79,6 +82,7 @@ typedef struct {
     ModelFunction unknowns_adjoint; /* (x,d,u,p,seed[nU]) -> (dU/dK)^T seed [nK] */
     ModelFunction initial_forward;  /* (x,d,u,p,seed[nK]) -> (dx0/dK) seed [nx], x0 = initial state */
     ModelFunction initial_adjoint;  /* (x,d,u,p,seed[nx]) -> (dx0/dK)^T seed [nK] */
+    const struct ModelHooks *hooks; /* what the model does in the generic layer's place (NULL: nothing) */
 } ModelInfo;
 
 /* Defined by the generated per-model file. */

@@ -209,4 +209,4 @@ def write(out, outcomes: list[TestOutcome], vehicle: dict, sheet: dict, controll
         write_csv(folder / CSV_NAME, outcomes)
         (folder / HTML_NAME).write_text(report_html(outcomes, vehicle, sheet, controller, tool), encoding="utf-8")
 
-    return write_results_folder(out, contents)
+    return write_results_folder(out, contents, "verify")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ctypes
 import re
+import shutil
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -292,7 +293,8 @@ class Ego:
         self.vr = {v.name: v.valueReference for v in description.modelVariables}
         self.types = {v.name: v.type for v in description.modelVariables}
         slave_type = FMU3Slave if self.fmi3 else FMU2Slave
-        self.slave = slave_type(guid=description.guid, unzipDirectory=extract(str(fmu)),
+        self._folder = extract(str(fmu))  # removed by close()
+        self.slave = slave_type(guid=description.guid, unzipDirectory=self._folder,
                                 modelIdentifier=description.coSimulation.modelIdentifier, instanceName="ego")
         self.slave.instantiate()
         if not self.fmi3:
@@ -338,6 +340,7 @@ class Ego:
     def close(self) -> None:
         self.slave.terminate()
         self.slave.freeInstance()
+        shutil.rmtree(self._folder, ignore_errors=True)
 
 
 def scenario_inputs(outputs: dict) -> dict:

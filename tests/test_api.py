@@ -105,7 +105,8 @@ def test_user_mistakes_raise_input_error_naming_the_keyword(options, option, mes
 
 
 def test_a_target_speed_above_the_vehicles_top_speed_is_one_warning(simple_fmu):
-    # the Simple FMU's top speed is 201.389 ft/s (61.3834 m/s: tests/test_vehicle_model.py derives it in closed form)
+    # the Simple FMU's top speed is 201.389 ft/s (61.3834 m/s: tests/vehicle/test_vehicle_model.py derives it in closed
+    # form)
     warning = ("speed 202 ft/s: above the top speed of simple, 201.4 ft/s (where its drive at full throttle, at most "
                "110 kW, meets its rolling resistance and drag): the driver holds full throttle below the target")
     assert api.run("head_on", fmu=simple_fmu, speed=202.0, until_time=0.5).warnings == [warning]

@@ -112,6 +112,32 @@ def test_every_document_a_text_names_exists():
         "docs/results.md", "README.md", "EGO_MODEL_INTERFACE.md"]
 
 
+TEST_FILES = sorted((ROOT / "tests").rglob("test_*.py"))
+# A test file a text names: by its path (tests/cosim/test_closing.py) or by its name alone (test_closing.py)
+TEST_FILE = re.compile(r"(?<![\w/.-])((?:tests/(?:[\w-]+/)*)?test_\w+\.py)\b")
+
+
+def test_every_test_file_a_text_names_exists():
+    paths = {str(p.relative_to(ROOT)) for p in TEST_FILES}
+    names = {p.name for p in TEST_FILES}
+    missing = [f"{text.relative_to(ROOT)}:{number}: {name}" for text in DOCUMENTS + SOURCES
+               for number, line in enumerate(text.read_text(encoding="utf-8").splitlines(), 1)
+               for name in TEST_FILE.findall(line) if name not in (paths if "/" in name else names)]
+    assert not missing, "\n".join(missing)
+    assert TEST_FILE.findall("tests/cosim/test_closing.py, test_docs.py; not my_test_x.py or tests.py") == [
+        "tests/cosim/test_closing.py", "test_docs.py"]
+
+
+def test_the_test_folders_mirror_the_package():
+    """Test files sit in tests/ (what crosses the stages) or in tests/<stage>/ for a stage of sdl_fmu/, or in
+    tests/hostile/ (the hostile-input tests of every stage), one name once (the folders are not packages):
+    tests/README.md."""
+    stages = {p.parent.name for p in (ROOT / "sdl_fmu").glob("*/__init__.py")}
+    folders = {p.parent.relative_to(ROOT / "tests") for p in TEST_FILES}
+    assert {str(folder) for folder in folders} - {"."} <= stages | {"hostile"}
+    assert len({p.name for p in TEST_FILES}) == len(TEST_FILES)
+
+
 @pytest.mark.parametrize("text", DOCUMENTS + SOURCES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_no_text_refers_to_documents_outside_the_repository(text):
     found = [f"{text.relative_to(ROOT)}:{number}: {line.strip()}" for number, line in

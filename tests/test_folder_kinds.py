@@ -64,7 +64,7 @@ def test_a_folder_of_another_command_is_refused_in_one_line_and_left_alone(folde
 
 @pytest.mark.parametrize("kind", ["run", "export"])
 def test_a_folder_of_its_own_kind_is_replaced(folders, kind, tmp_path, simple_fmu, capsys):
-    """(verify and sweep: tests/test_verify.py replaces an earlier verify folder, tests/test_sweep.py resumes a
+    """(verify and sweep: tests/verify/test_verify.py replaces an earlier verify folder, tests/test_sweep.py resumes a
     sweep's.)"""
     folder = tmp_path / kind
     shutil.copytree(folders[kind], folder)

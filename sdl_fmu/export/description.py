@@ -191,12 +191,17 @@ def documentation(interface: Interface, fmi_version: int, sdl_text: str, source:
     listed_warnings = "".join(f"<li>{html.escape(w)}</li>" for w in warnings) or "<li>none</li>"
     compile_line = (f"cc -std=c99 -O2 -ffp-contract=off -fPIC -shared -Isources "
                     f"{' '.join(f'sources/{s}' for s in sources)} -o {MODEL_IDENTIFIER}.so -lm")
-    example = f"""from fmpy import extract, read_model_description
+    example = f"""import shutil
+
+from fmpy import extract, read_model_description
 from fmpy.fmi{fmi_version} import FMU{fmi_version}Slave
+
+folders = []  # where the FMUs are unpacked, removed at the end
 
 def open_fmu(path):
     description = read_model_description(path)
-    slave = FMU{fmi_version}Slave(guid=description.guid, unzipDirectory=extract(path), instanceName=path,
+    folders.append(extract(path))
+    slave = FMU{fmi_version}Slave(guid=description.guid, unzipDirectory=folders[-1], instanceName=path,
                       modelIdentifier=description.coSimulation.modelIdentifier)
     slave.instantiate()
     return slave, {{v.name: v.valueReference for v in description.modelVariables}}
@@ -230,7 +235,12 @@ while not scenario.getBoolean([s["ended"]])[0]:
     ego.doStep(t, h)
     scenario.doStep(t, h)
     t += h
-print(f"ended at {{t:.2f}} s:", scenario.{"getInteger" if fmi_version == 2 else "getInt32"}([s["events"], s["collisions"]]))"""
+print(f"ended at {{t:.2f}} s:", scenario.{"getInteger" if fmi_version == 2 else "getInt32"}([s["events"], s["collisions"]]))
+for fmu in (scenario, ego):
+    fmu.terminate()
+    fmu.freeInstance()
+for folder in folders:
+    shutil.rmtree(folder, ignore_errors=True)"""
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>

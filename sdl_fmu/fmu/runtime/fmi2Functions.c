@@ -25,7 +25,7 @@ typedef struct {
      MODE_ERROR)
 /* The FMI 2.0 state tables (sections 3.2.3 and 4.2.4) in one place, as the Reference-FMUs keep them: the states
  * in which each function is allowed (elsewhere it returns fmi2Error with a log message). A test compares this
- * table with the standard's (tests/test_state_tables.py). */
+ * table with the standard's (tests/fmu/test_state_tables.py). */
 #define MASK_fmi2SetDebugLogging               ANY_MODE
 #define MASK_fmi2SetupExperiment               MODE_INSTANTIATED
 #define MASK_fmi2EnterInitializationMode       MODE_INSTANTIATED

@@ -35,7 +35,7 @@ typedef struct {
 /* discrete variables (Int32, Boolean) do not change in continuous-time mode */
 /* The FMI 3.0 state tables (sections 3.2 and 4.2) in one place, as the Reference-FMUs keep them: the states
  * in which each function is allowed (elsewhere it returns fmi3Error with a log message). A test compares this
- * table with the standard's (tests/test_state_tables.py). */
+ * table with the standard's (tests/fmu/test_state_tables.py). */
 #define MASK_fmi3SetDebugLogging               ANY_MODE
 #define MASK_fmi3EnterInitializationMode       MODE_INSTANTIATED
 #define MASK_fmi3ExitInitializationMode        MODE_INITIALIZATION

@@ -2,7 +2,7 @@
 per FMU; no crash, no hang, no OK where the standard (or the modelDescription) requires an error.
 
 A hang is a call that does not return within HANG_GUARD: far beyond any call whose work is bounded (the
-runtime's step budget, tests/test_fmu_misuse.py), so a busy or slow machine is never taken for a hang."""
+runtime's step budget, tests/fmu/test_fmu_misuse.py), so a busy or slow machine is never taken for a hang."""
 
 import os
 import subprocess
@@ -14,7 +14,7 @@ import pytest
 from fmi_fuzz import fuzz
 
 HANG_GUARD = 120.0  # s
-TOOL = Path(__file__).resolve().parents[1] / "tools" / "fmi_fuzz.py"
+TOOL = Path(__file__).resolve().parents[2] / "tools" / "fmi_fuzz.py"
 
 
 def test_the_fuzzer_runs_as_a_script_from_a_checkout(tmp_path):

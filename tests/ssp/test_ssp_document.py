@@ -19,7 +19,7 @@ from ssp_masters import MASTERS, run_master
 V0, MU = 20.0, 0.6  # m/s; the braking FMU's friction
 # without drag and rolling resistance, full pedal (brake_decel_max 9.81 > mu g): a = mu g, distance v0^2 / (2 a)
 STOP = V0**2 / (2 * MU * G)
-TOLERANCE = 1e-9  # relative: RODAS4 integrates the constant deceleration exactly (tests/test_importers.py)
+TOLERANCE = 1e-9  # relative: RODAS4 integrates the constant deceleration exactly (tests/fmu/test_importers.py)
 STEP, STOP_TIME = 0.01, 5.0  # s: the stop comes at v0 / (mu g) = 3.4 s
 FACTOR, OFFSET = 0.01, 0.1  # the second FMU's throttle = 0.01 * the first's speed + 0.1
 

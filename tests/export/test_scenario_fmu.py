@@ -5,6 +5,7 @@ collisions, commands, surfaces and lead signals bit for bit, on every shipped sc
 
 import ctypes
 import json
+import os
 import random
 import re
 import shutil
@@ -27,7 +28,7 @@ from helpers import windows_tools_required
 from scenario_generator import random_scenario
 from scenario_harness import ScenarioInstance, recorded_inputs, replay
 
-TESTS = Path(__file__).resolve().parent
+TESTS = Path(__file__).resolve().parents[1]  # tests/
 SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll"}
 LINUX_LIBRARIES = {"libc.so.6", "libm.so.6"}
 SHIPPED = sorted(api.shipped_scenarios())
@@ -679,7 +680,7 @@ EXTRA_SIGNATURES = {3: {"GetNumberOfEventIndicators": (ctypes.POINTER(SIZE),),
 @pytest.mark.parametrize("version", [2, 3])
 def test_the_scenario_fmu_runs_on_the_ego_fmus_fmi_layer(demo_fmus, version, tmp_path):
     """One FMI layer per version serves every FMU (docs/fmu-runtime.md): the scenario FMU is built from the ego FMUs'
-    fmi2Functions.c / fmi3Functions.c as they are, so its state table is the one tests/test_state_tables.py compares
+    fmi2Functions.c / fmi3Functions.c as they are, so its state table is the one tests/fmu/test_state_tables.py compares
     with the standard's. What differs is the model's data (ModelHooks): it has no model-exchange interface, so every
     model-exchange function of that layer refuses, in every state, with a message, and it provides no partial
     derivatives."""
@@ -739,17 +740,21 @@ def test_the_scenario_fmu_runs_on_the_ego_fmus_fmi_layer(demo_fmus, version, tmp
 @pytest.mark.parametrize("version", [2, 3])
 def test_the_documentations_fmpy_example_runs_as_written(version, tmp_path, simple_model, simple_fmus):
     """documentation/index.html's example: the scenario FMU and the Simple ego FMU in a fixed-step master written
-    out with fmpy; head_on ends at ES (1600 ft at 88 ft/s: 18.18 s) with its 4 events and the one collision."""
+    out with fmpy; head_on ends at ES (1600 ft at 88 ft/s: 18.18 s) with its 4 events and the one collision. It
+    leaves nothing in its temporary folder (the FMUs it unpacks are removed)."""
     import html
 
     fmu = write_scenario_fmu(api.load("head_on"), tmp_path / "scenario.fmu", ego=simple_model, fmi_version=version)
     shutil.copy(simple_fmus[version], tmp_path / "EgoVehicleSimple.fmu")
     documentation = zipfile.ZipFile(fmu.path).read("documentation/index.html").decode()
     code = html.unescape(re.search(r"<h2>Using it with fmpy</h2>.*?<pre>(.*?)</pre>", documentation, re.S)[1])
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
     completed = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True,
-                               timeout=300)
+                               timeout=300, env={**os.environ, "TMPDIR": str(temporary)})
     assert completed.returncode == 0, completed.stderr[-2000:]
     assert completed.stdout.strip() == "ended at 18.19 s: [4, 1]"
+    assert os.listdir(temporary) == []
 
 
 @pytest.mark.parametrize("start", [-1.0, 7.3])

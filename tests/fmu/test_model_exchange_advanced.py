@@ -5,7 +5,7 @@ In a model-exchange instance the Advanced model's wheels are quasi-static (wheel
 docs/fmu-runtime.md, "The Advanced model in fixed-step model exchange"): a rolling wheel's slip solves its torque
 balance, a locked wheel slides. Nothing stiff is left at these speeds, so forward Euler converges to the model's own solution with
 the error of a left Riemann sum: with the speed decreasing, each step adds at most h (v(t_k) - v(t_k+1)) to the
-exact distance, h v0 over the whole stop (the same bound as the Simple model's, tests/test_model_exchange.py).
+exact distance, h v0 over the whole stop (the same bound as the Simple model's, tests/fmu/test_model_exchange.py).
 
 Every run is straight ahead without drag or rolling resistance on the shipped standard tire."""
 

@@ -458,7 +458,7 @@ def test_communication_steps_give_the_same_stop(advanced_fmu):
     # With fixed internal steps (solver_tolerance 0) the internal step stays solver_step (1 ms) whatever the
     # communication step (1, 10, 100 ms all divide into whole solver steps), and the stop is an event located
     # to 1e-12 s inside a step: only round-off of the time grid differs, ~1e4 steps x 1e-16 x 20 m; allowed
-    # 1e-9 m. (The error-controlled default: tests/test_solver.py.)
+    # 1e-9 m. (The error-controlled default: tests/fmu/test_solver.py.)
     fixed = {"solver_tolerance": 0.0, "solver_step": 1e-3}
     distances = [simulate(advanced_fmu, 4.0, {"v0": 20.0, "brake": 1.0, **fixed}, step=step)["s"][-1]
                  for step in (0.001, 0.01, 0.1)]

@@ -285,8 +285,8 @@ def _model_description(fmu: Path) -> bytes:
 @pytest.mark.parametrize("master", ["libcosim", "ecos"])
 def test_a_controller_brakes_the_ego_two_steps_after_its_sample(tmp_path, foreign_controller_and_ccrs, master):
     # CCRs-like at 50 km/h toward a stationary car; the foreign AEB (PythonFMU, its own units: km/h, ms, %) latches a
-    # full brake at the first sample with TTC <= 1.5 s, as in run (tests/test_controller_runs.py). Run applies the
-    # request from that sample; in the SSP the request is the controller's output one step later and the scenario
+    # full brake at the first sample with TTC <= 1.5 s, as in run (tests/vehicle/test_controller_runs.py). Run applies
+    # the request from that sample; in the SSP the request is the controller's output one step later and the scenario
     # FMU's arbitrated command one step after that, so the ego brakes 2 h later, from the same constant speed V0, and
     # then as in run: it stops 2 h V0 further (0.278 m), with the same events
     fmu, ccrs = foreign_controller_and_ccrs

@@ -30,9 +30,9 @@ from helpers import (HOST_SOURCE, HOST_STEP, MU, SIMPLE_START, V0, G, extract_bi
 # = mu g (a_max = 9.81 > 0.6 g), stopping distance v0^2 / (2 a).
 SIMPLE_STOP = V0**2 / (2 * MU * G)
 # Every co-simulation importer drives the same binary: RODAS4 integrates the constant deceleration exactly
-# and locates the stop to 1e-12 s, so only round-off remains (tests/test_simple_fmu.py: 1e-9 relative).
+# and locates the stop to 1e-12 s, so only round-off remains (tests/dynamics/test_simple_fmu.py: 1e-9 relative).
 SIMPLE_TOLERANCE = 1e-9
-# fmpy's CVode at rtol 1e-10 (tests/test_simple_fmu.py: 1e-7 relative)
+# fmpy's CVode at rtol 1e-10 (tests/dynamics/test_simple_fmu.py: 1e-7 relative)
 SIMPLE_ME_TOLERANCE = 1e-7
 
 # Advanced FMU: braking in a curve (20 m/s, steer 0.03 rad, 30 % pedal), sampled at 1, 2, 3, 4 s.
@@ -116,7 +116,7 @@ def test_fmpy_model_exchange_simple(simple_fmus, version):
 @VERSIONS
 def test_fmpy_model_exchange_advanced(advanced_fmus, reference, version):
     # the dynamic wheels, co-simulation's model (model exchange's automatic choice is quasi-static:
-    # tests/test_model_exchange_advanced.py)
+    # tests/fmu/test_model_exchange_advanced.py)
     samples, _ = fmpy_samples(advanced_fmus[version], "ModelExchange", {**ADVANCED_START, "wheel_spin": 1},
                               SAMPLE_TIMES[-1], ADVANCED_OUTPUTS, solver="CVode", relative_tolerance=1e-10)
     assert_same_trajectory(samples, reference, ME_TOLERANCE)

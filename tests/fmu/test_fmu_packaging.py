@@ -19,7 +19,7 @@ from fmpy.validation import validate_fmu
 import sdl_fmu
 from sdl_fmu.fmu.documentation import DOCUMENTATION, LICENSE_ENTRY
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 BASE_UNITS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
 
 

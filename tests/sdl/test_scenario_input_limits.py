@@ -223,7 +223,7 @@ def test_the_scenario_docs_list_every_shipped_scenario():
 
     from sdl_fmu import api
 
-    docs = (Path(__file__).parent.parent / "docs" / "scenarios.md").read_text()
+    docs = (Path(__file__).parents[2] / "docs" / "scenarios.md").read_text()
     section = docs.split("## The shipped examples")[1].split("\n## ")[0]
     assert all(f"`{name}`" in section for name in api.shipped_scenarios()), sorted(api.shipped_scenarios())
 

@@ -1,21 +1,12 @@
-"""Each FMI version's allowed states sit in one table of MASK_fmi2<Function> / MASK_fmi3<Function> lines
-(sdl_fmu/fmu/runtime/fmi2Functions.c, fmi3Functions.c), and every FMI function that checks its state uses its
-own line. The tables are compared here with the standard's state tables, written out below.
-
-States of this runtime: I Instantiated, N Initialization Mode, E Event Mode, C Continuous-Time Mode (model
-exchange), S Step Mode (co-simulation: FMI 2.0 "stepComplete"), T Terminated, X Error. States the runtime never
-enters are left out of the expected sets: FMI 2.0 stepInProgress, stepFailed, stepCanceled (fmi2DoStep always
-completes or fails into Error), FMI 3.0 Configuration, Reconfiguration, Step Discarded, Clock Activation and
-Intermediate Update Mode (no structural parameters, no clocks, hasEventMode="false", no early return).
-One mask serves both interface types: a function's model-exchange states (I N E C T X) and co-simulation states
-(I N S T X) are united; functions of one interface type refuse the other type before the table is consulted."""
+"""The FMI standard's tables of the states in which each function may be called, written out, and the reader of a
+runtime's MASK_fmi2<Function> / MASK_fmi3<Function> lines: shared by test_state_tables.py (the ego FMUs' runtime) and
+test_scenario_fmu.py (the scenario FMU's runtime). The letters are the runtime's states (test_state_tables.py)."""
 
 import re
 from pathlib import Path
 
-import pytest
+from sdl_fmu.fmu.codegen import RUNTIME_DIRECTORY
 
-RUNTIME = Path(__file__).parents[1] / "sdl_fmu" / "fmu" / "runtime"
 LETTER = {"MODE_INSTANTIATED": "I", "MODE_INITIALIZATION": "N", "MODE_EVENT": "E", "MODE_CONTINUOUS_TIME": "C",
           "MODE_STEP": "S", "MODE_TERMINATED": "T", "MODE_ERROR": "X"}
 ANY = "INECSTX"
@@ -63,7 +54,7 @@ FMI3_DEVIATIONS = {"GetFMUState": "INECST"}  # as in FMI 2.0
 def mask_table(version: int, path: Path | None = None) -> dict:
     """{function without prefix: allowed state letters} from the MASK_ lines (of the ego FMUs' runtime, or of the
     file `path`), and the check of every use."""
-    source = (path or RUNTIME / f"fmi{version}Functions.c").read_text()
+    source = (path or RUNTIME_DIRECTORY / f"fmi{version}Functions.c").read_text()
     table = {}
     for name, expression in re.findall(rf"^#define MASK_fmi{version}(\w+)\s+(.*)$", source, re.M):
         expression = re.sub(r"/\*.*?\*/", "", expression).strip()
@@ -77,14 +68,3 @@ def mask_table(version: int, path: Path | None = None) -> dict:
     for function, argument in re.findall(rf'checked\w*\(c, "fmi{version}(\w+)", ([^,)]+)', source):
         assert argument == f"MASK_fmi{version}{function}", (function, argument)
     return table
-
-
-@pytest.mark.parametrize("version, expected, deviations", [(2, FMI2, FMI2_DEVIATIONS), (3, FMI3, FMI3_DEVIATIONS)],
-                         ids=["fmi2", "fmi3"])
-def test_state_table_is_the_standards(version, expected, deviations):
-    table = mask_table(version)
-    for function, states in {**expected, **deviations}.items():
-        assert function in table, f"no MASK_fmi{version}{function} line"
-        assert set(table[function]) == set(states), (function, table[function], states)
-    if version == 2:  # FMI 2.0: every line is compared
-        assert set(table) == set(expected) | set(deviations)

@@ -1,4 +1,4 @@
-"""`sdl-fmu export` without running a master (tests/test_export_masters.py runs them): the SSP keeps to the portable
+"""`sdl-fmu export` without running a master (tests/ssp/test_export_masters.py runs them): the SSP keeps to the portable
 subset (docs/export.md) and validates against the SSP 1.0 schemas fmpy ships; the ego's parameter set is what
 `sdl-fmu run` sets (hand-converted for the foreign car's map: km/h, degrees, SAE signs); every signal the vehicle map
 names is connected, its scale, offset and unit in a linear transformation (hand-computed); the stop time is run's

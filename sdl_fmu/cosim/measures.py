@@ -618,36 +618,38 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
     if dy == 0.0:
         return 0.0
     side = 1.0 if dy > 0.0 else -1.0
-    lateral, ahead, speed, gap = side * vy, abs(dx) + half_x, abs(vx), side * dy - half_y
+    lateral, ahead, speed, gap = side * vy, (dx if dx >= 0.0 else -dx) + half_x, vx if vx >= 0.0 else -vx, \
+        side * dy - half_y
 
     # the test only gets harder as T grows (every term worsens). A first T from its leading terms (S ~ S0 =
     # (|dx| + half_x) / |vx|: gap + min(0, sigma vy) S0 - (A S0 + turn + max(0, -sigma vy)) T > 0), shortened
-    # until the test passes
+    # until the test passes. The per-check path: min(0, x) written as `x if x < 0.0 else 0.0`, max(0, x) as
+    # `x if x > 0.0 else 0.0`, min(x, y) as `y if y < x else x` (what the builtins return, nan included), and
+    # the test of one T inline
     if speed <= 0.0:
         return 0.0
     reach0 = ahead / speed
-    room = gap + min(0.0, lateral) * reach0
+    room = gap + (lateral if lateral < 0.0 else 0.0) * reach0
     if room <= 0.0:
         return 0.0
-    horizon = min(min(until, COURSE_WINDOW), 0.9 * room / (acceleration * reach0 + turn + max(0.0, -lateral)))
+    window = COURSE_WINDOW if COURSE_WINDOW < until else until
+    away = -lateral
+    guess = 0.9 * room / (acceleration * reach0 + turn + (away if away > 0.0 else 0.0))
+    horizon = guess if guess < window else window
     for _ in range(COURSE_TRIES):
-        if _course_proven(horizon, lateral, ahead, speed, gap, turn, acceleration):
-            return horizon
+        # the test for one T (`horizon`): F = A T, E = A T^2 / 2, S as above
+        drift = acceleration * horizon
+        if not speed <= drift:
+            slip = 0.5 * drift * horizon
+            grow = turn * horizon
+            reach = (ahead + speed * horizon + slip + grow) / (speed - drift)
+            swing = lateral * horizon
+            late = (lateral - drift) * reach
+            if (gap - slip + (swing if swing < 0.0 else 0.0) + (late if late < 0.0 else 0.0) - grow
+                    > COURSE_MARGIN):
+                return horizon
         horizon *= 0.75
     return 0.0
-
-
-def _course_proven(horizon: float, lateral: float, ahead: float, speed: float, gap: float, turn: float,
-                   acceleration: float) -> bool:
-    """`course_horizon`'s test for one T (`horizon`)."""
-    drift = acceleration * horizon  # F
-    if speed <= drift:
-        return False
-    slip = 0.5 * drift * horizon  # E
-    grow = turn * horizon
-    reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
-    return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
-            > COURSE_MARGIN)
 
 
 def distance_horizons(distance, frozen_rate, floor, turn: float, acceleration):

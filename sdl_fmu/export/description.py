@@ -8,7 +8,7 @@ import xml.etree.ElementTree as ET
 
 from .. import __version__
 from ..fmu.documentation import STYLE
-from ..fmu.xml import AUTHOR, COPYRIGHT, LICENSE, LOG_CATEGORIES
+from ..fmu.xml import AUTHOR, COPYRIGHT, LICENSE, LOG_CATEGORIES, unit_definitions
 from ..interface import INPUT, OUTPUT, PARAMETER, Interface
 from .binary import MODEL_IDENTIFIER
 
@@ -43,17 +43,7 @@ def _value_attributes(v) -> dict[str, str]:
 
 
 def _unit_definitions(root: ET.Element, interface: Interface, extra: tuple[str, ...] = ()) -> None:
-    used = sorted({v.unit for v in interface.variables if v.unit} | set(extra))
-    definitions = ET.SubElement(root, "UnitDefinitions")
-    for name in used:
-        unit = interface.units[name]
-        element = ET.SubElement(definitions, "Unit", name=name)
-        ET.SubElement(element, "BaseUnit", {k: str(e) for k, e in unit["base"].items()})
-        for display, conversion in unit.get("display", {}).items():
-            attributes = {"name": display, "factor": repr(conversion["factor"])}
-            if conversion.get("offset"):
-                attributes["offset"] = repr(conversion["offset"])
-            ET.SubElement(element, "DisplayUnit", attributes)
+    unit_definitions(root, interface, {v.unit for v in interface.variables if v.unit} | set(extra))
 
 
 def _common(root: ET.Element, experiment: dict) -> None:

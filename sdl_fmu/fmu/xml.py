@@ -65,9 +65,14 @@ def entry_description(entry: TableEntry, table: list[TableEntry]) -> str:
 
 def _unit_definitions(parent: ET.Element, interface: Interface, table: list[TableEntry],
                       extra: tuple[str, ...] = ()) -> None:
-    used = sorted({entry_unit(e, table, interface) for e in table} - {None} | set(extra))
+    unit_definitions(parent, interface, {entry_unit(e, table, interface) for e in table} - {None} | set(extra))
+
+
+def unit_definitions(parent: ET.Element, interface: Interface, used: set[str]) -> None:
+    """The <UnitDefinitions> of these units of the interface (sorted by name), with their display units: the ego
+    FMUs' and the scenario FMU's model descriptions."""
     definitions = ET.SubElement(parent, "UnitDefinitions")
-    for name in used:
+    for name in sorted(used):
         unit = interface.units[name]
         element = ET.SubElement(definitions, "Unit", name=name)
         ET.SubElement(element, "BaseUnit", {k: str(e) for k, e in unit["base"].items()})

@@ -13,13 +13,11 @@ the key.
 
 from __future__ import annotations
 
-import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from .vehicle_map import Channel, VehicleMapError
+from .vehicle_map import Channel, MapFields, VehicleMapError, read_map_file
 
 # What a signal or a request is: an SI unit (a map's `unit` and the FMU's declared unit convert from it through
 # pint), "pedal" (a number, 0..1: scale and offset only, as the vehicle map's pedals), "boolean" or "integer"
@@ -81,50 +79,13 @@ class ControllerMap:
 def load_controller_map(path: str | Path) -> ControllerMap:
     """Reads and checks a controller map's shape (not yet against an FMU)."""
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_bytes().decode("utf-8"))
-    except FileNotFoundError:
-        raise ControllerMapError.of("controller_map", path, "no such file") from None
-    except IsADirectoryError:
-        raise ControllerMapError.of("controller_map", path, "is a folder, not a file") from None
-    except UnicodeDecodeError:
-        raise ControllerMapError("controller_map", f"{path}: not TOML (not UTF-8 text)") from None
-    except tomllib.TOMLDecodeError as error:
-        raise ControllerMapError("controller_map", f"{path}: not TOML: {error}") from None
-    except OSError as error:
-        raise ControllerMapError.of("controller_map", path, f"cannot be read ({error.strerror})") from None
-    return parse_controller_map(data, path)
+    return parse_controller_map(read_map_file(path, ControllerMapError, "controller_map", "controller map"), path)
 
 
 def parse_controller_map(data: dict, path: Path | None = None) -> ControllerMap:
     label = str(path) if path is not None else "<controller map>"
-
-    def fail(key: str, reason: str):
-        raise ControllerMapError("controller_map", f"{label}: {key}: {reason}")
-
-    for key in data:
-        if key not in TOP_LEVEL:
-            fail(key, f"unknown key (a controller map has {', '.join(TOP_LEVEL)})")
-
-    def table(key: str, required: bool) -> dict:
-        value = data.get(key)
-        if value is None:
-            if required:
-                fail(f"[{key}]", "missing")
-            return {}
-        if not isinstance(value, dict):
-            fail(key, "must be a table")
-        return value
-
-    def number(key: str, value) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            fail(key, f"{value!r} must be a finite number")
-        return float(value)
-
-    def text(key: str, value) -> str:
-        if not isinstance(value, str) or not value:
-            fail(key, f"{value!r} must be a non-empty string")
-        return value
+    fields = MapFields(data, label, ControllerMapError, "controller_map", TOP_LEVEL, "controller map")
+    fail, table, number, text = fields.fail, fields.table, fields.number, fields.text
 
     def channel(section: str, name: str, entry, kind: Kind) -> Channel:
         key = f"{section}.{name}"

@@ -121,53 +121,71 @@ class VehicleMap:
 def load_vehicle_map(path: str | Path) -> VehicleMap:
     """Reads and checks a vehicle map's shape (not yet against an FMU)."""
     path = Path(path)
+    return parse_vehicle_map(read_map_file(path, VehicleMapError, "vehicle", "vehicle map"), path)
+
+
+def read_map_file(path: Path, error: type[VehicleMapError], option: str, what: str) -> dict:
+    """A map file's TOML (a vehicle map, a controller map): at most MAX_MAP_BYTES; every way it can fail is one
+    `error` for `option` naming the file."""
     try:
         with open(path, "rb") as file:
             raw = file.read(MAX_MAP_BYTES + 1)
         if len(raw) > MAX_MAP_BYTES:
-            raise VehicleMapError.of("vehicle", path, f"larger than {MAX_MAP_BYTES // 1024} KB; a vehicle map is a "
-                                                      "small text")
-        data = tomllib.loads(raw.decode("utf-8"))
+            raise error.of(option, path, f"larger than {MAX_MAP_BYTES // 1024} KB; a {what} is a small text")
+        return tomllib.loads(raw.decode("utf-8"))
     except RecursionError:  # tomllib reads nested arrays and tables recursively; a map nests three deep
-        raise VehicleMapError("vehicle", f"{path}: not TOML sdl-fmu reads (nested too deeply)") from None
+        raise error(option, f"{path}: not TOML sdl-fmu reads (nested too deeply)") from None
     except FileNotFoundError:
-        raise VehicleMapError.of("vehicle", path, "no such file") from None
+        raise error.of(option, path, "no such file") from None
     except IsADirectoryError:
-        raise VehicleMapError.of("vehicle", path, "is a folder, not a file") from None
+        raise error.of(option, path, "is a folder, not a file") from None
     except UnicodeDecodeError:
-        raise VehicleMapError("vehicle", f"{path}: not TOML (not UTF-8 text)") from None
-    except tomllib.TOMLDecodeError as error:
-        raise VehicleMapError("vehicle", f"{path}: not TOML: {error}") from None
-    except OSError as error:
-        raise VehicleMapError.of("vehicle", path, f"cannot be read ({error.strerror})") from None
-    return parse_vehicle_map(data, path)
+        raise error(option, f"{path}: not TOML (not UTF-8 text)") from None
+    except tomllib.TOMLDecodeError as err:
+        raise error(option, f"{path}: not TOML: {err}") from None
+    except OSError as err:
+        raise error.of(option, path, f"cannot be read ({err.strerror})") from None
+
+
+class MapFields:
+    """The checks every map's reader makes of its TOML (a vehicle map, a controller map), each failure one `error`
+    for `option` naming the map and the key: the top-level keys known, tables, finite numbers, non-empty strings."""
+
+    def __init__(self, data: dict, label: str, error: type[VehicleMapError], option: str, top_level, what: str):
+        self.data, self.label, self.error, self.option = data, label, error, option
+        for key in data:
+            if key not in top_level:
+                self.fail(key, f"unknown key (a {what} has {', '.join(top_level)})")
+
+    def fail(self, key: str, reason: str):
+        raise self.error(self.option, f"{self.label}: {key}: {reason}")
+
+    def table(self, key: str, required: bool) -> dict:
+        value = self.data.get(key)
+        if value is None:
+            if required:
+                self.fail(f"[{key}]", "missing")
+            return {}
+        if not isinstance(value, dict):
+            self.fail(key, "must be a table")
+        return value
+
+    def number(self, key: str, value) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            self.fail(key, f"{value!r} must be a finite number")
+        return float(value)
+
+    def text(self, key: str, value) -> str:
+        if not isinstance(value, str) or not value:
+            self.fail(key, f"{value!r} must be a non-empty string")
+        return value
 
 
 def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = True) -> VehicleMap:
     """complete=False: a map without wheel geometry (an FMU stepped on its own, not driven through a scenario)."""
     label = str(path) if path is not None else "<vehicle map>"
-
-    def fail(key: str, reason: str):
-        raise VehicleMapError("vehicle", f"{label}: {key}: {reason}")
-
-    for key in data:
-        if key not in TOP_LEVEL:
-            fail(key, f"unknown key (a vehicle map has {', '.join(TOP_LEVEL)})")
-
-    def table(key: str, required: bool) -> dict:
-        value = data.get(key)
-        if value is None:
-            if required:
-                fail(f"[{key}]", "missing")
-            return {}
-        if not isinstance(value, dict):
-            fail(key, "must be a table")
-        return value
-
-    def number(key: str, value) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            fail(key, f"{value!r} must be a finite number")
-        return float(value)
+    fields = MapFields(data, label, VehicleMapError, "vehicle", TOP_LEVEL, "vehicle map")
+    fail, table, number, text = fields.fail, fields.table, fields.number, fields.text
 
     def scale(key: str, value) -> float:
         value = number(key, value)
@@ -179,11 +197,6 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
         value = number(key, value)
         if abs(value) > MAX_OFFSET:
             fail(key, f"{value!r} is outside its range: |offset| <= {MAX_OFFSET:g}")
-        return value
-
-    def text(key: str, value) -> str:
-        if not isinstance(value, str) or not value:
-            fail(key, f"{value!r} must be a non-empty string")
         return value
 
     def channel(section: str, name: str, entry, allowed=("variable", "scale", "offset", "unit")) -> Channel:

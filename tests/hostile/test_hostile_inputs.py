@@ -267,6 +267,23 @@ def test_a_huge_map_is_refused_unread(car, work):
 
 
 @SLOW
+@pytest.mark.parametrize("hostile", ["nested", "huge"])
+def test_a_hostile_controller_map_is_one_line(work, hostile):
+    """A controller map is read as a vehicle map is (one reader): nested deeper than tomllib's recursion (a
+    RecursionError traceback before they shared it) or larger than 1 MB, one line, before any FMU is looked at."""
+    path = work / f"{hostile}.toml"
+    if hostile == "nested":
+        path.write_text("name = " + "[" * 100_000 + "]" * 100_000 + "\n")
+        expected = f"sdl-fmu: {path}: not TOML sdl-fmu reads (nested too deeply)"
+    else:
+        with open(path, "wb") as file:
+            file.write(b"# " + b"x" * (2 << 20) + b"\n")
+        expected = f"sdl-fmu: --controller-map {path}: larger than 1024 KB; a controller map is a small text"
+    completed = capped("run", "demo", "--controller-map", path, "--out", work / "work" / "out", cwd=work / "work")
+    one_line(completed, 2, expected)
+
+
+@SLOW
 def test_a_param_the_vehicle_cannot_have_is_one_line_naming_the_param(work):
     """--param brake_decel_max=0 is within the Simple FMU's declared range (>= 0), but the driver model divides by
     it: refused before the run, naming --param (it was a ZeroDivisionError traceback at the first braking)."""

@@ -14,8 +14,9 @@ pairwise ratios - 1 (`overhead_median`, `overhead_q1`, `overhead_q3`, `overhead_
 With --instructions, also the instructions each kind of run executes (`instructions_plain`, `instructions_measured`,
 their ratio - 1 `overhead_instructions`), counted by valgrind's cachegrind: unlike CPU time they do not depend on
 the machine's load (each kind runs INSTRUCTION_RUNS times in a process of its own after a warm-up run of both, less
-the same process running neither). Runs use a private FMU cache holding only the Simple FMU's build
-(`private_cache`).
+the same process running neither), with OpenBLAS on one thread (`COUNTED_ENVIRONMENT`: its idle worker threads spin
+for a time that depends on the scheduling, which valgrind counts: 1 oncoming measured +34 % with them, +12.6 %
+twice in a row without). Runs use a private FMU cache holding only the Simple FMU's build (`private_cache`).
 """
 
 from __future__ import annotations
@@ -42,6 +43,9 @@ from sdl_fmu.sdl import default_vehicle_table_path, load_scenario, load_vehicle_
 
 RESULT = Path(__file__).parent / "results" / "criticality_overhead.json"
 INSTRUCTION_RUNS = 3
+# the counted processes' environment: OpenBLAS's worker threads (NumPy's BLAS) spin while idle, and valgrind counts
+# their instructions (blas_thread_server: tens of millions per process, varying from process to process)
+COUNTED_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1"}
 
 
 class Blind(CriticalityFollower):
@@ -106,7 +110,7 @@ def instructions(case: str) -> dict:
     for kind in ("none", "plain", "measured"):
         completed = subprocess.run(["valgrind", "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
                                     sys.executable, __file__, "--one", kind, case], capture_output=True, text=True,
-                                   check=True)
+                                   check=True, env={**os.environ, **COUNTED_ENVIRONMENT})
         counts[kind] = int(re.search(r"I\s+refs:\s+([\d,]+)", completed.stderr)[1].replace(",", ""))
     plain = (counts["plain"] - counts["none"]) / INSTRUCTION_RUNS
     measured = (counts["measured"] - counts["none"]) / INSTRUCTION_RUNS

@@ -221,7 +221,9 @@ def criticality_overhead(results: Path) -> list[str]:
         "criticality follower measures nothing (no looks, no FMU snapshots, no located instants), in one "
         f"process, alternating, {data['repeat']} pairs on the demo, by CPU time (`time.process_time`), Simple FMU, "
         "default settings: the best of each kind, and the median and spread of the pairwise ratios; and (`--instructions`) "
-        "the instructions each kind executes, counted by valgrind, which do not depend on the machine's load. The "
+        "the instructions each kind executes, counted by valgrind with OpenBLAS on one thread (its idle worker "
+        "threads spin for a scheduling-dependent time, which valgrind would count), which do not depend on the "
+        "machine's load. The "
         "scenarios: the demo, and a straight road with N cars oncoming in the next lane, one spawned every 100 ft.", "",
         *_table(["scenario", "plain CPU s (best)", "with the measures (best)", "best-of ratio",
                  "pairwise median (spread)", "added CPU per vehicle, ms (median)", "instructions added"], rows), "",

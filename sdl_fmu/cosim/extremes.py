@@ -203,12 +203,23 @@ class Extremes:
         dx, dy = station - state.x, -lateral - state.y
         vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
         d, rate, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
-        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego)
         if d > RANGE:
+            motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF,
+                      ego, None, None)
             return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
-        value = ttc(ego, dx, dy, vx, vy, length, width)
+        # the road axes' reaches (geometry.axis_reaches' first two, the same operations) once, for `ttc`'s and
+        # `headway`'s common decision (a car in another lane: off course by the road's axes, not ahead in the
+        # ego's path) and for the look's course_horizon
+        a, b = ego[0], ego[1]
+        ac = c if c >= 0.0 else -c
+        as_ = s if s >= 0.0 else -s
+        reach_x, reach_y = a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
+        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego,
+                  reach_x, reach_y)
+        value = INF if _off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(ego, dx, dy, vx, vy, length, width)
         ego_ax = state.ax * c - state.ay * s
-        gap_time = headway(ego, dx, dy, ego_vx, -speed, length, width)
+        gap_time = INF if (not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0
+                           or -speed < 0.0) else headway(ego, dx, dy, ego_vx, -speed, length, width)
         headway_change = math.nan if gap_time == INF else \
             headway_rate_known(ego, gap_time, ego_vx, -speed, ego_ax, state.yaw_rate)
         if not 0.0 < value < INF:
@@ -258,7 +269,7 @@ class Extremes:
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
         (d, value, drac_value, gap_time), rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate,
-                                                  transition_left, ego) = \
+                                                  transition_left, ego, reach_x, reach_y) = \
             self._evaluate(traffic, i, state) if evaluated is None else evaluated
         t = state.time
         offer = self.offer
@@ -303,7 +314,6 @@ class Extremes:
         if not longest > 0.0:
             self.quiet = 0.0
             return rates, 0.0
-        reach_x, reach_y, _, _ = axis_reaches(ego, length, width)
         self.course = course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative)
         self.quiet = transition_left if transition_left < approach_end else approach_end
         return rates, transition_left if transition_left < new_minimum else new_minimum
@@ -334,10 +344,20 @@ class Extremes:
         length, width = self._sizes[i]
         dx, dy = station - state.x, -lateral - state.y
         vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-        value = ttc(ego, dx, dy, vx, vy, length, width)
         transition_left = duration - elapsed if moving else INF
         relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
         turn = radius * yaw_rate_bound
+        # the common case (a car in another lane), decided as `ttc` and `headway` decide it, with the road axes'
+        # reaches (geometry.axis_reaches' first two, the same operations) computed once for both and for
+        # course_horizon: off any collision course by the road's two axes alone, and not ahead in the ego's path
+        a, b, c, s = ego
+        ac = c if c >= 0.0 else -c
+        as_ = s if s >= 0.0 else -s
+        reach_x, reach_y = a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
+        if _off_course(dx, dy, vx, vy, reach_x, reach_y) and (
+                not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0 or -speed < 0.0):
+            return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
+        value = ttc(ego, dx, dy, vx, vy, length, width)
         if 0.0 < value < INF or headway(ego, dx, dy, ego_vx, -speed, length, width) != INF:
             d, _, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
             if d <= RANGE:
@@ -466,3 +486,22 @@ class Extremes:
             overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
         return {**entry(overall_values, overall_times, any(touched)), "vehicles": vehicles}
 
+
+
+def _off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach_y: float) -> bool:
+    """Whether `ttc` returns inf after the road's two axes (x, y; reach_x, reach_y their reaches): the same
+    operations in the same order (the same decision)."""
+    entry, leave = -INF, INF
+    for p, q, h in ((dx, vx, reach_x), (dy, vy, reach_y)):
+        if q == 0.0:
+            if (p if p >= 0.0 else -p) >= h:
+                return True
+            continue
+        t1, t2 = (-h - p) / q, (h - p) / q
+        if t2 < t1:
+            t1, t2 = t2, t1
+        if t1 > entry:
+            entry = t1
+        if t2 < leave:
+            leave = t2
+    return entry >= leave or leave <= 0.0

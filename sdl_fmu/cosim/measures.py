@@ -200,10 +200,26 @@ def distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: floa
     vu, vv = vx * c + vy * s, -vx * s + vy * c
     rate = frozen = INF
     first = True
-    for k, q, x, y in ((0, q0, x0, y0), (1, q1, x1, y1), (2, q2, x2, y2), (3, q3, x3, y3),
-                       (4, q4, x4, y4), (5, q5, x5, y5), (6, q6, x6, y6), (7, q7, x7, y7)):
-        if q > near or (q != least and sqrt(q) != best):
-            continue
+    # the closest corners, in corner order (a corner is skipped where q > near or (q != least and sqrt(q) != best);
+    # the test written out per corner: no tuple per corner, and most are skipped by their first comparison)
+    closest = []
+    if not (q0 > near or (q0 != least and sqrt(q0) != best)):
+        closest.append((0, x0, y0))
+    if not (q1 > near or (q1 != least and sqrt(q1) != best)):
+        closest.append((1, x1, y1))
+    if not (q2 > near or (q2 != least and sqrt(q2) != best)):
+        closest.append((2, x2, y2))
+    if not (q3 > near or (q3 != least and sqrt(q3) != best)):
+        closest.append((3, x3, y3))
+    if not (q4 > near or (q4 != least and sqrt(q4) != best)):
+        closest.append((4, x4, y4))
+    if not (q5 > near or (q5 != least and sqrt(q5) != best)):
+        closest.append((5, x5, y5))
+    if not (q6 > near or (q6 != least and sqrt(q6) != best)):
+        closest.append((6, x6, y6))
+    if not (q7 > near or (q7 != least and sqrt(q7) != best)):
+        closest.append((7, x7, y7))
+    for k, x, y in closest:
         if k < 4:
             half_x, half_y = hl, hw
         else:
@@ -618,36 +634,38 @@ def course_horizon(dx: float, dy: float, vx: float, vy: float, half_x: float, ha
     if dy == 0.0:
         return 0.0
     side = 1.0 if dy > 0.0 else -1.0
-    lateral, ahead, speed, gap = side * vy, abs(dx) + half_x, abs(vx), side * dy - half_y
+    lateral, ahead, speed, gap = side * vy, (dx if dx >= 0.0 else -dx) + half_x, vx if vx >= 0.0 else -vx, \
+        side * dy - half_y
 
     # the test only gets harder as T grows (every term worsens). A first T from its leading terms (S ~ S0 =
     # (|dx| + half_x) / |vx|: gap + min(0, sigma vy) S0 - (A S0 + turn + max(0, -sigma vy)) T > 0), shortened
-    # until the test passes
+    # until the test passes. The per-check path: min(0, x) written as `x if x < 0.0 else 0.0`, max(0, x) as
+    # `x if x > 0.0 else 0.0`, min(x, y) as `y if y < x else x` (what the builtins return, nan included), and
+    # the test of one T inline
     if speed <= 0.0:
         return 0.0
     reach0 = ahead / speed
-    room = gap + min(0.0, lateral) * reach0
+    room = gap + (lateral if lateral < 0.0 else 0.0) * reach0
     if room <= 0.0:
         return 0.0
-    horizon = min(min(until, COURSE_WINDOW), 0.9 * room / (acceleration * reach0 + turn + max(0.0, -lateral)))
+    window = COURSE_WINDOW if COURSE_WINDOW < until else until
+    away = -lateral
+    guess = 0.9 * room / (acceleration * reach0 + turn + (away if away > 0.0 else 0.0))
+    horizon = guess if guess < window else window
     for _ in range(COURSE_TRIES):
-        if _course_proven(horizon, lateral, ahead, speed, gap, turn, acceleration):
-            return horizon
+        # the test for one T (`horizon`): F = A T, E = A T^2 / 2, S as above
+        drift = acceleration * horizon
+        if not speed <= drift:
+            slip = 0.5 * drift * horizon
+            grow = turn * horizon
+            reach = (ahead + speed * horizon + slip + grow) / (speed - drift)
+            swing = lateral * horizon
+            late = (lateral - drift) * reach
+            if (gap - slip + (swing if swing < 0.0 else 0.0) + (late if late < 0.0 else 0.0) - grow
+                    > COURSE_MARGIN):
+                return horizon
         horizon *= 0.75
     return 0.0
-
-
-def _course_proven(horizon: float, lateral: float, ahead: float, speed: float, gap: float, turn: float,
-                   acceleration: float) -> bool:
-    """`course_horizon`'s test for one T (`horizon`)."""
-    drift = acceleration * horizon  # F
-    if speed <= drift:
-        return False
-    slip = 0.5 * drift * horizon  # E
-    grow = turn * horizon
-    reach = (ahead + speed * horizon + slip + grow) / (speed - drift)  # S
-    return (gap - slip + min(0.0, lateral * horizon) + min(0.0, (lateral - drift) * reach) - grow
-            > COURSE_MARGIN)
 
 
 def distance_horizons(distance, frozen_rate, floor, turn: float, acceleration):

@@ -38,7 +38,6 @@ from sdl_fmu.fmu.package import FMI_VERSIONS  # noqa: E402
 
 from helpers import (HOST_SOURCE, build_foreign_car, foreign_vehicle_map, parameter_defaults,  # noqa: E402
                      windows_tools_required, wine_loader)
-from helpers import rewritten_fmu  # noqa: E402, F401  (test_criticality_runs.py still imports it from here)
 
 
 @pytest.fixture(scope="session")

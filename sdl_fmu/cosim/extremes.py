@@ -47,7 +47,7 @@ import math
 
 import numpy as np
 
-from .geometry import SCALAR_VEHICLES, Footprint, axis_reaches, reach_time_scalar
+from .geometry import SCALAR_VEHICLES, Footprint, reach_time_scalar
 from .measures import (INF, approach_horizon, conflict_station, course_horizon, distance, distance_and_rates, distances,
                        drac, drac_rate_known, dracs, headway, headway_rate_known, headways, heading_horizon,
                        post_encroachment_time, ttc, ttc_rate_known, ttcs)
@@ -178,19 +178,22 @@ class Extremes:
                                                         INF))
         self.reach(state)
 
+    def _ego_at(self, state):
+        """(footprint, cos psi, sin psi, vx and vy on the road's axes) of the ego at this state, computed once for
+        all the vehicles looked at or checked at it."""
+        at = self._at
+        if at[0] is not state:
+            c, s = math.cos(state.psi), math.sin(state.psi)
+            self._at = at = (state, (Footprint(self.ego_length / 2, self.ego_width / 2, c, s), c, s,
+                                     state.vx * c - state.vy * s, state.vx * s + state.vy * c))
+        return at[1]
+
     def _evaluate(self, traffic, i: int, state):
         """Vehicle i at the ego's state, in one pass: (the values to offer: distance, TTC, DRAC, headway; rates;
         what the horizon needs). Beyond RANGE only the distance and its rates (the others inf or nan: not
         offered)."""
         t = state.time
-        at = self._at
-        if at[0] is state:  # another vehicle at the same ego state: its footprint and velocity as computed
-            ego, c, s, ego_vx, ego_vy = at[1]
-        else:
-            c, s = math.cos(state.psi), math.sin(state.psi)
-            ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
-            ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
-            self._at = (state, (ego, c, s, ego_vx, ego_vy))
+        ego, c, s, ego_vx, ego_vy = self._ego_at(state)
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         t0, _, _, speed0, _, speed1, duration = traffic.row(i)
         elapsed = t - t0
@@ -207,13 +210,9 @@ class Extremes:
             motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF,
                       ego, None, None)
             return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
-        # the road axes' reaches (geometry.axis_reaches' first two, the same operations) once, for `ttc`'s and
-        # `headway`'s common decision (a car in another lane: off course by the road's axes, not ahead in the
-        # ego's path) and for the look's course_horizon
-        a, b = ego[0], ego[1]
-        ac = c if c >= 0.0 else -c
-        as_ = s if s >= 0.0 else -s
-        reach_x, reach_y = a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
+        # the road axes' reaches once, for `ttc`'s and `headway`'s common decision (a car in another lane: off
+        # course by the road's axes, not ahead in the ego's path) and for the look's course_horizon
+        reach_x, reach_y = _road_reaches(ego, length, width)
         motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego,
                   reach_x, reach_y)
         value = INF if _off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(ego, dx, dy, vx, vy, length, width)
@@ -328,14 +327,7 @@ class Extremes:
         come within RANGE. The same operations as `_evaluate`'s for the quantities it reads (the same
         decisions)."""
         t = state.time
-        at = self._at
-        if at[0] is state:
-            ego, c, s, ego_vx, ego_vy = at[1]
-        else:
-            c, s = math.cos(state.psi), math.sin(state.psi)
-            ego = Footprint(self.ego_length / 2, self.ego_width / 2, c, s)
-            ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
-            self._at = (state, (ego, c, s, ego_vx, ego_vy))
+        ego, _, _, ego_vx, ego_vy = self._ego_at(state)
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         t0, _, _, speed0, _, speed1, duration = traffic.row(i)
         elapsed = t - t0
@@ -348,12 +340,9 @@ class Extremes:
         relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
         turn = radius * yaw_rate_bound
         # the common case (a car in another lane), decided as `ttc` and `headway` decide it, with the road axes'
-        # reaches (geometry.axis_reaches' first two, the same operations) computed once for both and for
-        # course_horizon: off any collision course by the road's two axes alone, and not ahead in the ego's path
-        a, b, c, s = ego
-        ac = c if c >= 0.0 else -c
-        as_ = s if s >= 0.0 else -s
-        reach_x, reach_y = a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
+        # reaches computed once for both and for course_horizon: off any collision course by the road's two axes
+        # alone, and not ahead in the ego's path
+        reach_x, reach_y = _road_reaches(ego, length, width)
         if _off_course(dx, dy, vx, vy, reach_x, reach_y) and (
                 not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0 or -speed < 0.0):
             return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
@@ -365,7 +354,6 @@ class Extremes:
             # beyond RANGE: checked again from when it can come within it
             entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
             return transition_left if transition_left < entering else entering
-        reach_x, reach_y, _, _ = axis_reaches(ego, length, width)
         return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
 
     # -- post-encroachment time
@@ -486,6 +474,13 @@ class Extremes:
             overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
         return {**entry(overall_values, overall_times, any(touched)), "vehicles": vehicles}
 
+
+def _road_reaches(ego: Footprint, length: float, width: float) -> tuple[float, float]:
+    """geometry.axis_reaches' first two (the road's x and y axes), for one vehicle, with the same results."""
+    a, b, c, s = ego
+    ac = c if c >= 0.0 else -c
+    as_ = s if s >= 0.0 else -s
+    return a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
 
 
 def _off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach_y: float) -> bool:

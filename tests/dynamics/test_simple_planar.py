@@ -2,6 +2,7 @@
 cornering against the linear bicycle model of the model's own cornering stiffnesses, and the friction circle. Loaded
 for real through fmpy; every reference is computed here from the FMU's parameter defaults."""
 
+import contextlib
 import ctypes
 import math
 import shutil
@@ -24,12 +25,14 @@ def steer_pulse(stop_time, angle, duration):
     return input_table(time, steer=np.where(time < duration, angle, 0.0))
 
 
-def initial_derivatives(fmu, start):
-    """d(state)/dt at t = 0 through the FMU's model-exchange interface: {state name: derivative}."""
+@contextlib.contextmanager
+def continuous_time_model(fmu, start, instance_name):
+    """The FMU's model-exchange instance started from `start` ({name: value}) and in continuous-time mode, with its
+    model description; terminated, freed and its unpacked folder removed afterwards."""
     description = read_model_description(str(fmu))
     directory = extract(str(fmu))
     model = FMU2Model(guid=description.guid, unzipDirectory=directory,
-                      modelIdentifier=description.modelExchange.modelIdentifier, instanceName="derivatives")
+                      modelIdentifier=description.modelExchange.modelIdentifier, instanceName=instance_name)
     references = {v.name: v.valueReference for v in description.modelVariables}
     try:
         model.instantiate()
@@ -40,15 +43,21 @@ def initial_derivatives(fmu, start):
         while model.newDiscreteStates()[0]:
             pass
         model.enterContinuousTimeMode()
+        yield model, description
+        model.terminate()
+    finally:
+        model.freeInstance()
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+def initial_derivatives(fmu, start):
+    """d(state)/dt at t = 0 through the FMU's model-exchange interface: {state name: derivative}."""
+    with continuous_time_model(fmu, start, "derivatives") as (model, description):
         n = len(description.derivatives)
         values = (ctypes.c_double * n)()
         model.getDerivatives(values, n)
         names = [d.variable.derivative.name for d in description.derivatives]
-        model.terminate()
-        return dict(zip(names, values))
-    finally:
-        model.freeInstance()
-        shutil.rmtree(directory, ignore_errors=True)
+    return dict(zip(names, values))
 
 
 # --- split-mu braking -------------------------------------------------------------------------------------
@@ -93,20 +102,7 @@ def test_split_mu_braking_yaw_acceleration_from_the_force_imbalance(simple_fmu, 
 def event_indicators_at(fmu, start, states):
     """The FMU's event indicators with its continuous states set to `states` ({name: value}, the others as
     initialised from `start`), through the model-exchange interface in continuous-time mode."""
-    description = read_model_description(str(fmu))
-    directory = extract(str(fmu))
-    model = FMU2Model(guid=description.guid, unzipDirectory=directory,
-                      modelIdentifier=description.modelExchange.modelIdentifier, instanceName="indicators")
-    references = {v.name: v.valueReference for v in description.modelVariables}
-    try:
-        model.instantiate()
-        model.setupExperiment(startTime=0.0)
-        model.setReal([references[name] for name in start], list(start.values()))
-        model.enterInitializationMode()
-        model.exitInitializationMode()
-        while model.newDiscreteStates()[0]:
-            pass
-        model.enterContinuousTimeMode()
+    with continuous_time_model(fmu, start, "indicators") as (model, description):
         names = [d.variable.derivative.name for d in description.derivatives]
         x = (ctypes.c_double * len(names))()
         model.getContinuousStates(x, len(names))
@@ -115,11 +111,7 @@ def event_indicators_at(fmu, start, states):
         model.setContinuousStates(x, len(names))
         z = (ctypes.c_double * description.numberOfEventIndicators)()
         model.getEventIndicators(z, len(z))
-        model.terminate()
-        return list(z)
-    finally:
-        model.freeInstance()
-        shutil.rmtree(directory, ignore_errors=True)
+    return list(z)
 
 
 def test_the_stop_indicator_reads_the_whole_planar_motion(simple_fmu, defaults_simple):

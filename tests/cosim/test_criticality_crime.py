@@ -9,10 +9,19 @@ CriMe's TTC takes both speeds along the lanelet's direction whatever the vehicle
 checked against its hand computation in test_criticality.py.
 
 commonroad-crime is part of the `test` extra (`pip install -e '.[test]'`), so this runs wherever the tests do: a
-missing package fails here, it is not skipped."""
+missing package fails here, it is not skipped.
 
+CriMe imports commonroad-reach, which compiles a Cython module with pyximport on its first import, into ~/.pyxbld
+(shared by every process of the user). Two processes compiling it at once (pytest -n 2 collecting this file on a fresh
+machine) write the same .c file together and one of them fails to compile it. So CriMe is imported in a fixture, not at
+collection, by one process at a time (an flock), and the tests of this file run on one xdist worker."""
+
+import contextlib
+import fcntl
+import importlib
 import logging
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,9 +33,6 @@ from commonroad.scenario.obstacle import DynamicObstacle, ObstacleType
 from commonroad.scenario.scenario import Scenario
 from commonroad.scenario.state import CustomState, InitialState
 from commonroad.scenario.trajectory import Trajectory
-from commonroad_crime.data_structure.configuration import CriMeConfiguration
-from commonroad_crime.measure.time.thw import THW
-from commonroad_crime.measure.time.ttc import TTC
 
 from sdl_fmu.cosim.geometry import Footprint
 from sdl_fmu.cosim.measures import headway, ttc
@@ -52,8 +58,32 @@ def obstacle(vehicle_id: int, x0: float, speed: float, length: float, width: flo
                            TrajectoryPrediction(Trajectory(1, states[1:]), shape))
 
 
+pytestmark = pytest.mark.xdist_group("commonroad-crime")  # one worker imports CriMe (see the module's docstring)
+
+
+@contextlib.contextmanager
+def pyximport_lock():
+    """Held while CriMe is first imported: pyximport's build folder, ~/.pyxbld, is shared by every process."""
+    folder = Path.home() / ".pyxbld"
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / ".sdl-fmu-tests.lock", "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+
+
 @pytest.fixture(scope="module")
-def configuration():
+def crime():
+    """CriMe's configuration class and its TTC and THW measures."""
+    with pyximport_lock():
+        configuration = importlib.import_module("commonroad_crime.data_structure.configuration")
+        time_measures = importlib.import_module("commonroad_crime.measure.time.ttc"), \
+            importlib.import_module("commonroad_crime.measure.time.thw")
+    return configuration.CriMeConfiguration, time_measures[0].TTC, time_measures[1].THW
+
+
+@pytest.fixture(scope="module")
+def configuration(crime):
+    CriMeConfiguration = crime[0]
     logging.getLogger("commonroad_crime").setLevel(logging.ERROR)
     x = np.linspace(-200, 3000, 33)
     lane = Lanelet(np.column_stack([x, np.full_like(x, 1.8)]), np.column_stack([x, np.zeros_like(x)]),
@@ -70,7 +100,8 @@ def configuration():
 
 
 @pytest.mark.parametrize("vehicle_id", sorted(LEADERS))
-def test_ttc_and_headway_agree_with_commonroad_crime(configuration, vehicle_id):
+def test_ttc_and_headway_agree_with_commonroad_crime(crime, configuration, vehicle_id):
+    _, TTC, THW = crime
     x0, speed, length, width = LEADERS[vehicle_id]
     ego = Footprint.of(*EGO, 0.0)
     ttc_measure, thw_measure = TTC(configuration), THW(configuration)

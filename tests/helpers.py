@@ -99,6 +99,16 @@ MODEL_EXCHANGE_TOLERANCE = 1e-7
 # ---- the command line -----------------------------------------------------------------------------------------
 
 
+def local_cluster(workers: int):
+    """An in-process Dask cluster for a test's sweep (threads, no worker processes): no dashboard, and the
+    scheduler's HTTP server (started all the same) on a free port, not on 8787, where it warns when another
+    cluster of the machine holds it (as sdl_fmu.shipping starts its own). Use it as a context manager."""
+    import distributed
+
+    return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=False, dashboard_address=None,
+                                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+
+
 def sdl_fmu(*args, cwd=None, timeout=300, **options) -> subprocess.CompletedProcess:
     """`sdl-fmu ARGS` in a subprocess (python -m sdl_fmu.cli), its output captured as text."""
     return subprocess.run([sys.executable, "-m", "sdl_fmu.cli", *map(str, args)], capture_output=True, text=True,

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from helpers import local_cluster
 from sdl_fmu import api
 from sdl_fmu import sweep as sweeping
 
@@ -23,8 +24,7 @@ SCENARIO = "English\n100,A,50,600,-6,1\n"
 
 @pytest.fixture(scope="module")
 def cluster():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                       dashboard_address=None)
+    cluster = local_cluster(2)
     yield cluster
     cluster.close()
 

@@ -12,6 +12,7 @@ from fmpy.fmi2 import FMU2Slave
 from fmpy.fmi3 import FMU3Slave
 from fmpy.validation import validate_fmu
 
+from helpers import local_cluster
 from sdl_fmu.fmu.cache import cached_fmus
 from sdl_fmu.fmu.package import FMI_VERSIONS, mingw_compiler
 
@@ -151,8 +152,7 @@ def test_example_aeb_by_name_in_run_and_sweep(tmp_path, simple_fmu):
     assert by_name.summary["controller"]["name"] == "ExampleAeb" == by_path.summary["controller"]["name"]
     for name, values in by_path.arrays.items():
         assert np.array_equal(by_name.arrays[name], values, equal_nan=True), name
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as \
-            cluster, distributed.Client(cluster) as client:
+    with local_cluster(1) as cluster, distributed.Client(cluster) as client:
         rows = sweeping.sweep("demo", {"speed": [60.0, 80.0]}, tmp_path / "sweep", client=client, progress=False,
                               until_distance=1000.0, controller="example-aeb")
     assert [row["status"] for row in rows] == ["ok", "ok"], rows

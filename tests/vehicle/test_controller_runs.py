@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from helpers import FOREIGN_AEB_MAP, build_foreign_controller, sdl_fmu
+from helpers import FOREIGN_AEB_MAP, build_foreign_controller, local_cluster, sdl_fmu
 from sdl_fmu import api
 from sdl_fmu.units import STANDARD_GRAVITY as G
 
@@ -193,8 +193,7 @@ def test_a_sweep_runs_the_controller_in_every_run(tmp_path, ccrs, controllers):
     from sdl_fmu import sweep
 
     cmap = aeb_map(tmp_path, 0.8)
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+    with local_cluster(1) as cluster, distributed.Client(cluster) as client:
         rows = sweep.sweep(str(ccrs), {"speed": [30 / 3.6, V0]}, tmp_path / "sweep", client=client,
                            controller=str(controllers[(2, False)]), controller_map=str(cmap), until_time=8.0,
                            on_collision="stop", progress=False)

@@ -23,7 +23,7 @@ from sdl_fmu import api
 from sdl_fmu.units import FOOT, STANDARD_GRAVITY as G
 from sdl_fmu.vehicle import STOPPED_SPEED
 
-from helpers import foreign_parameters, sdl_fmu
+from helpers import foreign_parameters, local_cluster, sdl_fmu
 
 pytestmark = pytest.mark.slow  # builds the FMUs with PythonFMU / pythonfmu3 and runs whole scenarios
 
@@ -296,7 +296,7 @@ def test_foreign_car_sweeps_on_dask(foreign_vehicle, tmp_path):
     from sdl_fmu.cosim.master import MIN_LOOKAHEAD
 
     fmu, map_path = foreign_vehicle(3)
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0")
+    cluster = local_cluster(2)
     try:
         with distributed.Client(cluster) as client:
             rows = sweeping.sweep("head_on", {"speed": [70.0, 80.0, 90.0]}, tmp_path / "sweep", client=client,

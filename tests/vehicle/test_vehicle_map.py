@@ -12,7 +12,7 @@ import pytest
 from sdl_fmu import api
 from sdl_fmu.vehicle import STOPPED_SPEED, EgoModel, VehicleMapError, shipped_map_path
 
-from helpers import G, rewritten_fmu, sdl_fmu
+from helpers import G, local_cluster, rewritten_fmu, sdl_fmu
 
 # The Simple FMU described as a foreign vehicle would be: numbers in [vehicle], only the required outputs
 BARE_MAP = """
@@ -275,7 +275,7 @@ def test_a_sweep_drives_a_vehicle_map(simple_fmu, tmp_path):
 
     vehicle = write(tmp_path, BARE_MAP.replace("[inputs]", 'name = "bare"\n[inputs]'))
     scenario = write(tmp_path, "English\n100,A,50,600,-6,1\n", "pass.sdl")
-    cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None)
+    cluster = local_cluster(1)
     with distributed.Client(cluster) as client:
         rows = sweeping.sweep(str(scenario), {"speed": [60.0, 80.0]}, tmp_path / "sweep", client=client, timeout=120,
                               until_distance=400.0, progress=False, fmu=str(simple_fmu), vehicle=str(vehicle))

@@ -15,9 +15,9 @@ from typing import Literal, Mapping, NamedTuple
 
 from .controller_map import (REQUESTS, SIGNALS, ControllerMap, ControllerMapError, Kind, Rule,
                              load_controller_map)
-from .instance import FmuError
+from .instance import FmuError, end_instance
 from .isolated import FmuTimeout, Hosted, HostEnded, runs_in_process
-from .model import INTEGER_TYPES, REAL_TYPES, read_description, si_conversion
+from .model import INTEGER_TYPES, REAL_TYPES, mapped_variable, read_description, si_conversion
 from .vehicle_map import Channel, VehicleMapError
 
 
@@ -110,14 +110,9 @@ class ControllerModel:
         raise ControllerMapError("controller_map", f"{self.map.label}: {key}: {reason}")
 
     def _variable(self, key: str, name: str, causalities: tuple[str, ...]):
-        variable = self.variables.get(name)
-        if variable is None:
-            self._fail(key, f"the FMU {self.fmu_path.name} has no variable {name!r}")
-        if variable.causality not in causalities:
-            self._fail(key, f"{name!r} is an {variable.causality} of the FMU; this entry needs "
-                            f"{' or '.join(causalities)}")
-        if getattr(variable, "dimensions", None):
-            self._fail(key, f"{name!r} is an array; this entry needs a scalar variable")
+        variable, reason = mapped_variable(self.variables, self.fmu_path.name, name, causalities)
+        if reason is not None:
+            self._fail(key, reason)
         return variable
 
     def _port(self, name: str, channel: Channel, kind: Kind, causality: str) -> Port:
@@ -275,14 +270,7 @@ class ControllerInstance:
 
     def close(self) -> None:
         if self._instantiated:
-            try:
-                self.slave.terminate()
-            except Exception:
-                pass
-            try:
-                self.slave.freeInstance()
-            except Exception:
-                pass
+            end_instance(self.slave)
             self._instantiated = False
         self._log.release()
 

@@ -411,14 +411,7 @@ class EgoInstance:
         for state in getattr(self, "_spare_states", None) or ():
             self._free_state(self._component, byref(state))
         self._spare_states = None
-        try:
-            self.slave.terminate()
-        except Exception:
-            pass
-        try:
-            self.slave.freeInstance()
-        except Exception:
-            pass
+        end_instance(self.slave)
         self.slave = None
         self._log.release()
 
@@ -427,6 +420,19 @@ class EgoInstance:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def end_instance(slave) -> None:
+    """Terminates and frees an fmpy instance, whatever state it is in (closing after an error: its statuses are not
+    the user's business then)."""
+    try:
+        slave.terminate()
+    except Exception:
+        pass
+    try:
+        slave.freeInstance()
+    except Exception:
+        pass
 
 
 def _first_line(error: BaseException) -> str:

@@ -128,6 +128,19 @@ def si_conversion(key: str, variable, unit_definitions: dict, map_unit: str | No
     return fmu_conversion or map_conversion or (1.0, 0.0)
 
 
+def mapped_variable(variables: dict, fmu_name: str, name: str, causalities: tuple[str, ...]) -> tuple:
+    """(the FMU's variable `name` a map entry names, None) if it exists with one of `causalities` and is a scalar; else
+    (None, the reason it cannot be used). The vehicle and controller models' check of each entry."""
+    variable = variables.get(name)
+    if variable is None:
+        return None, f"the FMU {fmu_name} has no variable {name!r}"
+    if variable.causality not in causalities:
+        return None, f"{name!r} is an {variable.causality} of the FMU; this entry needs {' or '.join(causalities)}"
+    if getattr(variable, "dimensions", None):  # an FMI 3.0 array: read and set by one value reference per scalar
+        return None, f"{name!r} is an array; this entry needs a scalar variable"
+    return variable, None
+
+
 def parameter_defaults(description) -> dict[str, float]:
     """Start values of the FMU's scalar Real (Float) parameters, by name (FMI 3.0 arrays are left out)."""
     return {v.name: float(v.start) for v in description.modelVariables
@@ -281,12 +294,9 @@ class EgoModel:
         raise VehicleMapError("vehicle", f"{self.map.label}: {key}: {reason}")
 
     def _variable(self, key: str, name: str, causalities: tuple[str, ...]):
-        variable = self.variables.get(name)
-        if variable is None:
-            self._fail(key, f"the FMU {self.fmu_path.name} has no variable {name!r}")
-        if variable.causality not in causalities:
-            self._fail(key, f"{name!r} is an {variable.causality} of the FMU; this entry needs "
-                            f"{' or '.join(causalities)}")
+        variable, reason = mapped_variable(self.variables, self.fmu_path.name, name, causalities)
+        if reason is not None:
+            self._fail(key, reason)
         return variable
 
     def _si(self, key: str, variable, map_unit: str | None, si: str) -> tuple[float, float]:

@@ -103,6 +103,19 @@ def test_fmu_mistakes_are_one_line_naming_the_fmu(simple_fmu, tmp_path, change, 
         assert caught.value.option == "fmu" and not (tmp_path / "out").exists()
 
 
+def test_a_mapped_array_variable_is_one_line(simple_fmus, tmp_path):
+    """An FMI 3.0 array (a Dimension element) named by a map entry: its one value reference stands for several
+    values, which the run would set or read as one. Refused before anything runs, naming the file and the key."""
+    fmu = rewritten_fmu(simple_fmus[3], tmp_path / "Array.fmu", lambda text: re.sub(
+        r'(<Float64 name="steer"[^>]*?)\s*/>', r'\1><Dimension start="2"/></Float64>', text))
+    vehicle = write(tmp_path, BARE_MAP)
+    with pytest.raises(api.InputError) as caught:
+        api.run("head_on", fmu=fmu, vehicle=vehicle, out=tmp_path / "out")
+    message = str(caught.value)
+    assert re.search(r"car\.toml: inputs\.steer: 'steer' is an array; this entry needs a scalar variable$", message)
+    assert "\n" not in message and caught.value.option == "vehicle" and not (tmp_path / "out").exists()
+
+
 def test_command_line_reports_a_map_mistake_in_one_line(simple_fmu, tmp_path):
     vehicle = write(tmp_path, BARE_MAP.replace('variable = "steer"', 'variable = "steering_angle"'))
     completed = sdl_fmu("run", "head_on", "--fmu", simple_fmu, "--vehicle", vehicle, "--out", tmp_path / "out",

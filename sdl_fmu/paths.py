@@ -49,3 +49,23 @@ def cache_directory() -> Path:
         return Path(os.environ[CACHE_VARIABLE]).expanduser()
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
     return Path(base) / "sdl-fmu"
+
+
+def made_cache_directory() -> Path:
+    """cache_directory(), made if missing, for a build or a shipped file about to be written there; an InputError
+    (option "cache") naming the folder and where its name comes from if it cannot be made or written."""
+    import os
+
+    from .options import InputError
+
+    root = cache_directory()
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        if not os.access(root, os.W_OK | os.X_OK):
+            raise PermissionError(13, "Permission denied")
+    except OSError as error:
+        source = f"${CACHE_VARIABLE}" if os.environ.get(CACHE_VARIABLE) else \
+            "$XDG_CACHE_HOME/sdl-fmu" if os.environ.get("XDG_CACHE_HOME") else "~/.cache/sdl-fmu"
+        raise InputError("cache", f"the FMU cache {root} ({source}): cannot write there: "
+                                  f"{error.strerror or error}") from None
+    return root

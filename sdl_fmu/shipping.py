@@ -51,12 +51,13 @@ def passed_on(bundle: Bundle) -> Bundle:
 def materialize(bundle: Bundle) -> Path:
     """The bundle as files in this machine's FMU cache, shipped/<digest>/, written once (atomically: into a
     temporary folder renamed into place; a concurrent writer's copy is discarded); the first file's path."""
-    from .fmu.cache import cache_directory, remove_abandoned_builds
+    from .fmu.cache import cache_directory, made_cache_directory, remove_abandoned_builds
 
     root = cache_directory() / SHIPPED_FOLDER
     folder = root / bundle.digest[:32]
     if not (folder / bundle.files[0][0]).is_file():
-        root.mkdir(parents=True, exist_ok=True)
+        made_cache_directory()
+        root.mkdir(exist_ok=True)
         remove_abandoned_builds(root)  # the temporary folders of killed workers
         work = Path(tempfile.mkdtemp(prefix=f".building-{os.getpid()}-", dir=root))
         try:

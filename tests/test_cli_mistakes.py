@@ -243,6 +243,22 @@ def test_user_mistake_is_one_line_per_problem_and_writes_nothing(argv, code, nee
     assert snapshot(workspace) == before
 
 
+@pytest.mark.parametrize("argv", [["run", "demo"], ["build", "--dynamics", "simple"], ["export", "demo"],
+                                  ["verify", "--pack", "vehicle", "--dynamics", "advanced"]], ids=" ".join)
+def test_an_fmu_cache_that_cannot_be_written_is_one_line(argv, tmp_path, monkeypatch, capsys):
+    """$SDL_FMU_CACHE under a file: the first build (the Simple or Advanced FMU, the scenario binary) cannot make the
+    cache. One line naming the folder and the variable, before anything is announced or written."""
+    (tmp_path / "a-file").write_text("")
+    monkeypatch.setenv("SDL_FMU_CACHE", str(tmp_path / "a-file" / "cache"))
+    monkeypatch.chdir(tmp_path)
+    exit_code = main([*argv, "--out", str(tmp_path / "out")])
+    out, err = capsys.readouterr()
+    assert exit_code == 2 and out == "", err
+    assert err == f"sdl-fmu: the FMU cache {tmp_path / 'a-file' / 'cache'} ($SDL_FMU_CACHE): cannot write there: " \
+                  "Not a directory\n"
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["a-file"]
+
+
 def interruptible() -> None:
     """In the child before exec: Ctrl-C's default action. A shell without job control starts background commands
     with SIGINT ignored, a child inherits that, and Python then installs no KeyboardInterrupt handler (the run would

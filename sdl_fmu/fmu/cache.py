@@ -25,7 +25,7 @@ from .. import __version__, paths
 from ..names import BUILT, SHIPPED_CONTROLLERS, Dynamics
 from .package import FmiVersion, build_fmus, fmu_path, mingw_compiler
 
-from ..paths import CACHE_VARIABLE, cache_directory  # noqa: F401 (where the run side finds the cache too)
+from ..paths import CACHE_VARIABLE, cache_directory, made_cache_directory  # noqa: F401 (where the run side finds the cache too)
 
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
 
@@ -105,8 +105,7 @@ def build_lock(name: str) -> Iterator[None]:
     .lock-<name> in the cache, released by the system if its holder dies; the holder removes the file (a waiter that
     locked a removed file locks the new one), so the cache holds no lock file between builds. Without flock
     (Windows) there is no waiting: the renames into place still keep the cache whole."""
-    root = cache_directory()
-    root.mkdir(parents=True, exist_ok=True)
+    root = made_cache_directory()
     try:
         import fcntl
     except ImportError:
@@ -143,6 +142,7 @@ def cached_fmus(dynamics: Dynamics = "simple", fmi_versions: tuple[FmiVersion, .
     missing = tuple(version for version, target in targets.items() if not target.is_file())
     if not missing:
         return [targets[version] for version in fmi_versions]
+    made_cache_directory()  # a cache that cannot be written: one line before the build is announced
     if announce is not None:
         announce(targets[missing[0]])
     with build_lock(BUILT[dynamics]):  # a build of this model in progress elsewhere: wait for it

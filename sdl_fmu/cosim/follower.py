@@ -38,6 +38,7 @@ class CriticalityFollower:
         # earliest step end at which one can be found (at its next look and not before that instant): a step
         # ending before that needs no FMU snapshot to locate it from
         self.quiet_until: list[float] = []
+        self.quiet_look: list[float] = []  # per vehicle, max(next look, quiet_until)
         self.look_time: list[float] = []  # per vehicle, its last look at a communication point
         # per vehicle, the instant before which no collision course or headway can begin (Extremes.course: from
         # then on it is checked at every communication point between its looks, Extremes.course_check), and the
@@ -160,14 +161,19 @@ class CriticalityFollower:
         if len(self.next_look) < traffic.size:
             self._grow()
         next_look, quiet_until, look_time = self.next_look, self.quiet_until, self.look_time
-        course_until, check_time = self.course_until, self.check_time
+        course_until, check_time, quiet_look = self.course_until, self.check_time, self.quiet_look
         evaluated, self.evaluated = self.evaluated, {}
         extremes, look_rates = self.extremes, self.look_rates
         if only is None:
             vehicles = traffic.active_list()
-            due = vehicles if everyone else [
-                i for i in vehicles
-                if next_look[i] <= t or (ahead is not None and quiet_until[i] <= ahead and look_time[i] < t)]
+            if everyone:
+                due = vehicles
+            elif ahead is None:
+                due = [i for i in vehicles if next_look[i] <= t] if t >= self.earliest_look else []
+            elif t >= self.earliest_look:
+                due = [i for i in vehicles if next_look[i] <= t or (quiet_until[i] <= ahead and look_time[i] < t)]
+            else:  # (earliest_look is a lower bound on every vehicle's next look)
+                due = [i for i in vehicles if quiet_until[i] <= ahead and look_time[i] < t]
         else:
             vehicles = due = sorted(i for i in only if traffic.present[i])
         if not due and traffic.active is self._looks_of:
@@ -180,12 +186,12 @@ class CriticalityFollower:
             quiet_until[i] = t + extremes.quiet
             course_until[i] = t + extremes.course
             look_time[i] = check_time[i] = t
+            quiet_look[i] = quiet_until[i] if quiet_until[i] > next_look[i] else next_look[i]
         # per vehicle its next look, the earliest step end at which a located instant can be found (its next look,
-        # not before its quiet bound: max(instant, quiet)), its course bound; their minima
-        earliest = min([next_look[i] for i in vehicles], default=math.inf)
-        earliest_quiet = min([quiet_until[i] if quiet_until[i] > next_look[i] else next_look[i] for i in vehicles],
-                             default=math.inf)
-        earliest_course = min([course_until[i] for i in vehicles], default=math.inf)
+        # not before its quiet bound: max(instant, quiet), kept in quiet_look), its course bound; their minima
+        earliest = min(map(next_look.__getitem__, vehicles), default=math.inf)
+        earliest_quiet = min(map(quiet_look.__getitem__, vehicles), default=math.inf)
+        earliest_course = min(map(course_until.__getitem__, vehicles), default=math.inf)
         if only is None:
             self._looks_of = self._courses_of = traffic.active  # the minima over every vehicle on the road
         else:
@@ -203,7 +209,7 @@ class CriticalityFollower:
     def _grow(self) -> None:
         size = self.traffic.size
         if len(self.next_look) < size:
-            for table in (self.next_look, self.quiet_until, self.look_time, self.check_time):
+            for table in (self.next_look, self.quiet_until, self.quiet_look, self.look_time, self.check_time):
                 table.extend([NO_LOOK] * (size - len(table)))
             self.course_until.extend([math.inf] * (size - len(self.course_until)))
 
@@ -230,9 +236,11 @@ class CriticalityFollower:
                 course_until[i] = t + bound
             else:  # due a look now (its look sets the bound again)
                 next_look[i] = self.earliest_look = self.looks_quiet = NO_LOOK
+                quiet = self.quiet_until[i]
+                self.quiet_look[i] = quiet if quiet > NO_LOOK else NO_LOOK
                 self._looks_of = None
                 course_until[i] = math.inf
-        earliest_course = self.earliest_course = min([course_until[i] for i in vehicles], default=math.inf)
+        earliest_course = self.earliest_course = min(map(course_until.__getitem__, vehicles), default=math.inf)
         looks_quiet = self.looks_quiet
         self.earliest_quiet = earliest_course if earliest_course < looks_quiet else looks_quiet
         self._calm = None

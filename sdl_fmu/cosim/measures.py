@@ -150,10 +150,16 @@ def distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: floa
     correctly rounded, so monotonic: sqrt(min) = min(sqrt)), then the rates of the closest corners only: those
     whose gap's square root equals it (in corner order: the first sets them, later equally close ones can only
     lower them)."""
-    if penetration(ego, dx, dy, length, width) >= 0.0:
-        return 0.0, 0.0, 0.0  # in contact or touching
     a, b, c, s = ego
     hl, hw = length / 2, width / 2
+    # `penetration`'s overlaps along the road's y and x axes, its operations: either < 0 makes it < 0 (or nan), so
+    # it is computed only when neither is (a car in the next lane is decided by the first)
+    ac = c if c >= 0.0 else -c
+    as_ = s if s >= 0.0 else -s
+    if not (a * as_ + b * ac + hw - (dy if dy >= 0.0 else -dy) < 0.0
+            or a * ac + b * as_ + hl - (dx if dx >= 0.0 else -dx) < 0.0) \
+            and penetration(ego, dx, dy, length, width) >= 0.0:
+        return 0.0, 0.0, 0.0  # in contact or touching
     du = dx * c + dy * s  # the vehicle's centre in the ego's body frame
     dv = -dx * s + dy * c
     acs, as_s, bc, bs = a * c, a * s, b * c, b * s

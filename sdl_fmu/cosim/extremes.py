@@ -179,13 +179,18 @@ class Extremes:
         self.reach(state)
 
     def _ego_at(self, state):
-        """(footprint, cos psi, sin psi, vx and vy on the road's axes) of the ego at this state, computed once for
-        all the vehicles looked at or checked at it."""
+        """(footprint, cos psi, sin psi, vx and vy on the road's axes, the ego's own parts of the road axes' reaches
+        a |cos psi| + b |sin psi| and a |sin psi| + b |cos psi|) of the ego at this state, computed once for all
+        the vehicles looked at or checked at it (a vehicle's half length and width added to them give
+        geometry.axis_reaches' first two, the road axes' reaches: the same operations in the same order)."""
         at = self._at
         if at[0] is not state:
             c, s = math.cos(state.psi), math.sin(state.psi)
-            self._at = at = (state, (Footprint(self.ego_length / 2, self.ego_width / 2, c, s), c, s,
-                                     state.vx * c - state.vy * s, state.vx * s + state.vy * c))
+            a, b = self.ego_length / 2, self.ego_width / 2
+            ac = c if c >= 0.0 else -c
+            as_ = s if s >= 0.0 else -s
+            self._at = at = (state, (Footprint(a, b, c, s), c, s, state.vx * c - state.vy * s,
+                                     state.vx * s + state.vy * c, a * ac + b * as_, a * as_ + b * ac))
         return at[1]
 
     def _evaluate(self, traffic, i: int, state):
@@ -193,7 +198,7 @@ class Extremes:
         what the horizon needs). Beyond RANGE only the distance and its rates (the others inf or nan: not
         offered)."""
         t = state.time
-        ego, c, s, ego_vx, ego_vy = self._ego_at(state)
+        ego, c, s, ego_vx, ego_vy, ego_x, ego_y = self._ego_at(state)
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         t0, _, _, speed0, _, speed1, duration = traffic.row(i)
         elapsed = t - t0
@@ -212,7 +217,7 @@ class Extremes:
             return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
         # the road axes' reaches once, for `ttc`'s and `headway`'s common decision (a car in another lane: off
         # course by the road's axes, not ahead in the ego's path) and for the look's course_horizon
-        reach_x, reach_y = _road_reaches(ego, length, width)
+        reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
         motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego,
                   reach_x, reach_y)
         value = INF if _off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(ego, dx, dy, vx, vy, length, width)
@@ -239,13 +244,13 @@ class Extremes:
 
     def distance_rate(self, traffic, i: int, state) -> float:
         """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
-        t = state.time
-        c, s = math.cos(state.psi), math.sin(state.psi)
-        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
-        ego_vx, ego_vy = state.vx * c - state.vy * s, state.vx * s + state.vy * c
-        return distance_and_rates(Footprint(self.ego_length / 2, self.ego_width / 2, c, s), station - state.x,
-                                   -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy, state.yaw_rate,
-                                   float(traffic.length[i]), float(traffic.width[i]))[1]
+        ego, _, _, ego_vx, ego_vy, _, _ = self._ego_at(state)
+        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, state.time)
+        size = self._sizes.get(i)
+        if size is None:
+            size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
+        return distance_and_rates(ego, station - state.x, -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy,
+                                  state.yaw_rate, *size)[1]
 
     def evaluate(self, traffic, i: int, state):
         """Vehicle i at the ego's state, nothing offered yet: for `look` (its `evaluated`), so that the master
@@ -327,7 +332,7 @@ class Extremes:
         come within RANGE. The same operations as `_evaluate`'s for the quantities it reads (the same
         decisions)."""
         t = state.time
-        ego, _, _, ego_vx, ego_vy = self._ego_at(state)
+        ego, _, _, ego_vx, ego_vy, ego_x, ego_y = self._ego_at(state)
         station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
         t0, _, _, speed0, _, speed1, duration = traffic.row(i)
         elapsed = t - t0
@@ -342,7 +347,7 @@ class Extremes:
         # the common case (a car in another lane), decided as `ttc` and `headway` decide it, with the road axes'
         # reaches computed once for both and for course_horizon: off any collision course by the road's two axes
         # alone, and not ahead in the ego's path
-        reach_x, reach_y = _road_reaches(ego, length, width)
+        reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
         if _off_course(dx, dy, vx, vy, reach_x, reach_y) and (
                 not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0 or -speed < 0.0):
             return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
@@ -473,14 +478,6 @@ class Extremes:
             overall_values[name] = best
             overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
         return {**entry(overall_values, overall_times, any(touched)), "vehicles": vehicles}
-
-
-def _road_reaches(ego: Footprint, length: float, width: float) -> tuple[float, float]:
-    """geometry.axis_reaches' first two (the road's x and y axes), for one vehicle, with the same results."""
-    a, b, c, s = ego
-    ac = c if c >= 0.0 else -c
-    as_ = s if s >= 0.0 else -s
-    return a * ac + b * as_ + length / 2, a * as_ + b * ac + width / 2
 
 
 def _off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach_y: float) -> bool:

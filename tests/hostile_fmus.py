@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import os
 import resource
+import signal
 import subprocess
 import sys
 import time
 import zipfile
 from pathlib import Path
+
+from sdl_fmu.hold import HOLD_VARIABLE
 
 SOURCE = Path(__file__).parent / "vehicles" / "hostile_car.c"
 GUID = "{8c4e810f-3df3-4a00-8276-176fa3c9f000}"
@@ -198,8 +201,6 @@ ttc_trigger = {float(ttc_trigger)!r}
 def _capped() -> None:
     """In the child before exec: the memory cap, and Ctrl-C's default action (a background test run may start the
     child with SIGINT ignored)."""
-    import signal
-
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
@@ -261,6 +262,67 @@ def assert_clean(work) -> None:
     while hosts_of(work):
         assert time.monotonic() < deadline, f"processes left: {hosts_of(work)}"
         time.sleep(0.05)
+
+
+# ---- a command caught at a hold point of the test hook (sdl_fmu/hold.py) and interrupted there ----------------
+
+
+def held_work(tmp_path: Path) -> Path:
+    """`interrupted`'s folder: tmp/ (a private, empty $TMPDIR), work/ (the command's working folder), the hold file."""
+    for name in ("tmp", "work"):
+        (tmp_path / name).mkdir()
+    (tmp_path / "hold").touch()
+    return tmp_path
+
+
+def interrupted(work, command: list, how: str, **extra_env) -> tuple[int, str, str]:
+    """Starts the command, waits until it is held, signals it as `how` says, releases the hold once the command has
+    acted on the signal and returns (exit code, stdout, stderr)."""
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", **environment(work, **extra_env),
+           HOLD_VARIABLE: str(work / "hold")}
+    line = [str(arg) for arg in capped_command(*command)]
+    if how == "sigterm":
+        line = ["timeout", str(HANG_LIMIT)] + line
+    process = subprocess.Popen(line, cwd=work / "work", env=env, preexec_fn=_capped, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        running = work / "hold.running"
+        deadline = time.monotonic() + HANG_LIMIT  # only against a hang: the loops end when the command is held
+        while not (running.exists() and running.read_text().endswith("\n")):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "the command was never held"
+            time.sleep(0.02)
+        if how == "ctrl-c":
+            os.killpg(process.pid, signal.SIGINT)  # the terminal's Ctrl-C: the whole foreground process group
+            main = process.pid
+        else:
+            process.send_signal(signal.SIGTERM)  # to `timeout`, which relays it
+            main = int(Path(f"/proc/{process.pid}/task/{process.pid}/children").read_text().split()[0])
+        # released only once sdl-fmu's own process has acted on the signal (`timeout` relays it when it is next
+        # scheduled: a hold released before could let a short command finish first); what reaches a hold point
+        # later (a compiler started while the build winds down, another run on a worker) goes on as without the hook
+        while not acted_on_signal(main):
+            assert time.monotonic() < deadline, "the command never acted on the signal"
+            time.sleep(0.02)
+        (work / "hold").unlink()
+        stdout, stderr = process.communicate(timeout=HANG_LIMIT)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    return process.returncode, stdout, stderr
+
+
+def acted_on_signal(pid: int) -> bool:
+    """Whether sdl-fmu's process has acted on a Ctrl-C or SIGTERM: it then ignores both (a repeat while it cleans up,
+    cli._stop), which its status shows; or it has ended."""
+    try:
+        status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+    except FileNotFoundError:
+        return True
+    ignored = int(status["SigIgn"], 16)
+    both = (1 << (signal.SIGINT - 1)) | (1 << (signal.SIGTERM - 1))
+    return status["State"].split()[0] in ("Z", "X") or ignored & both == both
 
 
 def wait_for(path: Path, process) -> None:

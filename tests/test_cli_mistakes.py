@@ -7,21 +7,17 @@ the working folder exactly as it was (the default results folder runs/ would app
 
 import os
 import shutil
-import signal
-import subprocess
-import sys
-import time
 import zipfile
 from pathlib import Path
 
 import pytest
 
-from sdl_fmu.api import HOLD_VARIABLE
 from sdl_fmu.cli import main
 from sdl_fmu.results.folder import MANIFEST_NAME
 from sdl_fmu.tire_files import DEFAULT_ATTRIBUTE_FILE
 
 from helpers import sdl_fmu
+from hostile_fmus import held_work, interrupted
 
 GOOD = "English\n100,BRK,100,1,50\n200,ES\n"
 DRY_TIRE = DEFAULT_ATTRIBUTE_FILE.parent / "dry_asphalt.tir"
@@ -259,40 +255,16 @@ def test_an_fmu_cache_that_cannot_be_written_is_one_line(argv, tmp_path, monkeyp
     assert sorted(path.name for path in tmp_path.iterdir()) == ["a-file"]
 
 
-def interruptible() -> None:
-    """In the child before exec: Ctrl-C's default action. A shell without job control starts background commands
-    with SIGINT ignored, a child inherits that, and Python then installs no KeyboardInterrupt handler (the run would
-    wait at the hold for ever)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def test_ctrl_c_during_a_run_exits_130_with_one_line_and_no_partial_folder(tmp_path, simple_fmu):
-    # The run is held at its first communication step (the api's test hook: it says so in hold.running and
-    # waits while the hold file exists): the signal arrives mid-simulation however fast the machine is.
-    work, hold = tmp_path / "work", tmp_path / "hold"
-    work.mkdir()
-    hold.touch()
-    out = work / "results"
-    process = subprocess.Popen([sys.executable, "-m", "sdl_fmu.cli", "run", "demo", "--fmu", str(simple_fmu),
-                                "--out", str(out)], cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                               text=True, env={**os.environ, HOLD_VARIABLE: str(hold)}, preexec_fn=interruptible)
-    try:
-        running = tmp_path / "hold.running"
-        deadline = time.monotonic() + 300  # only against a hang: the loop ends when the run is held
-        while not (running.exists() and running.read_text() == f"{process.pid}\n"):
-            assert process.poll() is None, process.communicate()
-            assert time.monotonic() < deadline, "the run was never held"
-            time.sleep(0.05)
-        process.send_signal(signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=300)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-    assert process.returncode == 130
+    # The run is held at its first communication step (the test hook, sdl_fmu/hold.py: hostile_fmus.interrupted): the
+    # signal arrives mid-simulation however fast the machine is.
+    work = held_work(tmp_path)
+    out = work / "work" / "results"
+    code, stdout, stderr = interrupted(work, ["run", "demo", "--fmu", simple_fmu, "--out", out], "ctrl-c")
+    assert code == 130
     assert stderr.splitlines() == ["sdl-fmu: interrupted (Ctrl-C); nothing was written"] and stdout == ""
-    assert list(work.iterdir()) == []
+    assert list((work / "work").iterdir()) == []
     # the interrupted run's folder is free: the next run writes it
-    completed = sdl_fmu("run", "demo", "--fmu", simple_fmu, "--until-time", "1", "--out", out, cwd=work)
+    completed = sdl_fmu("run", "demo", "--fmu", simple_fmu, "--until-time", "1", "--out", out, cwd=work / "work")
     assert completed.returncode == 0, completed.stderr
-    assert os.listdir(work) == ["results"]
+    assert os.listdir(work / "work") == ["results"]

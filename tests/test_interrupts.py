@@ -15,15 +15,11 @@ Each command runs under the 1.5 GB cap with a private, empty $TMPDIR, which must
 folder must hold nothing new."""
 
 import os
-import signal
-import subprocess
-import time
 from pathlib import Path
 
 import pytest
 
-from hostile_fmus import HANG_LIMIT, _capped, assert_clean, capped, capped_command, environment
-from sdl_fmu.hold import HOLD_VARIABLE
+from hostile_fmus import assert_clean, capped, environment, held_work, interrupted
 
 pytestmark = [pytest.mark.slow,  # a command started and interrupted per case (some start a Dask cluster)
               # the FMUs the commands take from the cache, built as setup: a command building one on first use
@@ -34,11 +30,7 @@ SIGNALS = {"ctrl-c": (130, "interrupted (Ctrl-C)"), "sigterm": (143, "terminated
 
 @pytest.fixture
 def work(tmp_path):
-    """A working folder, a private empty $TMPDIR, the hold file."""
-    for name in ("tmp", "work"):
-        (tmp_path / name).mkdir()
-    (tmp_path / "hold").touch()
-    return tmp_path
+    return held_work(tmp_path)
 
 
 def arguments(name: str, out, simple_fmu) -> list:
@@ -68,56 +60,6 @@ def held_compiler(work) -> Path:
                        'exec gcc "$@"\n')
     wrapper.chmod(0o755)
     return wrapper
-
-
-def interrupted(work, command: list, how: str, **extra_env) -> tuple[int, str, str]:
-    """Starts the command, waits until it is held, signals it as `how` says, releases the hold once the command has
-    acted on the signal and returns (exit code, stdout, stderr)."""
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", **environment(work, **extra_env),
-           HOLD_VARIABLE: str(work / "hold")}
-    line = [str(arg) for arg in capped_command(*command)]
-    if how == "sigterm":
-        line = ["timeout", str(HANG_LIMIT)] + line
-    process = subprocess.Popen(line, cwd=work / "work", env=env, preexec_fn=_capped, start_new_session=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        running = work / "hold.running"
-        deadline = time.monotonic() + HANG_LIMIT  # only against a hang: the loops end when the command is held
-        while not (running.exists() and running.read_text().endswith("\n")):
-            assert process.poll() is None, process.communicate()
-            assert time.monotonic() < deadline, "the command was never held"
-            time.sleep(0.02)
-        if how == "ctrl-c":
-            os.killpg(process.pid, signal.SIGINT)  # the terminal's Ctrl-C: the whole foreground process group
-            main = process.pid
-        else:
-            process.send_signal(signal.SIGTERM)  # to `timeout`, which relays it
-            main = int(Path(f"/proc/{process.pid}/task/{process.pid}/children").read_text().split()[0])
-        # released only once sdl-fmu's own process has acted on the signal (`timeout` relays it when it is next
-        # scheduled: a hold released before could let a short command finish first); what reaches a hold point
-        # later (a compiler started while the build winds down, another run on a worker) goes on as without the hook
-        while not acted_on_signal(main):
-            assert time.monotonic() < deadline, "the command never acted on the signal"
-            time.sleep(0.02)
-        (work / "hold").unlink()
-        stdout, stderr = process.communicate(timeout=HANG_LIMIT)
-    finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-    return process.returncode, stdout, stderr
-
-
-def acted_on_signal(pid: int) -> bool:
-    """Whether sdl-fmu's process has acted on a Ctrl-C or SIGTERM: it then ignores both (a repeat while it cleans up,
-    cli._stop), which its status shows; or it has ended."""
-    try:
-        status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
-    except FileNotFoundError:
-        return True
-    ignored = int(status["SigIgn"], 16)
-    both = (1 << (signal.SIGINT - 1)) | (1 << (signal.SIGTERM - 1))
-    return status["State"].split()[0] in ("Z", "X") or ignored & both == both
 
 
 @pytest.mark.parametrize("how", list(SIGNALS))

@@ -20,6 +20,7 @@ from sdl_fmu.results.folder import MANIFEST_NAME
 from sdl_fmu.ssp.document import OSP, SSC, SSD, SSV, schema_directory
 
 from helpers import FOREIGN_AEB_MAP, build_foreign_controller
+from hostile_fmus import held_work, interrupted
 
 FOOT = 0.3048
 START_SPEED = 88 * FOOT  # m/s, the driver's default start speed
@@ -365,39 +366,13 @@ def test_the_driver_and_the_end_at_a_collision_are_the_scenario_fmus_options(tmp
 
 
 def test_ctrl_c_during_an_export_exits_130_and_writes_nothing(tmp_path, simple_fmu):
-    # the export's reference run is held at its first step (the api's test hook, tests/test_cli_mistakes.py), so
-    # the signal arrives mid-export however fast the machine is
-    import os
-    import signal
-    import subprocess
-    import sys
-    import time
-
-    from sdl_fmu.api import HOLD_VARIABLE
-
-    work, hold = tmp_path / "work", tmp_path / "hold"
-    work.mkdir()
-    hold.touch()
-    process = subprocess.Popen([sys.executable, "-m", "sdl_fmu.cli", "export", "demo", "--out", str(work / "demo")],
-                               cwd=work, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, HOLD_VARIABLE: str(hold)},
-                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    try:
-        running = tmp_path / "hold.running"
-        deadline = time.monotonic() + 300  # only against a hang: the loop ends when the run is held
-        while not (running.exists() and running.read_text() == f"{process.pid}\n"):
-            assert process.poll() is None, process.communicate()
-            assert time.monotonic() < deadline, "the export's run was never held"
-            time.sleep(0.05)
-        process.send_signal(signal.SIGINT)
-        stdout, stderr = process.communicate(timeout=300)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-    assert process.returncode == 130
+    # the export's reference run is held at its first step (the test hook, sdl_fmu/hold.py: hostile_fmus.interrupted),
+    # so the signal arrives mid-export however fast the machine is
+    work = held_work(tmp_path)
+    code, stdout, stderr = interrupted(work, ["export", "demo", "--out", work / "work" / "demo"], "ctrl-c")
+    assert code == 130
     assert stderr.splitlines() == ["sdl-fmu: interrupted (Ctrl-C); nothing was written"] and stdout == ""
-    assert list(work.iterdir()) == []
+    assert list((work / "work").iterdir()) == []
 
 
 def test_the_warnings_are_those_check_gives_and_the_mixed_fmi_versions(tmp_path, simple_fmus, capsys):

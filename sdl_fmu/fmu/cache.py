@@ -25,7 +25,8 @@ from .. import __version__, paths
 from ..names import BUILT, SHIPPED_CONTROLLERS, Dynamics
 from .package import FmiVersion, build_fmus, fmu_path, mingw_compiler
 
-from ..paths import CACHE_VARIABLE, cache_directory, made_cache_directory  # noqa: F401 (where the run side finds the cache too)
+# cache_directory and CACHE_VARIABLE: where the run side finds the cache too
+from ..paths import CACHE_VARIABLE, cache_directory, made_cache_directory  # noqa: F401
 
 BUILD_SUFFIXES = {".py", ".json", ".c", ".h", ".tir", ".txt"}
 

@@ -50,9 +50,10 @@ print(sdl_fmu.__file__, paths.SCENARIO_DIRECTORY, paths.MODEL_DESCRIPTION_DIRECT
 
 
 def checkout_copy(destination: Path) -> Path:
-    """A copy of the checkout's sources (a build writes build/ and *.egg-info beside them)."""
+    """A copy of the checkout's sources (a build writes build/ and *.egg-info beside them; the editable install's
+    compiled kernel stays out, so that a build compiles its own)."""
     shutil.copytree(CHECKOUT, destination, ignore=shutil.ignore_patterns(
-        ".venv", ".git", "build", "dist", "runs", "*.egg-info", "__pycache__", ".pytest_cache"))
+        ".venv", ".git", "build", "dist", "runs", "*.egg-info", "__pycache__", ".pytest_cache", "*.so", "*.pyd"))
     return destination
 
 
@@ -116,6 +117,8 @@ def test_a_wheel_installed_in_a_fresh_venv_ships_the_data_and_runs_the_demo_from
     assert not [name for name in names if name.split("/")[0] in SHIPPED_DATA]  # nothing at site-packages' top
     # development tools stay in the checkout (tools/): the FMI call-sequence fuzzer is not installed
     assert [name for name in names if "fuzz" in name] == []
+    # the criticality kernel compiled into it (setup.py), and the run takes it (cosim/looks.py)
+    assert len([name for name in names if name.startswith("sdl_fmu/cosim/_kernel.") and name.endswith(".so")]) == 1
 
     venv = tmp_path / "venv"
     python, site_packages = fresh_venv(venv)
@@ -127,6 +130,9 @@ def test_a_wheel_installed_in_a_fresh_venv_ships_the_data_and_runs_the_demo_from
     package, scenarios, model_description = read_through_resources(python, env, work)
     assert package == str(site_packages / "sdl_fmu" / "__init__.py")
     assert [scenarios, model_description] == [str(site_packages / "sdl_fmu" / name) for name in SHIPPED_DATA]
+    kernel = subprocess.run([python, "-c", "from sdl_fmu.cosim import looks; print(looks.arithmetic().__name__)"],
+                            cwd=work, env=env, check=True, capture_output=True, text=True).stdout.strip()
+    assert kernel == "sdl_fmu.cosim._kernel"
 
     completed = subprocess.run([venv / "bin" / "sdl-fmu", "run", "demo"], cwd=work, env=env, capture_output=True,
                                text=True, timeout=300)

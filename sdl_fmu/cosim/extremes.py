@@ -47,15 +47,12 @@ import math
 
 import numpy as np
 
-from .geometry import SCALAR_VEHICLES, Footprint, reach_time_scalar
-from .measures import (INF, approach_horizon, conflict_station, course_horizon, distance, distance_and_rates, distances,
-                       drac, drac_rate_known, dracs, headway, headway_rate_known, headways, heading_horizon,
-                       post_encroachment_time, ttc, ttc_rate_known, ttcs)
+from . import looks
+from .geometry import SCALAR_VEHICLES, Footprint
+from .looks import FLAT, RANGE
+from .measures import (INF, conflict_station, distance, distances, drac, dracs, headway, headways,
+                       post_encroachment_time, ttc, ttcs)
 
-FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is better by more than this
-# m: TTC, DRAC and headway are followed while the footprints are within this distance, as SUMO's SSM device
-# follows encounters within device.ssm.range (default 50 m); the distance everywhere
-RANGE = 50.0
 MEASURES = ("min_distance", "min_ttc", "max_drac", "min_pet", "min_headway")
 
 
@@ -69,8 +66,10 @@ class Extremes:
     was reached, whatever the samples after it: with the start located, the instant does not depend on the
     step. Values are SI (m, s, m/s2), in `summary` too (the results convert them)."""
 
-    def __init__(self, ego_length: float, ego_width: float, capacity: int = 16):
+    def __init__(self, ego_length: float, ego_width: float, capacity: int = 16, compiled: bool = True):
         self.ego_length, self.ego_width = ego_length, ego_width
+        # the per-vehicle arithmetic: the compiled kernel where it was built, else its Python twin (looks.py)
+        self._arithmetic = looks.arithmetic(compiled)
         self.size = 0
         # per measure, per vehicle: the extreme and its instant (nan: none yet); plain lists, read and written per
         # look
@@ -193,45 +192,18 @@ class Extremes:
                                      state.vx * s + state.vy * c, a * ac + b * as_, a * as_ + b * ac))
         return at[1]
 
-    def _evaluate(self, traffic, i: int, state):
-        """Vehicle i at the ego's state, in one pass: (the values to offer: distance, TTC, DRAC, headway; rates;
-        what the horizon needs). Beyond RANGE only the distance and its rates (the others inf or nan: not
-        offered)."""
-        t = state.time
-        ego, c, s, ego_vx, ego_vy, ego_x, ego_y = self._ego_at(state)
-        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
-        t0, _, _, speed0, _, speed1, duration = traffic.row(i)
-        elapsed = t - t0
-        moving = elapsed < duration
-        speed_rate = (speed1 - speed0) / duration if moving else 0.0
+    def _size(self, traffic, i: int) -> tuple[float, float]:
+        size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
+        return size
+
+    def evaluate(self, traffic, i: int, state):
+        """Vehicle i at the ego's state in one pass, nothing offered yet (looks.evaluate: the values to offer, their
+        rates, what the horizon needs), for `look` (its `evaluated`), so that the master reads the rates at a
+        step's end (`rates`) and looks there with one evaluation."""
         size = self._sizes.get(i)
-        if size is None:
-            size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
-        length, width = size
-        dx, dy = station - state.x, -lateral - state.y
-        vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-        d, rate, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
-        if d > RANGE:
-            motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF,
-                      ego, None, None)
-            return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
-        # the road axes' reaches once, for `ttc`'s and `headway`'s common decision (a car in another lane: off
-        # course by the road's axes, not ahead in the ego's path) and for the look's course_horizon
-        reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
-        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego,
-                  reach_x, reach_y)
-        value = INF if _off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(ego, dx, dy, vx, vy, length, width)
-        ego_ax = state.ax * c - state.ay * s
-        gap_time = INF if (not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0
-                           or -speed < 0.0) else headway(ego, dx, dy, ego_vx, -speed, length, width)
-        headway_change = math.nan if gap_time == INF else \
-            headway_rate_known(ego, gap_time, ego_vx, -speed, ego_ax, state.yaw_rate)
-        if not 0.0 < value < INF:
-            return (d, value, math.nan, gap_time), (rate, math.nan, math.nan, headway_change), motion
-        ax, ay = -speed_rate - ego_ax, -(state.ax * s + state.ay * c)
-        value_rate = ttc_rate_known(ego, dx, dy, vx, vy, ax, ay, state.yaw_rate, length, width)
-        return ((d, value, drac(value, vx, vy), gap_time),
-                (rate, value_rate, -drac_rate_known(value, value_rate, vx, vy, ax, ay), headway_change), motion)
+        return self._arithmetic.evaluate(self._ego_at(state), traffic.row(i),
+                                         self._size(traffic, i) if size is None else size, state.time, state.x,
+                                         state.y, state.ax, state.ay, state.yaw_rate)
 
     def rates(self, traffic, i: int, state) -> tuple[float, float, float, float]:
         """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
@@ -240,22 +212,14 @@ class Extremes:
         (a closest approach, a smallest TTC, a largest DRAC, a smallest headway), or the TTC rate turned
         from nan to a number or back (a collision course began or ended, or the vehicle crossed RANGE: the
         value there bounds the interval over which the extreme is taken)."""
-        return self._evaluate(traffic, i, state)[1]
+        return self.evaluate(traffic, i, state)[1]
 
     def distance_rate(self, traffic, i: int, state) -> float:
         """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
-        ego, _, _, ego_vx, ego_vy, _, _ = self._ego_at(state)
-        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, state.time)
         size = self._sizes.get(i)
-        if size is None:
-            size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
-        return distance_and_rates(ego, station - state.x, -lateral - state.y, -speed - ego_vx, -lateral_rate - ego_vy,
-                                  state.yaw_rate, *size)[1]
-
-    def evaluate(self, traffic, i: int, state):
-        """Vehicle i at the ego's state, nothing offered yet: for `look` (its `evaluated`), so that the master
-        reads the rates at a step's end (`rates`) and looks there with one evaluation."""
-        return self._evaluate(traffic, i, state)
+        return self._arithmetic.distance_rate(self._ego_at(state), traffic.row(i),
+                                              self._size(traffic, i) if size is None else size, state.time,
+                                              state.x, state.y, state.yaw_rate)
 
     def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
              radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
@@ -268,13 +232,12 @@ class Extremes:
         `approach_horizon` and `heading_horizon`), and never past the end of a lateral transition (the
         vehicle's velocity changes at once there). Within RANGE with neither, the new minimum's and the
         transition's bound, no later than `course_horizon` proves no collision course or headway can
-        begin. The ego's bounds as in
+        begin (looks.horizon). The ego's bounds as in
         triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
-        (d, value, drac_value, gap_time), rates, (d, frozen, dx, dy, vx, vy, length, width, speed_rate,
-                                                  transition_left, ego, reach_x, reach_y) = \
-            self._evaluate(traffic, i, state) if evaluated is None else evaluated
+        (d, value, drac_value, gap_time), rates, motion = \
+            self.evaluate(traffic, i, state) if evaluated is None else evaluated
         t = state.time
         offer = self.offer
         offer("min_distance", i, t, d)
@@ -284,43 +247,12 @@ class Extremes:
             offer("min_headway", i, t, gap_time)
         if drac_value == drac_value:
             offer("max_drac", i, t, drac_value)
-        near = d <= RANGE
-        self.course = INF
-        if near and (rates[1] == rates[1] or rates[3] == rates[3]):
-            self.quiet = 0.0
+        if d <= RANGE and (rates[1] == rates[1] or rates[3] == rates[3]):
+            self.quiet, self.course = 0.0, INF
             return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
-        # the per-look path: min(x, y) written as `y if y < x else x` and max(x, y) as `y if y > x else x`
-        # (what the builtins return, nan included), without their calls
-        turn = radius * yaw_rate_bound
-        relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
-        new_minimum = reach_time_scalar(d - (self.value["min_distance"][i] - FLAT), turn - frozen, relative)
-        # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
-        approach_end = INF if rates[0] >= 0.0 else 0.0
-        if frozen < -turn:
-            vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
-            approach_end = approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative, yaw_rate_bound)
-            heading = heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative)
-            if heading > approach_end:
-                approach_end = heading
-            if approach_end > new_minimum:
-                new_minimum = approach_end
-        if not near:
-            # a collision course or a headway counts only within RANGE: checked (course_check) from when the
-            # vehicle can come within it
-            entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
-            self.course = transition_left if transition_left < entering else entering
-            self.quiet = transition_left if transition_left < approach_end else approach_end
-            return rates, transition_left if transition_left < new_minimum else new_minimum
-        # new_minimum >= approach_end unless the rate is >= 0 (then approach_end is inf): one proof for both
-        longest = approach_end if approach_end > new_minimum else new_minimum
-        if transition_left < longest:
-            longest = transition_left
-        if not longest > 0.0:
-            self.quiet = 0.0
-            return rates, 0.0
-        self.course = course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative)
-        self.quiet = transition_left if transition_left < approach_end else approach_end
-        return rates, transition_left if transition_left < new_minimum else new_minimum
+        horizon, self.quiet, self.course = self._arithmetic.horizon(motion, rates[0], self.value["min_distance"][i],
+                                                                    acceleration, yaw_rate_bound, radius)
+        return rates, horizon
 
     def course_check(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
                      radius: float) -> float:
@@ -329,37 +261,9 @@ class Extremes:
         ended): nan if the vehicle is now within RANGE on a collision course or with a headway (it then needs a
         look, and a course's start, or its coming within RANGE on one, is located); else a new bound (s from now)
         on when that can be: `course_horizon`, or beyond RANGE on a course or behind a vehicle ahead, when it can
-        come within RANGE. The same operations as `_evaluate`'s for the quantities it reads (the same
-        decisions)."""
-        t = state.time
-        ego, _, _, ego_vx, ego_vy, ego_x, ego_y = self._ego_at(state)
-        station, lateral, speed, lateral_rate, _ = traffic.motion_of(i, t)
-        t0, _, _, speed0, _, speed1, duration = traffic.row(i)
-        elapsed = t - t0
-        moving = elapsed < duration
-        speed_rate = (speed1 - speed0) / duration if moving else 0.0
-        length, width = self._sizes[i]
-        dx, dy = station - state.x, -lateral - state.y
-        vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-        transition_left = duration - elapsed if moving else INF
-        relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
-        turn = radius * yaw_rate_bound
-        # the common case (a car in another lane), decided as `ttc` and `headway` decide it, with the road axes'
-        # reaches computed once for both and for course_horizon: off any collision course by the road's two axes
-        # alone, and not ahead in the ego's path
-        reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
-        if _off_course(dx, dy, vx, vy, reach_x, reach_y) and (
-                not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0 or -speed < 0.0):
-            return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
-        value = ttc(ego, dx, dy, vx, vy, length, width)
-        if 0.0 < value < INF or headway(ego, dx, dy, ego_vx, -speed, length, width) != INF:
-            d, _, frozen = distance_and_rates(ego, dx, dy, vx, vy, state.yaw_rate, length, width)
-            if d <= RANGE:
-                return math.nan
-            # beyond RANGE: checked again from when it can come within it
-            entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
-            return transition_left if transition_left < entering else entering
-        return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
+        come within RANGE (looks.course_check)."""
+        return self._arithmetic.course_check(self._ego_at(state), traffic.row(i), self._sizes[i], state.time,
+                                             state.x, state.y, state.yaw_rate, acceleration, yaw_rate_bound, radius)
 
     # -- post-encroachment time
 
@@ -479,21 +383,3 @@ class Extremes:
             overall_times[name] = float(np.nanmin(np.where(near, times, np.nan)))
         return {**entry(overall_values, overall_times, any(touched)), "vehicles": vehicles}
 
-
-def _off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach_y: float) -> bool:
-    """Whether `ttc` returns inf after the road's two axes (x, y; reach_x, reach_y their reaches): the same
-    operations in the same order (the same decision)."""
-    entry, leave = -INF, INF
-    for p, q, h in ((dx, vx, reach_x), (dy, vy, reach_y)):
-        if q == 0.0:
-            if (p if p >= 0.0 else -p) >= h:
-                return True
-            continue
-        t1, t2 = (-h - p) / q, (h - p) / q
-        if t2 < t1:
-            t1, t2 = t2, t1
-        if t1 > entry:
-            entry = t1
-        if t2 < leave:
-            leave = t2
-    return entry >= leave or leave <= 0.0

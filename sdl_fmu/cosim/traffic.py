@@ -34,6 +34,26 @@ def _initial_transition(event: ApproachingVehicle, lateral: float, speed: float,
 WHERE_CODES = {None: 0, "F": 1, "B": 2}
 
 
+def motion_law(row: tuple[float, ...], t: float) -> tuple[float, float, float, float, float]:
+    """(station, lateral, speed, lateral rate, |speed rate|) at time t of a vehicle whose motion is `row`
+    (Traffic.row: t0, station0, lateral0, speed0, lateral1, speed1, duration): Traffic.motion's law in plain
+    floats, operation for operation (both forms give the same bits; cosim/_kernel.c's `relative` is its compiled
+    twin)."""
+    t0, station0, lateral0, speed0, lateral1, speed1, duration = row
+    elapsed = t - t0
+    if elapsed < duration:
+        fraction = elapsed / duration
+        travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
+        lateral_rate = (lateral1 - lateral0) / duration
+        speed_rate = abs(speed1 - speed0) / duration
+    else:
+        fraction = 1.0
+        travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
+        lateral_rate = speed_rate = 0.0
+    return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction,
+            speed0 + (speed1 - speed0) * fraction, lateral_rate, speed_rate)
+
+
 class Traffic:
     """Every traffic vehicle of a run in NumPy arrays (index = vehicle id - 1), so that the master checks
     only the vehicles on the road (`active`), and those vectorised.
@@ -143,19 +163,7 @@ class Traffic:
 
     def motion_of(self, i: int, t: float) -> tuple[float, float, float, float, float]:
         """`motion` of vehicle i in plain floats, operation for operation (both forms give the same bits)."""
-        t0, station0, lateral0, speed0, lateral1, speed1, duration = self.row(i)
-        elapsed = t - t0
-        if elapsed < duration:
-            fraction = elapsed / duration
-            travelled = speed0 * elapsed + (speed1 - speed0) * (elapsed * elapsed) / (2 * duration)
-            lateral_rate = (lateral1 - lateral0) / duration
-            speed_rate = abs(speed1 - speed0) / duration
-        else:
-            fraction = 1.0
-            travelled = (speed0 + speed1) / 2 * duration + speed1 * (elapsed - duration)
-            lateral_rate = speed_rate = 0.0
-        return (station0 - travelled, lateral0 + (lateral1 - lateral0) * fraction,
-                speed0 + (speed1 - speed0) * fraction, lateral_rate, speed_rate)
+        return motion_law(self.row(i), t)
 
     def at(self, i: int, t: float) -> tuple[float, float, float]:
         """(station, lateral, speed) of vehicle i at time t, in plain floats: the motion law."""

@@ -21,6 +21,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #include <math.h>
+#include <string.h>
 
 /* looks.py's RANGE and FLAT, measures.py's COURSE_* and HEADING_* (the module exposes them; a test holds them
  * equal to the Python's) */
@@ -364,7 +365,7 @@ static int off_course(double dx, double dy, double vx, double vy, double reach_x
     return entry >= leave || leave <= 0.0;
 }
 
-/* The ego at a state (Extremes._ego_at's tuple) and the vehicle relative to it (traffic.Traffic.motion_of and
+/* The ego at a state (looks.ego's tuple) and the vehicle relative to it (traffic.Traffic.motion_of and
  * the lines of looks.evaluate, course_check and distance_rate that read it: traffic.motion_law and after). */
 typedef struct {
     Footprint ego;
@@ -438,23 +439,26 @@ static int footprint(PyObject *o, Footprint *e)
     return 0;
 }
 
-/* Extremes._ego_at's tuple: (footprint, cos, sin, ego_vx, ego_vy, ego_x, ego_y) */
-static int ego_at(PyObject *o, Ego *at)
+/* cos and sin called through pointers: each the C library's own function, as Python's math.cos and math.sin call
+ * them (the compiler may not fuse the two into one sincos call, nor expand either inline) */
+static double (*volatile cos_)(double) = cos;
+static double (*volatile sin_)(double) = sin;
+
+/* The ego at a state from its half length a and half width b, yaw psi and body-frame velocity (vx, vy): looks.ego's
+ * operations */
+static void ego_of(double a, double b, double psi, double vx, double vy, Ego *at)
 {
-    double v[6];
-    if (!PyTuple_Check(o) || PyTuple_GET_SIZE(o) != 7) {
-        PyErr_SetString(PyExc_TypeError, "expected the ego's tuple of 7 (Extremes._ego_at)");
-        return -1;
-    }
-    if (footprint(PyTuple_GET_ITEM(o, 0), &at->ego) < 0 || numbers(o, 1, 6, v) < 0)
-        return -1;
-    at->c = v[0];
-    at->s = v[1];
-    at->ego_vx = v[2];
-    at->ego_vy = v[3];
-    at->ego_x = v[4];
-    at->ego_y = v[5];
-    return 0;
+    double c = cos_(psi), s = sin_(psi);
+    double ac = c >= 0.0 ? c : -c;
+    double as_ = s >= 0.0 ? s : -s;
+    at->ego.a = a;
+    at->ego.b = b;
+    at->ego.c = at->c = c;
+    at->ego.s = at->s = s;
+    at->ego_vx = vx * c - vy * s;
+    at->ego_vy = vx * s + vy * c;
+    at->ego_x = a * ac + b * as_;
+    at->ego_y = a * as_ + b * ac;
 }
 
 static int arity(Py_ssize_t nargs, Py_ssize_t n, const char *name)
@@ -490,105 +494,114 @@ static PyObject *floats(Py_ssize_t n, const double *v)
     return t;
 }
 
-/* (ego_at, row, size, t, x, y): the arguments the three vehicle functions share */
+/* (a, b, row, size, t, x, y, psi, vx, vy): the arguments the vehicle functions share (the ego's half sizes, the
+ * vehicle's motion and size, the ego's state) */
+#define VEHICLE_ARGS 10
 static int vehicle_args(PyObject *const *args, Ego *at, double row[7], double size[2], double txy[3])
 {
-    if (ego_at(args[0], at) < 0 || numbers(args[1], 0, 7, row) < 0 || numbers(args[2], 0, 2, size) < 0)
+    double half[2], motion[3];
+    if (doubles(args, 0, 2, half) < 0 || numbers(args[2], 0, 7, row) < 0 || numbers(args[3], 0, 2, size) < 0
+        || doubles(args, 4, 3, txy) < 0 || doubles(args, 7, 3, motion) < 0)
         return -1;
-    return doubles(args, 3, 3, txy);
+    ego_of(half[0], half[1], motion[0], motion[1], motion[2], at);
+    return 0;
 }
 
-/* evaluate(ego_at, row, size, t, x, y, ax, ay, yaw_rate) -> looks.evaluate */
-static PyObject *k_evaluate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* looks.evaluate's arithmetic: the values to offer (distance, TTC, DRAC, headway), their rates, the first ten of what
+ * the horizon needs (distance, frozen rate, dx, dy, vx, vy, length, width, speed rate, transition left) and the
+ * road axes' reaches (within RANGE only: returns whether they were computed) */
+static int evaluated(const Ego *at, const double row[7], const double size[2], const double txy[3], double state_ax,
+                     double state_ay, double yaw_rate, double values[4], double rates[4], double motion[10],
+                     double reach[2])
 {
-    Ego at;
-    double row[7], size[2], txy[3], more[3];
-    if (arity(nargs, 9, "evaluate") < 0 || vehicle_args(args, &at, row, size, txy) < 0
-        || doubles(args, 6, 3, more) < 0)
-        return NULL;
-    double state_ax = more[0], state_ay = more[1], yaw_rate = more[2];
     Relative r;
-    relative(&at, row, size[0], size[1], txy[0], txy[1], txy[2], &r);
-    Footprint ego = at.ego;
+    relative(at, row, size[0], size[1], txy[0], txy[1], txy[2], &r);
+    Footprint ego = at->ego;
     double dar[3];
     distance_and_rates(ego, r.dx, r.dy, r.vx, r.vy, yaw_rate, r.length, r.width, dar);
     double d = dar[0], rate = dar[1], frozen = dar[2];
-    double values[4], rates[4], motion[10] = {d, frozen, r.dx, r.dy, r.vx, r.vy, r.length, r.width, r.speed_rate,
-                                              r.transition_left};
-    PyObject *reach_x, *reach_y;
+    double m[10] = {d, frozen, r.dx, r.dy, r.vx, r.vy, r.length, r.width, r.speed_rate, r.transition_left};
+    memcpy(motion, m, sizeof m);
     if (d > RANGE) {
         values[0] = d; values[1] = INF_; values[2] = NAN; values[3] = INF_;
         rates[0] = rate; rates[1] = rates[2] = rates[3] = NAN;
-        Py_INCREF(Py_None);
-        Py_INCREF(Py_None);
-        reach_x = reach_y = Py_None;
+        return 0;
+    }
+    double rx = at->ego_x + r.length / 2, ry = at->ego_y + r.width / 2;
+    double value = off_course(r.dx, r.dy, r.vx, r.vy, rx, ry) ? INF_ : ttc(ego, r.dx, r.dy, r.vx, r.vy, r.length, r.width);
+    double ego_ax = state_ax * at->c - state_ay * at->s;
+    double gap_time = (!(r.dx > 0.0) || (r.dy >= 0.0 ? r.dy : -r.dy) >= ry || at->ego_vx <= 0.0 || -r.speed < 0.0)
+                          ? INF_ : headway(ego, r.dx, r.dy, at->ego_vx, -r.speed, r.length, r.width);
+    double headway_change = gap_time == INF_
+                                ? NAN : headway_rate_known(ego, gap_time, at->ego_vx, -r.speed, ego_ax, yaw_rate);
+    values[0] = d; values[1] = value; values[3] = gap_time;
+    rates[0] = rate; rates[3] = headway_change;
+    if (!(0.0 < value && value < INF_)) {
+        values[2] = NAN;
+        rates[1] = rates[2] = NAN;
     } else {
-        double rx = at.ego_x + r.length / 2, ry = at.ego_y + r.width / 2;
-        double value = off_course(r.dx, r.dy, r.vx, r.vy, rx, ry)
-                           ? INF_ : ttc(ego, r.dx, r.dy, r.vx, r.vy, r.length, r.width);
-        double ego_ax = state_ax * at.c - state_ay * at.s;
-        double gap_time = (!(r.dx > 0.0) || (r.dy >= 0.0 ? r.dy : -r.dy) >= ry || at.ego_vx <= 0.0 || -r.speed < 0.0)
-                              ? INF_ : headway(ego, r.dx, r.dy, at.ego_vx, -r.speed, r.length, r.width);
-        double headway_change = gap_time == INF_
-                                    ? NAN : headway_rate_known(ego, gap_time, at.ego_vx, -r.speed, ego_ax, yaw_rate);
-        values[0] = d; values[1] = value; values[3] = gap_time;
-        rates[0] = rate; rates[3] = headway_change;
-        if (!(0.0 < value && value < INF_)) {
-            values[2] = NAN;
-            rates[1] = rates[2] = NAN;
-        } else {
-            double ax = -r.speed_rate - ego_ax, ay = -(state_ax * at.s + state_ay * at.c);
-            double value_rate = ttc_rate_known(ego, r.dx, r.dy, r.vx, r.vy, ax, ay, yaw_rate, r.length, r.width);
-            values[2] = drac(value, r.vx, r.vy);
-            rates[1] = value_rate;
-            rates[2] = -drac_rate_known(value, value_rate, r.vx, r.vy, ax, ay);
-        }
-        reach_x = PyFloat_FromDouble(rx);
-        reach_y = PyFloat_FromDouble(ry);
-        if (reach_x == NULL || reach_y == NULL) {
-            Py_XDECREF(reach_x);
-            Py_XDECREF(reach_y);
-            return NULL;
-        }
+        double ax = -r.speed_rate - ego_ax, ay = -(state_ax * at->s + state_ay * at->c);
+        double value_rate = ttc_rate_known(ego, r.dx, r.dy, r.vx, r.vy, ax, ay, yaw_rate, r.length, r.width);
+        values[2] = drac(value, r.vx, r.vy);
+        rates[1] = value_rate;
+        rates[2] = -drac_rate_known(value, value_rate, r.vx, r.vy, ax, ay);
     }
+    reach[0] = rx;
+    reach[1] = ry;
+    return 1;
+}
+
+/* looks.evaluate's value: ((4 values), (4 rates), (10 numbers, the ego's footprint object, reach_x, reach_y: None
+ * beyond RANGE)) */
+static PyObject *evaluated_tuple(Footprint e, const double values[4], const double rates[4],
+                                 const double motion[10], const double reach[2], int near)
+{
+    double sides[4] = {e.a, e.b, e.c, e.s};
     PyObject *out = NULL, *v = floats(4, values), *rt = floats(4, rates), *m = PyTuple_New(13);
-    if (v != NULL && rt != NULL && m != NULL) {
-        int ok = 1;
-        for (int k = 0; k < 10 && ok; k++) {
-            PyObject *f = PyFloat_FromDouble(motion[k]);
-            if (f == NULL)
-                ok = 0;
-            else
-                PyTuple_SET_ITEM(m, k, f);
-        }
-        if (ok) {
-            PyObject *footprint_object = PyTuple_GET_ITEM(args[0], 0); /* the ego's Footprint, as the Python's */
-            Py_INCREF(footprint_object);
-            PyTuple_SET_ITEM(m, 10, footprint_object);
-            PyTuple_SET_ITEM(m, 11, reach_x);
-            PyTuple_SET_ITEM(m, 12, reach_y);
-            reach_x = reach_y = NULL;
-            out = PyTuple_Pack(3, v, rt, m);
-        }
+    PyObject *footprint_object = floats(4, sides);
+    if (v == NULL || rt == NULL || m == NULL || footprint_object == NULL) {
+        Py_XDECREF(footprint_object);
+        goto done;
     }
-    Py_XDECREF(reach_x);
-    Py_XDECREF(reach_y);
+    for (int k = 0; k < 10; k++) {
+        PyObject *f = PyFloat_FromDouble(motion[k]);
+        if (f == NULL)
+            goto done;
+        PyTuple_SET_ITEM(m, k, f);
+    }
+    PyTuple_SET_ITEM(m, 10, footprint_object);
+    for (int k = 0; k < 2; k++) {
+        PyObject *f = near ? PyFloat_FromDouble(reach[k]) : Py_NewRef(Py_None);
+        if (f == NULL)
+            goto done;
+        PyTuple_SET_ITEM(m, 11 + k, f);
+    }
+    out = PyTuple_Pack(3, v, rt, m);
+done:
     Py_XDECREF(v);
     Py_XDECREF(rt);
     Py_XDECREF(m);
     return out;
 }
 
-/* horizon(motion, rate, recorded_min_distance, acceleration, yaw_rate_bound, radius) -> (horizon, quiet, course):
- * looks.horizon */
-static PyObject *k_horizon(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* evaluate(a, b, row, size, t, x, y, psi, vx, vy, ax, ay, yaw_rate) -> looks.evaluate */
+static PyObject *k_evaluate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    double m[10], v[5];
-    if (arity(nargs, 6, "horizon") < 0 || numbers(args[0], 0, 10, m) < 0 || doubles(args, 1, 5, v) < 0)
+    Ego at;
+    double row[7], size[2], txy[3], more[3], values[4], rates[4], motion[10], reach[2];
+    if (arity(nargs, VEHICLE_ARGS + 3, "evaluate") < 0 || vehicle_args(args, &at, row, size, txy) < 0
+        || doubles(args, VEHICLE_ARGS, 3, more) < 0)
         return NULL;
+    int near = evaluated(&at, row, size, txy, more[0], more[1], more[2], values, rates, motion, reach);
+    return evaluated_tuple(at.ego, values, rates, motion, reach, near);
+}
+
+/* looks.horizon's arithmetic: (horizon, quiet, course) from the ten numbers and the reaches */
+static void horizon_of(const double m[10], const double reach[2], double rate0, double recorded, double acceleration,
+                       double yaw_rate_bound, double radius, double out[3])
+{
     double d = m[0], frozen = m[1], dx = m[2], dy = m[3], vx = m[4], vy = m[5], length = m[6], width = m[7],
            speed_rate = m[8], transition_left = m[9];
-    double rate0 = v[0], recorded = v[1], acceleration = v[2], yaw_rate_bound = v[3], radius = v[4];
     int near = d <= RANGE;
     double turn = radius * yaw_rate_bound;
     double relative_ = acceleration + (speed_rate >= 0.0 ? speed_rate : -speed_rate);
@@ -603,13 +616,12 @@ static PyObject *k_horizon(PyObject *self, PyObject *const *args, Py_ssize_t nar
         if (approach_end > new_minimum)
             new_minimum = approach_end;
     }
-    double out[3];
     if (!near) {
         double entering = reach_time_scalar(d - RANGE, turn - frozen, relative_);
         out[0] = transition_left < new_minimum ? transition_left : new_minimum;
         out[1] = transition_left < approach_end ? transition_left : approach_end;
         out[2] = transition_left < entering ? transition_left : entering;
-        return floats(3, out);
+        return;
     }
     double longest = approach_end > new_minimum ? approach_end : new_minimum;
     if (transition_left < longest)
@@ -617,25 +629,143 @@ static PyObject *k_horizon(PyObject *self, PyObject *const *args, Py_ssize_t nar
     if (!(longest > 0.0)) {
         out[0] = out[1] = 0.0;
         out[2] = INF_;
-        return floats(3, out);
+        return;
     }
-    double reach[2];
-    if (numbers(args[0], 11, 2, reach) < 0)
-        return NULL;
     out[0] = transition_left < new_minimum ? transition_left : new_minimum;
     out[1] = transition_left < approach_end ? transition_left : approach_end;
     out[2] = course_horizon(dx, dy, vx, vy, reach[0], reach[1], longest, turn, relative_);
+}
+
+/* the ten numbers and the reaches of an evaluation's third value; returns whether the reaches are there */
+static int motion_of_tuple(PyObject *motion, double m[10], double reach[2])
+{
+    if (numbers(motion, 0, 10, m) < 0)
+        return -1;
+    if (PyTuple_GET_SIZE(motion) < 13 || PyTuple_GET_ITEM(motion, 11) == Py_None)
+        return 0;
+    return numbers(motion, 11, 2, reach) < 0 ? -1 : 1;
+}
+
+/* horizon(motion, rate, recorded_min_distance, acceleration, yaw_rate_bound, radius) -> (horizon, quiet, course):
+ * looks.horizon */
+static PyObject *k_horizon(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double m[10], reach[2] = {NAN, NAN}, v[5], out[3];
+    if (arity(nargs, 6, "horizon") < 0 || motion_of_tuple(args[0], m, reach) < 0 || doubles(args, 1, 5, v) < 0)
+        return NULL;
+    horizon_of(m, reach, v[0], v[1], v[2], v[3], v[4], out);
     return floats(3, out);
 }
 
-/* course_check(ego_at, row, size, t, x, y, yaw_rate, acceleration, yaw_rate_bound, radius) -> float:
+/* looks.offer: one value offered to one measure's per-vehicle lists (values, times) */
+static int offer(PyObject *values, PyObject *times, Py_ssize_t i, double t, double value, int largest)
+{
+    if (!isfinite(value))
+        return 0;
+    if (!PyList_Check(values) || !PyList_Check(times) || i >= PyList_GET_SIZE(values)
+        || i >= PyList_GET_SIZE(times)) {
+        PyErr_SetString(PyExc_IndexError, "offer: the vehicle is beyond the record's lists");
+        return -1;
+    }
+    double recorded;
+    if (number(PyList_GET_ITEM(values, i), &recorded) < 0)
+        return -1;
+    int better = largest ? (recorded != recorded || value > recorded + FLAT)
+                         : (recorded != recorded || value < recorded - FLAT);
+    if (better) {
+        PyObject *v = PyFloat_FromDouble(value), *w = PyFloat_FromDouble(t);
+        if (v == NULL || w == NULL) {
+            Py_XDECREF(v);
+            Py_XDECREF(w);
+            return -1;
+        }
+        PyList_SetItem(values, i, v);
+        PyList_SetItem(times, i, w);
+    } else if (largest ? value > recorded : value < recorded) {
+        PyObject *v = PyFloat_FromDouble(value);
+        if (v == NULL)
+            return -1;
+        PyList_SetItem(values, i, v);
+    }
+    return 0;
+}
+
+/* offer(values, times, i, t, value, largest) -> None: looks.offer */
+static PyObject *k_offer(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double t, value;
+    if (arity(nargs, 6, "offer") < 0 || number(args[3], &t) < 0 || number(args[4], &value) < 0)
+        return NULL;
+    Py_ssize_t i = PyLong_AsSsize_t(args[2]);
+    int largest = PyObject_IsTrue(args[5]);
+    if ((i == -1 && PyErr_Occurred()) || largest < 0 || offer(args[0], args[1], i, t, value, largest) < 0)
+        return NULL;
+    Py_RETURN_NONE;
+}
+
+/* look(a, b, row, size, t, x, y, psi, vx, vy, ax, ay, yaw_rate, evaluated, i, tables, acceleration, yaw_rate_bound,
+ * radius)
+ * -> (rates, horizon, quiet, course): looks.look */
+static PyObject *k_look(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    Ego at;
+    double row[7], size[2], txy[3], more[3], values[4], rates[4], motion[10], reach[2] = {NAN, NAN}, bounds[3];
+    if (arity(nargs, VEHICLE_ARGS + 9, "look") < 0 || vehicle_args(args, &at, row, size, txy) < 0
+        || doubles(args, VEHICLE_ARGS, 3, more) < 0 || doubles(args, VEHICLE_ARGS + 6, 3, bounds) < 0)
+        return NULL;
+    PyObject *given = args[VEHICLE_ARGS + 3], *tables = args[VEHICLE_ARGS + 5], *rates_object;
+    Py_ssize_t i = PyLong_AsSsize_t(args[VEHICLE_ARGS + 4]);
+    if (i == -1 && PyErr_Occurred())
+        return NULL;
+    if (!PyTuple_Check(tables) || PyTuple_GET_SIZE(tables) != 8) {
+        PyErr_SetString(PyExc_TypeError, "look: tables is the 8 lists (value, time) of distance, TTC, DRAC, headway");
+        return NULL;
+    }
+    if (given == Py_None) {
+        evaluated(&at, row, size, txy, more[0], more[1], more[2], values, rates, motion, reach);
+        rates_object = floats(4, rates);
+        if (rates_object == NULL)
+            return NULL;
+    } else {
+        if (!PyTuple_Check(given) || PyTuple_GET_SIZE(given) != 3) {
+            PyErr_SetString(PyExc_TypeError, "look: evaluated is evaluate's value or None");
+            return NULL;
+        }
+        if (numbers(PyTuple_GET_ITEM(given, 0), 0, 4, values) < 0 || numbers(PyTuple_GET_ITEM(given, 1), 0, 4, rates) < 0
+            || motion_of_tuple(PyTuple_GET_ITEM(given, 2), motion, reach) < 0)
+            return NULL;
+        rates_object = Py_NewRef(PyTuple_GET_ITEM(given, 1));
+    }
+    double t = txy[0], out[3];
+    PyObject *const *table = &PyTuple_GET_ITEM(tables, 0);
+    /* the offers: distance, TTC, headway, DRAC (each list its own: the order does not matter) */
+    if (offer(table[0], table[1], i, t, values[0], 0) < 0 || offer(table[2], table[3], i, t, values[1], 0) < 0
+        || offer(table[6], table[7], i, t, values[3], 0) < 0 || offer(table[4], table[5], i, t, values[2], 1) < 0)
+        goto fail;
+    if (values[0] <= RANGE && (rates[1] == rates[1] || rates[3] == rates[3])) {
+        out[0] = out[1] = 0.0;
+        out[2] = INF_;
+    } else {
+        double recorded;
+        if (number(PyList_GET_ITEM(table[0], i), &recorded) < 0)
+            goto fail;
+        horizon_of(motion, reach, rates[0], recorded, bounds[0], bounds[1], bounds[2], out);
+    }
+    PyObject *result = Py_BuildValue("(Nddd)", rates_object, out[0], out[1], out[2]);
+    return result;
+fail:
+    Py_DECREF(rates_object);
+    return NULL;
+}
+
+/* course_check(a, b, row, size, t, x, y, psi, vx, vy, yaw_rate, acceleration, yaw_rate_bound, radius) -> float:
  * looks.course_check */
 static PyObject *k_course_check(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     Ego at;
     double row[7], size[2], txy[3], more[4];
-    if (arity(nargs, 10, "course_check") < 0 || vehicle_args(args, &at, row, size, txy) < 0
-        || doubles(args, 6, 4, more) < 0)
+    if (arity(nargs, VEHICLE_ARGS + 4, "course_check") < 0 || vehicle_args(args, &at, row, size, txy) < 0
+        || doubles(args, VEHICLE_ARGS, 4, more) < 0)
         return NULL;
     double yaw_rate = more[0], acceleration = more[1], yaw_rate_bound = more[2], radius = more[3];
     Relative r;
@@ -661,13 +791,13 @@ static PyObject *k_course_check(PyObject *self, PyObject *const *args, Py_ssize_
                                              relative_));
 }
 
-/* distance_rate(ego_at, row, size, t, x, y, yaw_rate) -> float: looks.distance_rate */
+/* distance_rate(a, b, row, size, t, x, y, psi, vx, vy, yaw_rate) -> float: looks.distance_rate */
 static PyObject *k_distance_rate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     Ego at;
     double row[7], size[2], txy[3], yaw_rate;
-    if (arity(nargs, 7, "distance_rate") < 0 || vehicle_args(args, &at, row, size, txy) < 0
-        || number(args[6], &yaw_rate) < 0)
+    if (arity(nargs, VEHICLE_ARGS + 1, "distance_rate") < 0 || vehicle_args(args, &at, row, size, txy) < 0
+        || number(args[VEHICLE_ARGS], &yaw_rate) < 0)
         return NULL;
     Relative r;
     relative(&at, row, size[0], size[1], txy[0], txy[1], txy[2], &r);
@@ -740,13 +870,140 @@ PLAIN(course_horizon, 9,
       PyFloat_FromDouble(course_horizon(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8])))
 PLAIN(off_course, 6, PyBool_FromLong(off_course(v[0], v[1], v[2], v[3], v[4], v[5])))
 
+/* ---- the follower's scans over the vehicles on the road (follower.py; looks.py's due_looks, due_checks and
+ * earliest): a selection and minima of per-vehicle floats, list by list as the Python's comprehensions and
+ * min(map(...)) take them ---- */
+
+static int per_vehicle(PyObject *values, PyObject *index, double *out)
+{
+    Py_ssize_t i = PyLong_AsSsize_t(index);
+    if (i == -1 && PyErr_Occurred())
+        return -1;
+    if (i < 0 || i >= PyList_GET_SIZE(values)) {
+        PyErr_SetString(PyExc_IndexError, "list index out of range");
+        return -1;
+    }
+    return number(PyList_GET_ITEM(values, i), out);
+}
+
+static int lists(PyObject *const *args, Py_ssize_t n)
+{
+    for (Py_ssize_t k = 0; k < n; k++)
+        if (!PyList_Check(args[k])) {
+            PyErr_SetString(PyExc_TypeError, "expected lists (the vehicles, then their values)");
+            return -1;
+        }
+    return 0;
+}
+
+/* due_looks(vehicles, next_look, quiet_until, look_time, t, ahead, now) -> [i for i in vehicles if (now and
+ * next_look[i] <= t) or (quiet_until[i] <= ahead and look_time[i] < t)]; ahead None: the first test alone */
+static PyObject *k_due_looks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double t, ahead = 0.0;
+    if (arity(nargs, 7, "due_looks") < 0 || lists(args, 4) < 0 || number(args[4], &t) < 0
+        || (args[5] != Py_None && number(args[5], &ahead) < 0))
+        return NULL;
+    int with_ahead = args[5] != Py_None, now = PyObject_IsTrue(args[6]);
+    if (now < 0)
+        return NULL;
+    PyObject *vehicles = args[0], *due = PyList_New(0);
+    if (due == NULL)
+        return NULL;
+    for (Py_ssize_t k = 0; k < PyList_GET_SIZE(vehicles); k++) {
+        PyObject *i = PyList_GET_ITEM(vehicles, k);
+        double next, quiet, looked;
+        int take = 0;
+        if (now) {
+            if (per_vehicle(args[1], i, &next) < 0)
+                goto fail;
+            take = next <= t;
+        }
+        if (!take && with_ahead) {
+            if (per_vehicle(args[2], i, &quiet) < 0)
+                goto fail;
+            if (quiet <= ahead) {
+                if (per_vehicle(args[3], i, &looked) < 0)
+                    goto fail;
+                take = looked < t;
+            }
+        }
+        if (take && PyList_Append(due, i) < 0)
+            goto fail;
+    }
+    return due;
+fail:
+    Py_DECREF(due);
+    return NULL;
+}
+
+/* due_checks(vehicles, course_until, check_time, next_look, until, t) -> [i for i in vehicles if course_until[i] <=
+ * until and check_time[i] < t and next_look[i] > t] */
+static PyObject *k_due_checks(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double until, t;
+    if (arity(nargs, 6, "due_checks") < 0 || lists(args, 4) < 0 || number(args[4], &until) < 0
+        || number(args[5], &t) < 0)
+        return NULL;
+    PyObject *vehicles = args[0], *due = PyList_New(0);
+    if (due == NULL)
+        return NULL;
+    for (Py_ssize_t k = 0; k < PyList_GET_SIZE(vehicles); k++) {
+        PyObject *i = PyList_GET_ITEM(vehicles, k);
+        double course, checked, next;
+        if (per_vehicle(args[1], i, &course) < 0)
+            goto fail;
+        if (!(course <= until))
+            continue;
+        if (per_vehicle(args[2], i, &checked) < 0)
+            goto fail;
+        if (!(checked < t))
+            continue;
+        if (per_vehicle(args[3], i, &next) < 0)
+            goto fail;
+        if (next > t && PyList_Append(due, i) < 0)
+            goto fail;
+    }
+    return due;
+fail:
+    Py_DECREF(due);
+    return NULL;
+}
+
+/* earliest(vehicles, values...) -> per list of values min(map(values.__getitem__, vehicles), default=inf): the
+ * first, replaced by a later one only when smaller (nan included); one float, or a tuple for several lists */
+static PyObject *k_earliest(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    double least[8];
+    if (nargs < 2 || nargs > 9) {
+        PyErr_SetString(PyExc_TypeError, "earliest takes the vehicles and 1 to 8 lists of values");
+        return NULL;
+    }
+    if (lists(args, nargs) < 0)
+        return NULL;
+    PyObject *vehicles = args[0];
+    Py_ssize_t n = PyList_GET_SIZE(vehicles);
+    for (Py_ssize_t m = 1; m < nargs; m++) {
+        least[m - 1] = INF_;
+        for (Py_ssize_t k = 0; k < n; k++) {
+            double value;
+            if (per_vehicle(args[m], PyList_GET_ITEM(vehicles, k), &value) < 0)
+                return NULL;
+            if (k == 0 || value < least[m - 1])
+                least[m - 1] = value;
+        }
+    }
+    return nargs == 2 ? PyFloat_FromDouble(least[0]) : floats(nargs - 1, least);
+}
+
 #define METHOD(name) {#name, (PyCFunction)(void (*)(void))k_##name, METH_FASTCALL, NULL}
 
 static PyMethodDef methods[] = {
-    METHOD(evaluate), METHOD(horizon), METHOD(course_check), METHOD(distance_rate),
+    METHOD(evaluate), METHOD(horizon), METHOD(look), METHOD(offer), METHOD(course_check), METHOD(distance_rate),
     METHOD(distance_and_rates), METHOD(penetration), METHOD(ttc), METHOD(ttc_rate_known), METHOD(headway),
     METHOD(headway_rate_known), METHOD(reach_time_scalar), METHOD(drac), METHOD(drac_rate_known),
     METHOD(approach_horizon), METHOD(heading_horizon), METHOD(course_horizon), METHOD(off_course),
+    METHOD(due_looks), METHOD(due_checks), METHOD(earliest),
     {NULL, NULL, 0, NULL},
 };
 

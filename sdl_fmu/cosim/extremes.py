@@ -75,6 +75,9 @@ class Extremes:
         # look
         self.value = {name: [math.nan] * capacity for name in MEASURES}
         self.time = {name: [math.nan] * capacity for name in MEASURES}
+        # the lists a look offers to (looks.look; _grow extends them in place)
+        self._tables = tuple(table[name] for name in ("min_distance", "min_ttc", "max_drac", "min_headway")
+                             for table in (self.value, self.time))
         self.left_path = np.full(capacity, np.nan)  # s, when the vehicle's footprint last left the ego's path
         self.conflict = np.full(capacity, np.nan)  # m, the station the ego's front must reach then (PET)
         # the ego passing first (PET): the far end of the area where the vehicle's footprint will enter the ego's
@@ -86,9 +89,9 @@ class Extremes:
         # course or a headway can begin (inf: not to be checked before the vehicle's next look)
         self.quiet = 0.0
         self.course = INF
-        # the last ego state evaluated at and (footprint, cos, sin, inertial velocity) there; per vehicle its
-        # (length, width) in floats (fixed from its spawn, a vehicle's index is never reused)
-        self._at = (None, None)
+        # the ego's half length and width (looks.ego); per vehicle its (length, width) in floats (fixed from its
+        # spawn, a vehicle's index is never reused)
+        self._a, self._b = ego_length / 2, ego_width / 2
         self._sizes: dict[int, tuple[float, float]] = {}
 
     def _grow(self, size: int) -> None:
@@ -105,22 +108,12 @@ class Extremes:
     # -- offering values
 
     def offer(self, name: str, i: int, t: float, value: float) -> None:
-        """One vehicle's value of one measure at instant t (nan or inf: not applicable now)."""
+        """One vehicle's value of one measure at instant t (nan or inf: not applicable now): looks.offer."""
         if not math.isfinite(value):
             return
         if i >= self.size:
             self._grow(i + 1)
-        values = self.value[name]
-        recorded = values[i]
-        if name == "max_drac":
-            better = recorded != recorded or value > recorded + FLAT
-        else:
-            better = recorded != recorded or value < recorded - FLAT
-        if better:
-            values[i] = value
-            self.time[name][i] = t
-        elif (value > recorded) if name == "max_drac" else (value < recorded):
-            values[i] = value  # within FLAT: the value improves, the first instant stays
+        self._arithmetic.offer(self.value[name], self.time[name], i, t, value, name == "max_drac")
 
     def offers(self, name: str, idx: np.ndarray, t: float, values: np.ndarray) -> None:
         """`offer` for vehicles idx at once."""
@@ -177,21 +170,6 @@ class Extremes:
                                                         INF))
         self.reach(state)
 
-    def _ego_at(self, state):
-        """(footprint, cos psi, sin psi, vx and vy on the road's axes, the ego's own parts of the road axes' reaches
-        a |cos psi| + b |sin psi| and a |sin psi| + b |cos psi|) of the ego at this state, computed once for all
-        the vehicles looked at or checked at it (a vehicle's half length and width added to them give
-        geometry.axis_reaches' first two, the road axes' reaches: the same operations in the same order)."""
-        at = self._at
-        if at[0] is not state:
-            c, s = math.cos(state.psi), math.sin(state.psi)
-            a, b = self.ego_length / 2, self.ego_width / 2
-            ac = c if c >= 0.0 else -c
-            as_ = s if s >= 0.0 else -s
-            self._at = at = (state, (Footprint(a, b, c, s), c, s, state.vx * c - state.vy * s,
-                                     state.vx * s + state.vy * c, a * ac + b * as_, a * as_ + b * ac))
-        return at[1]
-
     def _size(self, traffic, i: int) -> tuple[float, float]:
         size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
         return size
@@ -201,9 +179,9 @@ class Extremes:
         rates, what the horizon needs), for `look` (its `evaluated`), so that the master reads the rates at a
         step's end (`rates`) and looks there with one evaluation."""
         size = self._sizes.get(i)
-        return self._arithmetic.evaluate(self._ego_at(state), traffic.row(i),
-                                         self._size(traffic, i) if size is None else size, state.time, state.x,
-                                         state.y, state.ax, state.ay, state.yaw_rate)
+        return self._arithmetic.evaluate(self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None
+                                         else size, state.time, state.x, state.y, state.psi, state.vx, state.vy,
+                                         state.ax, state.ay, state.yaw_rate)
 
     def rates(self, traffic, i: int, state) -> tuple[float, float, float, float]:
         """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
@@ -217,9 +195,9 @@ class Extremes:
     def distance_rate(self, traffic, i: int, state) -> float:
         """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
         size = self._sizes.get(i)
-        return self._arithmetic.distance_rate(self._ego_at(state), traffic.row(i),
-                                              self._size(traffic, i) if size is None else size, state.time,
-                                              state.x, state.y, state.yaw_rate)
+        return self._arithmetic.distance_rate(self._a, self._b, traffic.row(i), self._size(traffic, i)
+                                              if size is None else size, state.time, state.x, state.y, state.psi,
+                                              state.vx, state.vy, state.yaw_rate)
 
     def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
              radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
@@ -236,22 +214,13 @@ class Extremes:
         triggers.py: |acceleration| of its CG, yaw rate, radius = its reference point to a footprint corner.
         Valid while the vehicle's motion is unchanged (until an action fires), like the master's other
         vehicle bounds."""
-        (d, value, drac_value, gap_time), rates, motion = \
-            self.evaluate(traffic, i, state) if evaluated is None else evaluated
-        t = state.time
-        offer = self.offer
-        offer("min_distance", i, t, d)
-        if value < INF:
-            offer("min_ttc", i, t, value)
-        if gap_time < INF:
-            offer("min_headway", i, t, gap_time)
-        if drac_value == drac_value:
-            offer("max_drac", i, t, drac_value)
-        if d <= RANGE and (rates[1] == rates[1] or rates[3] == rates[3]):
-            self.quiet, self.course = 0.0, INF
-            return rates, 0.0  # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed
-        horizon, self.quiet, self.course = self._arithmetic.horizon(motion, rates[0], self.value["min_distance"][i],
-                                                                    acceleration, yaw_rate_bound, radius)
+        if i >= self.size:
+            self._grow(i + 1)
+        size = self._sizes.get(i)
+        rates, horizon, self.quiet, self.course = self._arithmetic.look(
+            self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None else size, state.time, state.x,
+            state.y, state.psi, state.vx, state.vy, state.ax, state.ay, state.yaw_rate, evaluated, i, self._tables,
+            acceleration, yaw_rate_bound, radius)
         return rates, horizon
 
     def course_check(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
@@ -262,8 +231,9 @@ class Extremes:
         look, and a course's start, or its coming within RANGE on one, is located); else a new bound (s from now)
         on when that can be: `course_horizon`, or beyond RANGE on a course or behind a vehicle ahead, when it can
         come within RANGE (looks.course_check)."""
-        return self._arithmetic.course_check(self._ego_at(state), traffic.row(i), self._sizes[i], state.time,
-                                             state.x, state.y, state.yaw_rate, acceleration, yaw_rate_bound, radius)
+        return self._arithmetic.course_check(self._a, self._b, traffic.row(i), self._sizes[i], state.time, state.x,
+                                             state.y, state.psi, state.vx, state.vy, state.yaw_rate, acceleration,
+                                             yaw_rate_bound, radius)
 
     # -- post-encroachment time
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoInstance, EgoState
+from . import looks
 from .extremes import Extremes
 from .geometry import reach_time_scalar
 from .measures import band_times, conflict_far_end, passage_known
@@ -32,6 +33,9 @@ class CriticalityFollower:
         self.ego, self.traffic, self.bounds, self.road = ego, traffic, bounds, road
         self.exact = exact  # whether the FMU can roll back (else extremes are taken at communication points)
         self.extremes = Extremes(bounds.length, bounds.width)
+        # the scans over the vehicles on the road (which are due, the earliest bounds): compiled where the kernel
+        # was built, as the record's arithmetic (looks.py)
+        self._scans = looks.arithmetic()
         self.next_look: list[float] = []  # per vehicle (traffic index), the instant it next needs a look
         self.earliest_look = NO_LOOK
         # per vehicle, the instant before which its located instants cannot be (Extremes.quiet), and the
@@ -132,8 +136,14 @@ class CriticalityFollower:
         """The earliest step end for which `wants_snapshot` has anything to do: a PET horizon to compute again, and
         with rollback a look's or a check's bound ending, a lane leave (recomputed when any of them changes)."""
         calm = self.pet_due if self.pet_pending else math.inf
-        if self.exact:
-            calm = min(calm, self.earliest_quiet, min(self.leaves_lane.values(), default=math.inf))
+        if self.exact:  # min(calm, earliest_quiet, the lane leaves) without the calls (what min returns)
+            quiet = self.earliest_quiet
+            if quiet < calm:
+                calm = quiet
+            if self.leaves_lane:
+                leave = min(self.leaves_lane.values())
+                if leave < calm:
+                    calm = leave
         return calm
 
     def criticality_due(self, t: float, limit: float) -> bool:
@@ -166,14 +176,9 @@ class CriticalityFollower:
         extremes, look_rates = self.extremes, self.look_rates
         if only is None:
             vehicles = traffic.active_list()
-            if everyone:
-                due = vehicles
-            elif ahead is None:
-                due = [i for i in vehicles if next_look[i] <= t] if t >= self.earliest_look else []
-            elif t >= self.earliest_look:
-                due = [i for i in vehicles if next_look[i] <= t or (quiet_until[i] <= ahead and look_time[i] < t)]
-            else:  # (earliest_look is a lower bound on every vehicle's next look)
-                due = [i for i in vehicles if quiet_until[i] <= ahead and look_time[i] < t]
+            # (earliest_look is a lower bound on every vehicle's next look: none is due before it)
+            due = vehicles if everyone else \
+                self._scans.due_looks(vehicles, next_look, quiet_until, look_time, t, ahead, t >= self.earliest_look)
         else:
             vehicles = due = sorted(i for i in only if traffic.present[i])
         if not due and traffic.active is self._looks_of:
@@ -189,9 +194,7 @@ class CriticalityFollower:
             quiet_look[i] = quiet_until[i] if quiet_until[i] > next_look[i] else next_look[i]
         # per vehicle its next look, the earliest step end at which a located instant can be found (its next look,
         # not before its quiet bound: max(instant, quiet), kept in quiet_look), its course bound; their minima
-        earliest = min(map(next_look.__getitem__, vehicles), default=math.inf)
-        earliest_quiet = min(map(quiet_look.__getitem__, vehicles), default=math.inf)
-        earliest_course = min(map(course_until.__getitem__, vehicles), default=math.inf)
+        earliest, earliest_quiet, earliest_course = self._scans.earliest(vehicles, next_look, quiet_look, course_until)
         if only is None:
             self._looks_of = self._courses_of = traffic.active  # the minima over every vehicle on the road
         else:
@@ -225,7 +228,7 @@ class CriticalityFollower:
         traffic, bounds, extremes = self.traffic, self.bounds, self.extremes
         next_look, course_until, check_time = self.next_look, self.course_until, self.check_time
         vehicles = traffic.active_list()
-        due = [i for i in vehicles if course_until[i] <= until and check_time[i] < t and next_look[i] > t]
+        due = self._scans.due_checks(vehicles, course_until, check_time, next_look, until, t)
         if not due and traffic.active is self._courses_of:
             return  # no bound moved and no vehicle left: the minimum still holds
         self._courses_of = traffic.active
@@ -240,7 +243,7 @@ class CriticalityFollower:
                 self.quiet_look[i] = quiet if quiet > NO_LOOK else NO_LOOK
                 self._looks_of = None
                 course_until[i] = math.inf
-        earliest_course = self.earliest_course = min(map(course_until.__getitem__, vehicles), default=math.inf)
+        earliest_course = self.earliest_course = self._scans.earliest(vehicles, course_until)
         looks_quiet = self.looks_quiet
         self.earliest_quiet = earliest_course if earliest_course < looks_quiet else looks_quiet
         self._calm = None

@@ -5,10 +5,10 @@ of a look (`evaluate`, then `horizon`), a course check (`course_check`) and a cl
 Two twins do it. `_kernel.c` (built by setup.py where a C compiler is found, `KERNEL`) is the one runs use; the
 functions below are the same operations in the same order in Python, used where the package was installed without
 it, and the reference the kernel is held to bit for bit (tests/cosim/test_kernel.py). Their arguments:
-- at: the ego at the state (Extremes._ego_at: its footprint, cos and sin of its yaw, its velocity on the road's
-  axes, its own parts of the road axes' reaches);
+- a, b: the ego's half length and half width;
 - row: the vehicle's motion (traffic.Traffic.row), size: its (length, width);
-- t, x, y, ax, ay, yaw_rate: the ego's state (EgoState's time, position, body-frame acceleration, yaw rate);
+- t, x, y, psi, vx, vy, ax, ay, yaw_rate: the ego's state (EgoState's time, position, yaw, body-frame velocity and
+  acceleration, yaw rate), from which `ego` gives what the rest reads;
 - acceleration, yaw_rate_bound, radius: the ego's bounds (EgoBounds), as in triggers.py.
 What each value means, and the proofs of the bounds: extremes.py and measures.py."""
 
@@ -33,12 +33,23 @@ FLAT = 1e-9  # m or s: a later instant replaces a recorded extreme only if it is
 RANGE = 50.0
 
 
-def evaluate(at, row, size, t: float, x: float, y: float, ax: float, ay: float, yaw_rate: float):
+def ego(a: float, b: float, psi: float, vx: float, vy: float):
+    """The ego at a state: (its footprint (a, b, cos psi, sin psi), cos psi, sin psi, its velocity on the road's axes,
+    its own parts of the road axes' reaches a |cos psi| + b |sin psi| and a |sin psi| + b |cos psi|: a vehicle's half
+    length and width added to them give geometry.axis_reaches' first two, the same operations in the same order)."""
+    c, s = math.cos(psi), math.sin(psi)
+    ac = c if c >= 0.0 else -c
+    as_ = s if s >= 0.0 else -s
+    return (a, b, c, s), c, s, vx * c - vy * s, vx * s + vy * c, a * ac + b * as_, a * as_ + b * ac
+
+
+def evaluate(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float,
+             ax: float, ay: float, yaw_rate: float):
     """(the values to offer: distance, TTC, DRAC, headway; their rates: the distance's, TTC's, minus DRAC's, the
     headway's; what the horizon needs: distance, its rate with the ego's yaw frozen, dx, dy, vx, vy, length,
     width, the vehicle's speed rate, the time left in its transition, the ego's footprint, the road axes' reaches
     (None beyond RANGE)). Beyond RANGE only the distance and its rates (the others inf or nan: not offered)."""
-    ego, c, s, ego_vx, ego_vy, ego_x, ego_y = at
+    footprint, c, s, ego_vx, ego_vy, ego_x, ego_y = ego(a, b, psi, body_vx, body_vy)
     station, lateral, speed, lateral_rate, _ = motion_law(row, t)
     t0, _, _, speed0, _, speed1, duration = row
     elapsed = t - t0
@@ -47,28 +58,68 @@ def evaluate(at, row, size, t: float, x: float, y: float, ax: float, ay: float, 
     length, width = size
     dx, dy = station - x, -lateral - y
     vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-    d, rate, frozen = distance_and_rates(ego, dx, dy, vx, vy, yaw_rate, length, width)
+    d, rate, frozen = distance_and_rates(footprint, dx, dy, vx, vy, yaw_rate, length, width)
     if d > RANGE:
         motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF,
-                  ego, None, None)
+                  footprint, None, None)
         return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
     # the road axes' reaches once, for `ttc`'s and `headway`'s common decision (a car in another lane: off
     # course by the road's axes, not ahead in the ego's path) and for the look's course_horizon
     reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
-    motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, ego,
+    motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, footprint,
               reach_x, reach_y)
-    value = INF if off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(ego, dx, dy, vx, vy, length, width)
+    value = INF if off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(footprint, dx, dy, vx, vy, length, width)
     ego_ax = ax * c - ay * s
     gap_time = INF if (not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0
-                       or -speed < 0.0) else headway(ego, dx, dy, ego_vx, -speed, length, width)
+                       or -speed < 0.0) else headway(footprint, dx, dy, ego_vx, -speed, length, width)
     headway_change = math.nan if gap_time == INF else \
-        headway_rate_known(ego, gap_time, ego_vx, -speed, ego_ax, yaw_rate)
+        headway_rate_known(footprint, gap_time, ego_vx, -speed, ego_ax, yaw_rate)
     if not 0.0 < value < INF:
         return (d, value, math.nan, gap_time), (rate, math.nan, math.nan, headway_change), motion
     rel_ax, rel_ay = -speed_rate - ego_ax, -(ax * s + ay * c)
-    value_rate = ttc_rate_known(ego, dx, dy, vx, vy, rel_ax, rel_ay, yaw_rate, length, width)
+    value_rate = ttc_rate_known(footprint, dx, dy, vx, vy, rel_ax, rel_ay, yaw_rate, length, width)
     return ((d, value, drac(value, vx, vy), gap_time),
             (rate, value_rate, -drac_rate_known(value, value_rate, vx, vy, rel_ax, rel_ay), headway_change), motion)
+
+
+def look(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float, ax: float,
+         ay: float, yaw_rate: float, evaluated, i: int, tables: tuple, acceleration: float, yaw_rate_bound: float,
+         radius: float):
+    """Extremes.look's work on vehicle i in one call: `evaluate` (unless `evaluated` is its value already), the values
+    offered to the record's lists `tables` ((values, times) of the distance, TTC, DRAC and headway, in that order:
+    `offer`), then (rates, horizon, quiet, course): within RANGE on a collision course or with a headway (0, 0,
+    inf), else `horizon`'s."""
+    values, rates, motion = evaluate(a, b, row, size, t, x, y, psi, body_vx, body_vy, ax, ay, yaw_rate) if evaluated is None \
+        else evaluated
+    d, value, drac_value, gap_time = values
+    distance_values, distance_times, ttc_values, ttc_times, drac_values, drac_times, gap_values, gap_times = tables
+    offer(distance_values, distance_times, i, t, d, False)
+    offer(ttc_values, ttc_times, i, t, value, False)
+    offer(gap_values, gap_times, i, t, gap_time, False)
+    offer(drac_values, drac_times, i, t, drac_value, True)
+    if d <= RANGE and (rates[1] == rates[1] or rates[3] == rates[3]):
+        # on a collision course or behind a vehicle ahead: TTC, DRAC, headway followed at every communication point
+        return rates, 0.0, 0.0, INF
+    return (rates, *horizon(motion, rates[0], distance_values[i], acceleration, yaw_rate_bound, radius))
+
+
+def offer(values: list, times: list, i: int, t: float, value: float, largest: bool) -> None:
+    """Vehicle i's value of one measure at instant t offered to that measure's per-vehicle extremes `values` and their
+    instants `times` (nan: none yet): it replaces the extreme when better by more than FLAT (largest: DRAC's maximum;
+    else a minimum), with its instant; within FLAT only the value improves, the first instant stays. A value that is
+    not finite (not applicable now) is not offered."""
+    if not math.isfinite(value):
+        return
+    recorded = values[i]
+    if largest:
+        better = recorded != recorded or value > recorded + FLAT
+    else:
+        better = recorded != recorded or value < recorded - FLAT
+    if better:
+        values[i] = value
+        times[i] = t
+    elif (value > recorded) if largest else (value < recorded):
+        values[i] = value
 
 
 def horizon(motion, rate: float, recorded: float, acceleration: float, yaw_rate_bound: float,
@@ -111,12 +162,12 @@ def horizon(motion, rate: float, recorded: float, acceleration: float, yaw_rate_
             course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative))
 
 
-def course_check(at, row, size, t: float, x: float, y: float, yaw_rate: float, acceleration: float,
-                 yaw_rate_bound: float, radius: float) -> float:
+def course_check(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float,
+                 yaw_rate: float, acceleration: float, yaw_rate_bound: float, radius: float) -> float:
     """Extremes.course_check's value: nan if the vehicle is within RANGE on a collision course or with a headway,
     else a bound (s from now) on when that can be. The same operations as `evaluate`'s for the quantities it reads
     (the same decisions)."""
-    ego, _, _, ego_vx, ego_vy, ego_x, ego_y = at
+    footprint, _, _, ego_vx, ego_vy, ego_x, ego_y = ego(a, b, psi, body_vx, body_vy)
     station, lateral, speed, lateral_rate, _ = motion_law(row, t)
     t0, _, _, speed0, _, speed1, duration = row
     elapsed = t - t0
@@ -135,9 +186,9 @@ def course_check(at, row, size, t: float, x: float, y: float, yaw_rate: float, a
     if off_course(dx, dy, vx, vy, reach_x, reach_y) and (
             not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0 or -speed < 0.0):
         return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
-    value = ttc(ego, dx, dy, vx, vy, length, width)
-    if 0.0 < value < INF or headway(ego, dx, dy, ego_vx, -speed, length, width) != INF:
-        d, _, frozen = distance_and_rates(ego, dx, dy, vx, vy, yaw_rate, length, width)
+    value = ttc(footprint, dx, dy, vx, vy, length, width)
+    if 0.0 < value < INF or headway(footprint, dx, dy, ego_vx, -speed, length, width) != INF:
+        d, _, frozen = distance_and_rates(footprint, dx, dy, vx, vy, yaw_rate, length, width)
         if d <= RANGE:
             return math.nan
         # beyond RANGE: checked again from when it can come within it
@@ -146,11 +197,12 @@ def course_check(at, row, size, t: float, x: float, y: float, yaw_rate: float, a
     return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
 
 
-def distance_rate(at, row, size, t: float, x: float, y: float, yaw_rate: float) -> float:
+def distance_rate(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float,
+                  yaw_rate: float) -> float:
     """`evaluate`'s distance rate alone (the master's probe for a closest approach)."""
-    ego, _, _, ego_vx, ego_vy, _, _ = at
+    footprint, _, _, ego_vx, ego_vy, _, _ = ego(a, b, psi, body_vx, body_vy)
     station, lateral, speed, lateral_rate, _ = motion_law(row, t)
-    return distance_and_rates(ego, station - x, -lateral - y, -speed - ego_vx, -lateral_rate - ego_vy, yaw_rate,
+    return distance_and_rates(footprint, station - x, -lateral - y, -speed - ego_vx, -lateral_rate - ego_vy, yaw_rate,
                               *size)[1]
 
 
@@ -171,6 +223,31 @@ def off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach
         if t2 < leave:
             leave = t2
     return entry >= leave or leave <= 0.0
+
+
+# ---- the follower's scans over the vehicles on the road (follower.py): which are due, the earliest bounds
+
+def due_looks(vehicles: list, next_look: list, quiet_until: list, look_time: list, t: float, ahead: float | None,
+              now: bool) -> list:
+    """The vehicles whose look has come (`now`: next_look <= t) or, with `ahead` (a step's end), that were last
+    looked at before t and whose quiet bound ends by `ahead`."""
+    if ahead is None:
+        return [i for i in vehicles if next_look[i] <= t] if now else []
+    if now:
+        return [i for i in vehicles if next_look[i] <= t or (quiet_until[i] <= ahead and look_time[i] < t)]
+    return [i for i in vehicles if quiet_until[i] <= ahead and look_time[i] < t]
+
+
+def due_checks(vehicles: list, course_until: list, check_time: list, next_look: list, until: float,
+               t: float) -> list:
+    """The vehicles whose course bound ends by `until`, not checked at t yet and not due a look."""
+    return [i for i in vehicles if course_until[i] <= until and check_time[i] < t and next_look[i] > t]
+
+
+def earliest(vehicles: list, *values: list):
+    """Per list of per-vehicle values, its least over `vehicles` (inf for none): one float, or a tuple of them."""
+    least = tuple(min(map(of.__getitem__, vehicles), default=INF) for of in values)
+    return least[0] if len(values) == 1 else least
 
 
 def arithmetic(compiled: bool = True):

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from sdl_fmu.cosim import geometry, looks, measures, traffic as traffic_module
-from sdl_fmu.cosim.extremes import Extremes
 from sdl_fmu.cosim.geometry import Footprint
 from sdl_fmu.cosim.master import Cosimulation, RunOptions
 from sdl_fmu.paths import SCENARIO_DIRECTORY
@@ -23,6 +22,7 @@ from sdl_fmu.vehicle.instance import EgoState
 
 KERNEL = looks.KERNEL
 DRAWS = 4000  # per function and seed: each a few hundred operations, so a few million compared in all
+LOOKS = 2000  # per seed, looks (each also a course check, a probe, a horizon: the Python twin's slowest)
 
 
 def test_the_kernel_is_built_by_the_install():
@@ -41,9 +41,9 @@ def test_the_kernel_s_constants_are_the_python_s():
 
 def bits(value):
     """A value's bits (any nan the same): what `same` compares, -0.0 and 0.0 told apart."""
-    if isinstance(value, tuple):
+    if isinstance(value, (tuple, list)):
         return tuple(bits(v) for v in value)
-    if value is None or isinstance(value, (bool, Footprint)):
+    if value is None or isinstance(value, bool):
         return value
     return "nan" if value != value else struct.pack("<d", value)
 
@@ -186,73 +186,139 @@ def motions(rng, states):
     return rows
 
 
+def record_lists(rng, capacity):
+    """The record's 8 lists (value, time) of distance, TTC, DRAC and headway, as Extremes keeps them: nan (nothing
+    recorded yet) for a third of the vehicles, values near the ones offered for the rest (the FLAT comparisons)."""
+    tables = []
+    for k in range(8):
+        values = rng.uniform(0, 60, capacity) if k % 2 == 0 else rng.uniform(0, 100, capacity)
+        values[rng.random(capacity) < 0.33] = np.nan
+        tables.append(values.tolist())
+    return tuple(tables)
+
+
 @pytest.mark.parametrize("seed", [7, 8, 9])
 def test_a_look_a_course_check_and_a_probe_are_the_python_s_to_the_bit(seed):
-    # looks.evaluate, horizon, course_check and distance_rate, the record's four calls, from the same arguments as
-    # Extremes passes them: the ego at the state from Extremes._ego_at, a row, the vehicle's size
+    # looks.evaluate, horizon, look (with its offers), course_check and distance_rate, the record's calls, from the
+    # same arguments as Extremes passes them: the ego's half sizes, a row, the vehicle's size, the ego's state
     rng = np.random.default_rng(seed)
-    states = ego_states(rng, DRAWS)
+    states = ego_states(rng, LOOKS)
     rows = motions(rng, states)
-    sizes = list(zip(draw(rng, DRAWS, 1.0, 12.0, 0.0), draw(rng, DRAWS, 0.5, 3.0, 0.0)))
-    bounds = list(zip(draw(rng, DRAWS, 0.5, 25, 0.0), draw(rng, DRAWS, 0, 2, 0.0), draw(rng, DRAWS, 1, 4, 0.0)))
-    records = draw(rng, DRAWS, 0, 100)
-    evaluated = on_course = 0
-    for state, row, size, (acceleration, yaw_rate_bound, radius), recorded in zip(states, rows, sizes, bounds,
-                                                                                   records):
-        at = Extremes(4.5, 1.8)._ego_at(state)
-        args = (at, row, size, state.time, state.x, state.y, state.ax, state.ay, state.yaw_rate)
+    sizes = list(zip(draw(rng, LOOKS, 1.0, 12.0, 0.0), draw(rng, LOOKS, 0.5, 3.0, 0.0)))
+    bounds = list(zip(draw(rng, LOOKS, 0.5, 25, 0.0), draw(rng, LOOKS, 0, 2, 0.0), draw(rng, LOOKS, 1, 4, 0.0)))
+    records = draw(rng, LOOKS, 0, 100)
+    python_tables = record_lists(rng, 40)
+    kernel_tables = tuple(list(table) for table in python_tables)
+    evaluated = on_course = offered = 0
+    for n, (state, row, size, (acceleration, yaw_rate_bound, radius), recorded) in enumerate(
+            zip(states, rows, sizes, bounds, records)):
+        ego = (2.25, 0.9)
+        motion_args = (state.time, state.x, state.y, state.psi, state.vx, state.vy)
+        args = (*ego, row, size, *motion_args, state.ax, state.ay, state.yaw_rate)
         expected = python(looks.evaluate, *args)
         if expected is None:
             continue
         evaluated += 1
         got = KERNEL.evaluate(*args)
         assert bits(got) == bits(expected), args
-        assert got[2][10] is at[0]  # the ego's footprint itself, as the Python passes it on
         on_course += got[1][1] == got[1][1]
         motion, rate = expected[2], expected[1][0]
         horizon = (motion, rate, min(recorded, motion[0]), acceleration, yaw_rate_bound, radius)
         want = python(looks.horizon, *horizon)
         if want is not None:
             assert bits(KERNEL.horizon(*horizon)) == bits(want), horizon
-        check = (at, row, size, state.time, state.x, state.y, state.yaw_rate, acceleration, yaw_rate_bound, radius)
+        # a look: evaluated here or given, its offers to the record's lists (the same lists after it), its bounds
+        i = n % 40
+        for given in (None, expected):
+            look = (*args, given, i, python_tables, acceleration, yaw_rate_bound, radius)
+            before = bits(python_tables)
+            want = python(looks.look, *look)
+            if want is None:
+                continue
+            offered += bits(python_tables) != before
+            assert bits(KERNEL.look(*args, given, i, kernel_tables, acceleration, yaw_rate_bound, radius)) == \
+                bits(want), look
+            assert bits(kernel_tables) == bits(python_tables)
+        check = (*ego, row, size, *motion_args, state.yaw_rate, acceleration, yaw_rate_bound, radius)
         want = python(looks.course_check, *check)
         if want is not None:
             assert bits(KERNEL.course_check(*check)) == bits(want), check
-        probe = (at, row, size, state.time, state.x, state.y, state.yaw_rate)
+        probe = (*ego, row, size, *motion_args, state.yaw_rate)
         assert bits(KERNEL.distance_rate(*probe)) == bits(looks.distance_rate(*probe)), probe
-    # the draws reach every branch: nearly all evaluated, at least a hundred on a collision course (TTC's rate
-    # defined: DRAC and the rates' full path)
-    assert evaluated > 0.99 * DRAWS and on_course >= 100
+    # the draws reach every branch: nearly all evaluated, at least fifty on a collision course (TTC's rate
+    # defined: DRAC and the rates' full path), and the offers changed the record hundreds of times
+    assert evaluated > 0.99 * LOOKS and on_course >= 50 and offered >= 100
+
+
+def test_an_offer_is_the_python_s():
+    # every case of the comparison: nothing recorded (nan), better by more than FLAT (value and instant replaced),
+    # within FLAT (the value improves, the instant stays), worse, not finite (not offered); the minimum and DRAC's
+    # maximum
+    for largest in (False, True):
+        for recorded in (math.nan, 10.0):
+            for value in (10.0 - 2e-9, 10.0 - 5e-10, 10.0, 10.0 + 5e-10, 10.0 + 2e-9, math.inf, -math.inf, math.nan):
+                lists = ([1.0, recorded], [0.5, 3.0])
+                twin = ([1.0, recorded], [0.5, 3.0])
+                KERNEL.offer(*lists, 1, 7.0, value, largest)
+                looks.offer(*twin, 1, 7.0, value, largest)
+                assert bits((tuple(lists[0]), tuple(lists[1]))) == bits((tuple(twin[0]), tuple(twin[1])))
+
+
+@pytest.mark.parametrize("seed", [11, 12])
+def test_the_follower_s_scans_are_the_python_s(seed):
+    # which vehicles are due a look or a check, and the earliest bounds, over the vehicles on the road: the same
+    # lists and minima (the per-vehicle instants drawn on a coarse grid, so that ties and equalities occur)
+    rng = np.random.default_rng(seed)
+    for _ in range(2000):
+        size = int(rng.integers(1, 30))
+        vehicles = sorted(rng.choice(size, int(rng.integers(0, size + 1)), replace=False).tolist())
+        tables = [(rng.integers(-2, 8, size) * 0.5).tolist() for _ in range(4)]
+        for table in tables:
+            table[int(rng.integers(size))] = -math.inf  # NO_LOOK
+        t, ahead = float(rng.integers(0, 6) * 0.5), [None, float(rng.integers(0, 8) * 0.5)][int(rng.integers(2))]
+        now = bool(rng.integers(2))
+        assert KERNEL.due_looks(vehicles, *tables[:3], t, ahead, now) == \
+            looks.due_looks(vehicles, *tables[:3], t, ahead, now)
+        assert KERNEL.due_checks(vehicles, *tables[:3], ahead or t, t) == \
+            looks.due_checks(vehicles, *tables[:3], ahead or t, t)
+        assert bits(KERNEL.earliest(vehicles, tables[0])) == bits(looks.earliest(vehicles, tables[0]))
+        assert bits(KERNEL.earliest(vehicles, *tables[:3])) == bits(looks.earliest(vehicles, *tables[:3]))
 
 
 def test_the_kernel_refuses_wrong_arguments_with_a_type_error():
     # misuse (a bug in the caller) is a Python exception, never a crash
-    state = EgoState(1.0, 0.0, 0.0, 0.0, 0.0, 20.0, 20.0, 0.0, 0.0, 0.0, 0.0, False)
-    at = Extremes(4.5, 1.8)._ego_at(state)
     row = (0.0, 50.0, 0.0, 20.0, 0.0, 20.0, 0.0)
+    state = (1.0, 0.0, 0.0, 0.0, 20.0, 0.0)
     with pytest.raises(TypeError):
-        KERNEL.evaluate(at, row, (4.0, 1.8), 1.0, 0.0, 0.0, 0.0, 0.0)  # one argument short
+        KERNEL.evaluate(2.25, 0.9, row, (4.0, 1.8), *state, 0.0, 0.0)  # one argument short
     with pytest.raises(TypeError):
-        KERNEL.evaluate(at, row[:6], (4.0, 1.8), 1.0, 0.0, 0.0, 0.0, 0.0, 0.0)  # a row of 6
+        KERNEL.evaluate(2.25, 0.9, row[:6], (4.0, 1.8), *state, 0.0, 0.0, 0.0)  # a row of 6
     with pytest.raises(TypeError):
-        KERNEL.course_check(at[:6], row, (4.0, 1.8), 1.0, 0.0, 0.0, 0.0, 9.0, 0.5, 2.5)
+        KERNEL.course_check(2.25, 0.9, row, (4.0,), *state, 0.0, 9.0, 0.5, 2.5)  # a size of 1
+    with pytest.raises(TypeError):
+        KERNEL.look(2.25, 0.9, row, (4.0, 1.8), *state, 0.0, 0.0, 0.0, None, 0, ([1.0],) * 7, 9.0, 0.5, 2.5)
+    with pytest.raises(IndexError):  # a vehicle beyond the record's lists
+        KERNEL.look(2.25, 0.9, row, (4.0, 1.8), *state, 0.0, 0.0, 0.0, None, 5, ([1.0],) * 8, 9.0, 0.5, 2.5)
     with pytest.raises(TypeError):
         KERNEL.ttc((2.25, 0.9, 1.0), 10.0, 0.0, -20.0, 0.0, 4.0, 1.8)  # a footprint of 3
     with pytest.raises(TypeError):
         KERNEL.reach_time_scalar("1", 2.0, 3.0)
+    with pytest.raises(IndexError):
+        KERNEL.earliest([3], [1.0, 2.0])
 
 
-def test_the_motion_law_is_traffic_s():
-    # the kernel computes a vehicle's motion from its row as traffic.motion_law does; motion_of is motion_law
+def test_the_ego_and_the_motion_law_are_the_python_s():
+    # the kernel computes the ego at a state as looks.ego does (cos and sin the C library's, as Python's math calls
+    # them) and a vehicle's motion from its row as traffic.motion_law does (Traffic.motion_of is motion_law)
     rng = np.random.default_rng(10)
     states = ego_states(rng, 2000)
     for state, row in zip(states, motions(rng, states)):
         station, lateral, speed, lateral_rate, _ = traffic_module.motion_law(row, state.time)
-        at = (Footprint(2.25, 0.9, 1.0, 0.0), 1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        # a zero-sized ego at the origin: evaluate's dx, dy, vx, vy are the vehicle's station, -lateral, -speed,
-        # -lateral rate
-        motion = KERNEL.evaluate(at, row, (4.0, 1.8), state.time, 0.0, 0.0, 0.0, 0.0, 0.0)[2]
-        assert bits(motion[2:6]) == bits((station - 0.0, -lateral - 0.0, -speed - 0.0, -lateral_rate - 0.0))
+        footprint, c, s, ego_vx, ego_vy, _, _ = looks.ego(2.25, 0.9, state.psi, state.vx, state.vy)
+        motion = KERNEL.evaluate(2.25, 0.9, row, (4.0, 1.8), state.time, 0.0, 0.0, state.psi, state.vx, state.vy,
+                                 0.0, 0.0, 0.0)[2]
+        assert bits(motion[10]) == bits(footprint) == bits((2.25, 0.9, math.cos(state.psi), math.sin(state.psi)))
+        assert bits(motion[2:6]) == bits((station - 0.0, -lateral - 0.0, -speed - ego_vx, -lateral_rate - ego_vy))
 
 
 # ---- whole runs: the same records with the kernel and with the twin

@@ -528,7 +528,8 @@ static int evaluated(const Ego *at, const double row[7], const double size[2], c
         return 0;
     }
     double rx = at->ego_x + r.length / 2, ry = at->ego_y + r.width / 2;
-    double value = off_course(r.dx, r.dy, r.vx, r.vy, rx, ry) ? INF_ : ttc(ego, r.dx, r.dy, r.vx, r.vy, r.length, r.width);
+    double value = off_course(r.dx, r.dy, r.vx, r.vy, rx, ry) ? INF_
+                                                              : ttc(ego, r.dx, r.dy, r.vx, r.vy, r.length, r.width);
     double ego_ax = state_ax * at->c - state_ay * at->s;
     double gap_time = (!(r.dx > 0.0) || (r.dy >= 0.0 ? r.dy : -r.dy) >= ry || at->ego_vx <= 0.0 || -r.speed < 0.0)
                           ? INF_ : headway(ego, r.dx, r.dy, at->ego_vx, -r.speed, r.length, r.width);
@@ -731,7 +732,8 @@ static PyObject *k_look(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
             PyErr_SetString(PyExc_TypeError, "look: evaluated is evaluate's value or None");
             return NULL;
         }
-        if (numbers(PyTuple_GET_ITEM(given, 0), 0, 4, values) < 0 || numbers(PyTuple_GET_ITEM(given, 1), 0, 4, rates) < 0
+        if (numbers(PyTuple_GET_ITEM(given, 0), 0, 4, values) < 0
+            || numbers(PyTuple_GET_ITEM(given, 1), 0, 4, rates) < 0
             || motion_of_tuple(PyTuple_GET_ITEM(given, 2), motion, reach) < 0)
             return NULL;
         rates_object = Py_NewRef(PyTuple_GET_ITEM(given, 1));

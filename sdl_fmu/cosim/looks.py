@@ -1,14 +1,15 @@
 """One traffic vehicle relative to the ego at one state, for the criticality record (extremes.py): the arithmetic
-of a look (`evaluate`, then `horizon`), a course check (`course_check`) and a closest approach's probe
-(`distance_rate`), on plain floats and tuples, nothing recorded.
+of a look (`look`: `evaluate`, the values offered to the record's lists by `offer`, then `horizon`), a course check
+(`course_check`) and a closest approach's probe (`distance_rate`), on plain floats, tuples and the record's lists;
+and the follower's scans over the vehicles on the road (follower.py: `due_looks`, `due_checks`, `earliest`).
 
 Two twins do it. `_kernel.c` (built by setup.py where a C compiler is found, `KERNEL`) is the one runs use; the
 functions below are the same operations in the same order in Python, used where the package was installed without
 it, and the reference the kernel is held to bit for bit (tests/cosim/test_kernel.py). Their arguments:
 - a, b: the ego's half length and half width;
 - row: the vehicle's motion (traffic.Traffic.row), size: its (length, width);
-- t, x, y, psi, vx, vy, ax, ay, yaw_rate: the ego's state (EgoState's time, position, yaw, body-frame velocity and
-  acceleration, yaw rate), from which `ego` gives what the rest reads;
+- t, x, y, psi, body_vx, body_vy, ax, ay, yaw_rate: the ego's state (EgoState's time, position, yaw, body-frame
+  velocity and acceleration, yaw rate), from which `ego` gives what the rest reads;
 - acceleration, yaw_rate_bound, radius: the ego's bounds (EgoBounds), as in triggers.py.
 What each value means, and the proofs of the bounds: extremes.py and measures.py."""
 
@@ -82,15 +83,15 @@ def evaluate(a: float, b: float, row, size, t: float, x: float, y: float, psi: f
             (rate, value_rate, -drac_rate_known(value, value_rate, vx, vy, rel_ax, rel_ay), headway_change), motion)
 
 
-def look(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float, ax: float,
-         ay: float, yaw_rate: float, evaluated, i: int, tables: tuple, acceleration: float, yaw_rate_bound: float,
-         radius: float):
+def look(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float,
+         body_vy: float, ax: float, ay: float, yaw_rate: float, evaluated, i: int, tables: tuple, acceleration: float,
+         yaw_rate_bound: float, radius: float):
     """Extremes.look's work on vehicle i in one call: `evaluate` (unless `evaluated` is its value already), the values
     offered to the record's lists `tables` ((values, times) of the distance, TTC, DRAC and headway, in that order:
     `offer`), then (rates, horizon, quiet, course): within RANGE on a collision course or with a headway (0, 0,
     inf), else `horizon`'s."""
-    values, rates, motion = evaluate(a, b, row, size, t, x, y, psi, body_vx, body_vy, ax, ay, yaw_rate) if evaluated is None \
-        else evaluated
+    values, rates, motion = evaluated if evaluated is not None else \
+        evaluate(a, b, row, size, t, x, y, psi, body_vx, body_vy, ax, ay, yaw_rate)
     d, value, drac_value, gap_time = values
     distance_values, distance_times, ttc_values, ttc_times, drac_values, drac_times, gap_values, gap_times = tables
     offer(distance_values, distance_times, i, t, d, False)
@@ -162,8 +163,8 @@ def horizon(motion, rate: float, recorded: float, acceleration: float, yaw_rate_
             course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative))
 
 
-def course_check(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float,
-                 yaw_rate: float, acceleration: float, yaw_rate_bound: float, radius: float) -> float:
+def course_check(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float,
+                 body_vy: float, yaw_rate: float, acceleration: float, yaw_rate_bound: float, radius: float) -> float:
     """Extremes.course_check's value: nan if the vehicle is within RANGE on a collision course or with a headway,
     else a bound (s from now) on when that can be. The same operations as `evaluate`'s for the quantities it reads
     (the same decisions)."""
@@ -197,8 +198,8 @@ def course_check(a: float, b: float, row, size, t: float, x: float, y: float, ps
     return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
 
 
-def distance_rate(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float,
-                  yaw_rate: float) -> float:
+def distance_rate(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float,
+                  body_vy: float, yaw_rate: float) -> float:
     """`evaluate`'s distance rate alone (the master's probe for a closest approach)."""
     footprint, _, _, ego_vx, ego_vy, _, _ = ego(a, b, psi, body_vx, body_vy)
     station, lateral, speed, lateral_rate, _ = motion_law(row, t)

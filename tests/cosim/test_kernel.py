@@ -147,7 +147,8 @@ def test_the_horizons_are_the_python_s_to_the_bit(seed):
     assert compare("reach_time_scalar", list(zip(draw(rng, n, -5, 60), draw(rng, n, -40, 40),
                                                  draw(rng, n, 0.5, 25, 0.0)))) == n
     # approach: distances, frozen rates mostly closing, relative speeds, R r_max, A, r_max
-    approach = list(zip(draw(rng, n, 0, 60, 0.0), draw(rng, n, -40, 5), draw(rng, n, 0, 45, 0.0), draw(rng, n, 0, 8, 0.0),
+    approach = list(zip(draw(rng, n, 0, 60, 0.0), draw(rng, n, -40, 5), draw(rng, n, 0, 45, 0.0),
+                        draw(rng, n, 0, 8, 0.0),
                         draw(rng, n, 0.5, 25, 0.0), draw(rng, n, 0, 2, 0.0)))
     assert compare("approach_horizon", approach) > 0.99 * n
     # heading: far vehicles (the offsets of up to 200 m) closing or not
@@ -156,7 +157,8 @@ def test_the_horizons_are_the_python_s_to_the_bit(seed):
     assert compare("heading_horizon", heading) > 0.9 * n
     # course: a car beside the ego's path (dy beyond the reach), the reaches of two cars' half sizes
     course = list(zip(draw(rng, n, -60, 60), draw(rng, n, -8, 8), draw(rng, n, -45, 45), draw(rng, n, -3, 3),
-                      draw(rng, n, 2, 8, 0.0), draw(rng, n, 0.8, 3, 0.0), draw(rng, n, 0, 3, 0.0), draw(rng, n, 0, 8, 0.0),
+                      draw(rng, n, 2, 8, 0.0), draw(rng, n, 0.8, 3, 0.0), draw(rng, n, 0, 3, 0.0),
+                      draw(rng, n, 0, 8, 0.0),
                       draw(rng, n, 0.5, 25, 0.0)))
     assert compare("course_horizon", course) > 0.99 * n
     assert compare("off_course", [(dx, dy, vx, vy, hx, hy) for dx, dy, vx, vy, hx, hy, *_ in course]) == n

@@ -66,10 +66,11 @@ class Extremes:
     was reached, whatever the samples after it: with the start located, the instant does not depend on the
     step. Values are SI (m, s, m/s2), in `summary` too (the results convert them)."""
 
-    def __init__(self, ego_length: float, ego_width: float, capacity: int = 16, compiled: bool = True):
+    def __init__(self, ego_length: float, ego_width: float, capacity: int = 16):
         self.ego_length, self.ego_width = ego_length, ego_width
-        # the per-vehicle arithmetic: the compiled kernel where it was built, else its Python twin (looks.py)
-        self._arithmetic = looks.arithmetic(compiled)
+        # the per-vehicle arithmetic: the compiled kernel where it was built, else its Python twin (looks.py); the
+        # follower's scans take the same
+        self.arithmetic = looks.arithmetic()
         self.size = 0
         # per measure, per vehicle: the extreme and its instant (nan: none yet); plain lists, read and written per
         # look
@@ -113,7 +114,7 @@ class Extremes:
             return
         if i >= self.size:
             self._grow(i + 1)
-        self._arithmetic.offer(self.value[name], self.time[name], i, t, value, name == "max_drac")
+        self.arithmetic.offer(self.value[name], self.time[name], i, t, value, name == "max_drac")
 
     def offers(self, name: str, idx: np.ndarray, t: float, values: np.ndarray) -> None:
         """`offer` for vehicles idx at once."""
@@ -179,7 +180,7 @@ class Extremes:
         rates, what the horizon needs), for `look` (its `evaluated`), so that the master reads the rates at a
         step's end (`rates`) and looks there with one evaluation."""
         size = self._sizes.get(i)
-        return self._arithmetic.evaluate(self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None
+        return self.arithmetic.evaluate(self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None
                                          else size, state.time, state.x, state.y, state.psi, state.vx, state.vy,
                                          state.ax, state.ay, state.yaw_rate)
 
@@ -195,7 +196,7 @@ class Extremes:
     def distance_rate(self, traffic, i: int, state) -> float:
         """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
         size = self._sizes.get(i)
-        return self._arithmetic.distance_rate(self._a, self._b, traffic.row(i), self._size(traffic, i)
+        return self.arithmetic.distance_rate(self._a, self._b, traffic.row(i), self._size(traffic, i)
                                               if size is None else size, state.time, state.x, state.y, state.psi,
                                               state.vx, state.vy, state.yaw_rate)
 
@@ -217,7 +218,7 @@ class Extremes:
         if i >= self.size:
             self._grow(i + 1)
         size = self._sizes.get(i)
-        rates, horizon, self.quiet, self.course = self._arithmetic.look(
+        rates, horizon, self.quiet, self.course = self.arithmetic.look(
             self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None else size, state.time, state.x,
             state.y, state.psi, state.vx, state.vy, state.ax, state.ay, state.yaw_rate, evaluated, i, self._tables,
             acceleration, yaw_rate_bound, radius)
@@ -231,7 +232,7 @@ class Extremes:
         look, and a course's start, or its coming within RANGE on one, is located); else a new bound (s from now)
         on when that can be: `course_horizon`, or beyond RANGE on a course or behind a vehicle ahead, when it can
         come within RANGE (looks.course_check)."""
-        return self._arithmetic.course_check(self._a, self._b, traffic.row(i), self._sizes[i], state.time, state.x,
+        return self.arithmetic.course_check(self._a, self._b, traffic.row(i), self._sizes[i], state.time, state.x,
                                              state.y, state.psi, state.vx, state.vy, state.yaw_rate, acceleration,
                                              yaw_rate_bound, radius)
 

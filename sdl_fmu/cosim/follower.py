@@ -12,7 +12,6 @@ import numpy as np
 
 from ..sdl.events import Road
 from ..vehicle import EgoInstance, EgoState
-from . import looks
 from .extremes import Extremes
 from .geometry import reach_time_scalar
 from .measures import band_times, conflict_far_end, passage_known
@@ -33,9 +32,8 @@ class CriticalityFollower:
         self.ego, self.traffic, self.bounds, self.road = ego, traffic, bounds, road
         self.exact = exact  # whether the FMU can roll back (else extremes are taken at communication points)
         self.extremes = Extremes(bounds.length, bounds.width)
-        # the scans over the vehicles on the road (which are due, the earliest bounds): compiled where the kernel
-        # was built, as the record's arithmetic (looks.py)
-        self._scans = looks.arithmetic()
+        # the scans over the vehicles on the road (which are due, the earliest bounds): the record's twin (looks.py)
+        self._scans = self.extremes.arithmetic
         self.next_look: list[float] = []  # per vehicle (traffic index), the instant it next needs a look
         self.earliest_look = NO_LOOK
         # per vehicle, the instant before which its located instants cannot be (Extremes.quiet), and the

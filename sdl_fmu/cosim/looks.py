@@ -251,6 +251,6 @@ def earliest(vehicles: list, *values: list):
     return least[0] if len(values) == 1 else least
 
 
-def arithmetic(compiled: bool = True):
-    """The twin a record uses: the kernel where it was built (and `compiled`), else this module."""
-    return KERNEL if compiled and KERNEL is not None else sys.modules[__name__]
+def arithmetic():
+    """The twin a record uses: the kernel where it was built, else this module."""
+    return KERNEL if KERNEL is not None else sys.modules[__name__]

@@ -44,31 +44,37 @@ def ego(a: float, b: float, psi: float, vx: float, vy: float):
     return (a, b, c, s), c, s, vx * c - vy * s, vx * s + vy * c, a * ac + b * as_, a * as_ + b * ac
 
 
+def relative(a: float, b: float, row, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float):
+    """Vehicle `row` relative to the ego at a state: (`ego`'s footprint, cos psi, sin psi, the ego's velocity along
+    the road, its parts of the road axes' reaches; the vehicle's centre minus the ego's dx, dy and velocity minus the
+    ego's vx, vy on the road's axes, its speed, its speed's rate, the time left in its transition (inf: none)), the
+    motion law read once (traffic.motion_law; _kernel.c's `relative`)."""
+    footprint, c, s, ego_vx, ego_vy, ego_x, ego_y = ego(a, b, psi, body_vx, body_vy)
+    station, lateral, speed, lateral_rate, _ = motion_law(row, t)
+    t0, _, _, speed0, _, speed1, duration = row
+    elapsed = t - t0
+    moving = elapsed < duration
+    return (footprint, c, s, ego_vx, ego_x, ego_y, station - x, -lateral - y, -speed - ego_vx, -lateral_rate - ego_vy,
+            speed, (speed1 - speed0) / duration if moving else 0.0, duration - elapsed if moving else INF)
+
+
 def evaluate(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float, body_vy: float,
              ax: float, ay: float, yaw_rate: float):
     """(the values to offer: distance, TTC, DRAC, headway; their rates: the distance's, TTC's, minus DRAC's, the
     headway's; what the horizon needs: distance, its rate with the ego's yaw frozen, dx, dy, vx, vy, length,
     width, the vehicle's speed rate, the time left in its transition, the ego's footprint, the road axes' reaches
     (None beyond RANGE)). Beyond RANGE only the distance and its rates (the others inf or nan: not offered)."""
-    footprint, c, s, ego_vx, ego_vy, ego_x, ego_y = ego(a, b, psi, body_vx, body_vy)
-    station, lateral, speed, lateral_rate, _ = motion_law(row, t)
-    t0, _, _, speed0, _, speed1, duration = row
-    elapsed = t - t0
-    moving = elapsed < duration
-    speed_rate = (speed1 - speed0) / duration if moving else 0.0
+    footprint, c, s, ego_vx, ego_x, ego_y, dx, dy, vx, vy, speed, speed_rate, transition_left = \
+        relative(a, b, row, t, x, y, psi, body_vx, body_vy)
     length, width = size
-    dx, dy = station - x, -lateral - y
-    vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
     d, rate, frozen = distance_and_rates(footprint, dx, dy, vx, vy, yaw_rate, length, width)
     if d > RANGE:
-        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF,
-                  footprint, None, None)
+        motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left, footprint, None, None)
         return (d, INF, math.nan, INF), (rate, math.nan, math.nan, math.nan), motion
     # the road axes' reaches once, for `ttc`'s and `headway`'s common decision (a car in another lane: off
     # course by the road's axes, not ahead in the ego's path) and for the look's course_horizon
     reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
-    motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, duration - elapsed if moving else INF, footprint,
-              reach_x, reach_y)
+    motion = (d, frozen, dx, dy, vx, vy, length, width, speed_rate, transition_left, footprint, reach_x, reach_y)
     value = INF if off_course(dx, dy, vx, vy, reach_x, reach_y) else ttc(footprint, dx, dy, vx, vy, length, width)
     ego_ax = ax * c - ay * s
     gap_time = INF if (not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0
@@ -133,14 +139,15 @@ def horizon(motion, rate: float, recorded: float, acceleration: float, yaw_rate_
     # min(x, y) written as `y if y < x else x` and max(x, y) as `y if y > x else x` (what the builtins return, nan
     # included), without their calls
     turn = radius * yaw_rate_bound
-    relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
-    new_minimum = reach_time_scalar(d - (recorded - FLAT), turn - frozen, relative)
+    relative_acceleration = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
+    new_minimum = reach_time_scalar(d - (recorded - FLAT), turn - frozen, relative_acceleration)
     # a closest approach (the distance's rate turning from < 0 to >= 0) needs the rate < 0 now
     approach_end = INF if rate >= 0.0 else 0.0
     if frozen < -turn:
         vehicle_radius = 0.5 * math.sqrt(length * length + width * width)
-        approach_end = approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative, yaw_rate_bound)
-        heading = heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative)
+        approach_end = approach_horizon(d, frozen, math.sqrt(vx * vx + vy * vy), turn, relative_acceleration,
+                                        yaw_rate_bound)
+        heading = heading_horizon(dx, dy, vx, vy, radius + vehicle_radius, turn, relative_acceleration)
         if heading > approach_end:
             approach_end = heading
         if approach_end > new_minimum:
@@ -148,7 +155,7 @@ def horizon(motion, rate: float, recorded: float, acceleration: float, yaw_rate_
     if not near:
         # a collision course or a headway counts only within RANGE: checked (course_check) from when the
         # vehicle can come within it
-        entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
+        entering = reach_time_scalar(d - RANGE, turn - frozen, relative_acceleration)
         return (transition_left if transition_left < new_minimum else new_minimum,
                 transition_left if transition_left < approach_end else approach_end,
                 transition_left if transition_left < entering else entering)
@@ -160,7 +167,7 @@ def horizon(motion, rate: float, recorded: float, acceleration: float, yaw_rate_
         return 0.0, 0.0, INF
     return (transition_left if transition_left < new_minimum else new_minimum,
             transition_left if transition_left < approach_end else approach_end,
-            course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative))
+            course_horizon(dx, dy, vx, vy, reach_x, reach_y, longest, turn, relative_acceleration))
 
 
 def course_check(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float,
@@ -168,17 +175,10 @@ def course_check(a: float, b: float, row, size, t: float, x: float, y: float, ps
     """Extremes.course_check's value: nan if the vehicle is within RANGE on a collision course or with a headway,
     else a bound (s from now) on when that can be. The same operations as `evaluate`'s for the quantities it reads
     (the same decisions)."""
-    footprint, _, _, ego_vx, ego_vy, ego_x, ego_y = ego(a, b, psi, body_vx, body_vy)
-    station, lateral, speed, lateral_rate, _ = motion_law(row, t)
-    t0, _, _, speed0, _, speed1, duration = row
-    elapsed = t - t0
-    moving = elapsed < duration
-    speed_rate = (speed1 - speed0) / duration if moving else 0.0
+    footprint, _, _, ego_vx, ego_x, ego_y, dx, dy, vx, vy, speed, speed_rate, transition_left = \
+        relative(a, b, row, t, x, y, psi, body_vx, body_vy)
     length, width = size
-    dx, dy = station - x, -lateral - y
-    vx, vy = -speed - ego_vx, -lateral_rate - ego_vy
-    transition_left = duration - elapsed if moving else INF
-    relative = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
+    relative_acceleration = acceleration + (speed_rate if speed_rate >= 0.0 else -speed_rate)
     turn = radius * yaw_rate_bound
     # the common case (a car in another lane), decided as `ttc` and `headway` decide it, with the road axes'
     # reaches computed once for both and for course_horizon: off any collision course by the road's two axes
@@ -186,25 +186,23 @@ def course_check(a: float, b: float, row, size, t: float, x: float, y: float, ps
     reach_x, reach_y = ego_x + length / 2, ego_y + width / 2  # axis_reaches' first two
     if off_course(dx, dy, vx, vy, reach_x, reach_y) and (
             not dx > 0.0 or (dy if dy >= 0.0 else -dy) >= reach_y or ego_vx <= 0.0 or -speed < 0.0):
-        return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
+        return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative_acceleration)
     value = ttc(footprint, dx, dy, vx, vy, length, width)
     if 0.0 < value < INF or headway(footprint, dx, dy, ego_vx, -speed, length, width) != INF:
         d, _, frozen = distance_and_rates(footprint, dx, dy, vx, vy, yaw_rate, length, width)
         if d <= RANGE:
             return math.nan
         # beyond RANGE: checked again from when it can come within it
-        entering = reach_time_scalar(d - RANGE, turn - frozen, relative)
+        entering = reach_time_scalar(d - RANGE, turn - frozen, relative_acceleration)
         return transition_left if transition_left < entering else entering
-    return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative)
+    return course_horizon(dx, dy, vx, vy, reach_x, reach_y, transition_left, turn, relative_acceleration)
 
 
 def distance_rate(a: float, b: float, row, size, t: float, x: float, y: float, psi: float, body_vx: float,
                   body_vy: float, yaw_rate: float) -> float:
     """`evaluate`'s distance rate alone (the master's probe for a closest approach)."""
-    footprint, _, _, ego_vx, ego_vy, _, _ = ego(a, b, psi, body_vx, body_vy)
-    station, lateral, speed, lateral_rate, _ = motion_law(row, t)
-    return distance_and_rates(footprint, station - x, -lateral - y, -speed - ego_vx, -lateral_rate - ego_vy, yaw_rate,
-                              *size)[1]
+    footprint, _, _, _, _, _, dx, dy, vx, vy, _, _, _ = relative(a, b, row, t, x, y, psi, body_vx, body_vy)
+    return distance_and_rates(footprint, dx, dy, vx, vy, yaw_rate, *size)[1]
 
 
 def off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach_y: float) -> bool:

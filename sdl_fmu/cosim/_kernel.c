@@ -161,6 +161,35 @@ static void axis_reaches(Footprint e, double length, double width, double h[4])
     h[3] = e.b + hl * as_ + hw * ac;
 }
 
+/* measures.overlap_window: (entry, leave) narrowed by n axes' intervals |p + q t| < h; 0 if one never overlaps */
+static int overlap_window(const double *p, const double *q, const double *h, int n, double *entry, double *leave)
+{
+    for (int k = 0; k < n; k++) {
+        if (q[k] == 0.0) {
+            if (fabs(p[k]) >= h[k])
+                return 0;
+            continue;
+        }
+        double t1 = (-h[k] - p[k]) / q[k], t2 = (h[k] - p[k]) / q[k];
+        if (t2 < t1) {
+            double t = t1;
+            t1 = t2;
+            t2 = t;
+        }
+        if (t1 > *entry)
+            *entry = t1;
+        if (t2 < *leave)
+            *leave = t2;
+    }
+    return 1;
+}
+
+/* measures.window_closed */
+static int window_closed(int open, double entry, double leave)
+{
+    return !open || entry >= leave || leave <= 0.0;
+}
+
 static double ttc(Footprint e, double dx, double dy, double vx, double vy, double length, double width)
 {
     double c = e.c, s = e.s, h[4];
@@ -168,25 +197,13 @@ static double ttc(Footprint e, double dx, double dy, double vx, double vy, doubl
     double p[4] = {dx, dy, dx * c + dy * s, -dx * s + dy * c};
     double q[4] = {vx, vy, vx * c + vy * s, -vx * s + vy * c};
     double entry = -INF_, leave = INF_;
-    for (int k = 0; k < 4; k++) {
-        if (q[k] == 0.0) {
-            if (fabs(p[k]) >= h[k])
-                return INF_;
-        } else {
-            double t1 = (-h[k] - p[k]) / q[k], t2 = (h[k] - p[k]) / q[k];
-            if (t2 < t1) {
-                double t = t1;
-                t1 = t2;
-                t2 = t;
-            }
-            if (t1 > entry)
-                entry = t1;
-            if (t2 < leave)
-                leave = t2;
-        }
-        if (k % 2 == 1 && (entry >= leave || leave <= 0.0)) /* after the road's axes, then after the ego's */
-            return INF_;
-    }
+    /* the road's axes, then the ego's (each window read after it is narrowed: a call's arguments have no order) */
+    int open = overlap_window(p, q, h, 2, &entry, &leave);
+    if (window_closed(open, entry, leave))
+        return INF_;
+    open = overlap_window(p + 2, q + 2, h + 2, 2, &entry, &leave);
+    if (window_closed(open, entry, leave))
+        return INF_;
     return entry > 0.0 ? entry : 0.0;
 }
 
@@ -345,24 +362,8 @@ static int off_course(double dx, double dy, double vx, double vy, double reach_x
 {
     double entry = -INF_, leave = INF_;
     double p[2] = {dx, dy}, q[2] = {vx, vy}, h[2] = {reach_x, reach_y};
-    for (int k = 0; k < 2; k++) {
-        if (q[k] == 0.0) {
-            if ((p[k] >= 0.0 ? p[k] : -p[k]) >= h[k])
-                return 1;
-            continue;
-        }
-        double t1 = (-h[k] - p[k]) / q[k], t2 = (h[k] - p[k]) / q[k];
-        if (t2 < t1) {
-            double t = t1;
-            t1 = t2;
-            t2 = t;
-        }
-        if (t1 > entry)
-            entry = t1;
-        if (t2 < leave)
-            leave = t2;
-    }
-    return entry >= leave || leave <= 0.0;
+    int open = overlap_window(p, q, h, 2, &entry, &leave);
+    return window_closed(open, entry, leave);
 }
 
 /* The ego at a state (looks.ego's tuple) and the vehicle relative to it (traffic.Traffic.motion_of and

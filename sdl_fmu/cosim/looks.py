@@ -20,7 +20,7 @@ import sys
 
 from .geometry import reach_time_scalar
 from .measures import (INF, approach_horizon, course_horizon, distance_and_rates, drac, drac_rate_known, headway,
-                       headway_rate_known, heading_horizon, ttc, ttc_rate_known)
+                       headway_rate_known, heading_horizon, overlap_window, ttc, ttc_rate_known, window_closed)
 from .traffic import motion_law
 
 try:  # the compiled twin (setup.py); None where the package was installed without it
@@ -206,22 +206,9 @@ def distance_rate(a: float, b: float, row, size, t: float, x: float, y: float, p
 
 
 def off_course(dx: float, dy: float, vx: float, vy: float, reach_x: float, reach_y: float) -> bool:
-    """Whether `ttc` returns inf after the road's two axes (x, y; reach_x, reach_y their reaches): the same
-    operations in the same order (the same decision)."""
-    entry, leave = -INF, INF
-    for p, q, h in ((dx, vx, reach_x), (dy, vy, reach_y)):
-        if q == 0.0:
-            if (p if p >= 0.0 else -p) >= h:
-                return True
-            continue
-        t1, t2 = (-h - p) / q, (h - p) / q
-        if t2 < t1:
-            t1, t2 = t2, t1
-        if t1 > entry:
-            entry = t1
-        if t2 < leave:
-            leave = t2
-    return entry >= leave or leave <= 0.0
+    """Whether `ttc` returns inf after the road's two axes (x, y; reach_x, reach_y their reaches): its first
+    window (the same decision)."""
+    return window_closed(overlap_window(((dx, vx, reach_x), (dy, vy, reach_y))))
 
 
 # ---- the follower's scans over the vehicles on the road (follower.py): which are due, the earliest bounds

@@ -299,24 +299,39 @@ def ttc(ego: Footprint, dx: float, dy: float, vx: float, vy: float, length: floa
     axes are not needed (more axes can only narrow the intersection)."""
     _, _, c, s = ego
     hx, hy, hu, hv = axis_reaches(ego, length, width)
-    entry, leave = -INF, INF
-    for axes in (((dx, vx, hx), (dy, vy, hy)),
-                 ((dx * c + dy * s, vx * c + vy * s, hu), (-dx * s + dy * c, -vx * s + vy * c, hv))):
-        for p, q, h in axes:
-            if q == 0.0:
-                if abs(p) >= h:
-                    return INF  # never overlapping along this axis
-                continue
-            t1, t2 = (-h - p) / q, (h - p) / q
-            if t2 < t1:
-                t1, t2 = t2, t1
-            if t1 > entry:
-                entry = t1
-            if t2 < leave:
-                leave = t2
-        if entry >= leave or leave <= 0.0:
-            return INF
+    window = overlap_window(((dx, vx, hx), (dy, vy, hy)))
+    if window_closed(window):
+        return INF
+    window = overlap_window(((dx * c + dy * s, vx * c + vy * s, hu), (-dx * s + dy * c, -vx * s + vy * c, hv)),
+                            *window)
+    if window_closed(window):
+        return INF
+    entry = window[0]
     return entry if entry > 0.0 else 0.0
+
+
+def overlap_window(axes, entry: float = -INF, leave: float = INF) -> tuple[float, float] | None:
+    """`ttc`'s intersection of intervals: (entry, leave) narrowed to the times t at which the projections overlap
+    on every axis (p, q, h) of `axes`, |p + q t| < h (an interval of t, linear in t); None if one never overlaps
+    (q = 0 and |p| >= h)."""
+    for p, q, h in axes:
+        if q == 0.0:
+            if abs(p) >= h:
+                return None  # never overlapping along this axis
+            continue
+        t1, t2 = (-h - p) / q, (h - p) / q
+        if t2 < t1:
+            t1, t2 = t2, t1
+        if t1 > entry:
+            entry = t1
+        if t2 < leave:
+            leave = t2
+    return entry, leave
+
+
+def window_closed(window: tuple[float, float] | None) -> bool:
+    """Whether an `overlap_window` leaves no collision course: none, empty, or past."""
+    return window is None or window[0] >= window[1] or window[1] <= 0.0
 
 
 def ttcs(ego: Footprint, dx, dy, vx, vy, length, width):

@@ -206,26 +206,11 @@ def distance_and_rates(ego: Footprint, dx: float, dy: float, vx: float, vy: floa
     vu, vv = vx * c + vy * s, -vx * s + vy * c
     rate = frozen = INF
     first = True
-    # the closest corners, in corner order (a corner is skipped where q > near or (q != least and sqrt(q) != best);
-    # the test written out per corner: no tuple per corner, and most are skipped by their first comparison)
-    closest = []
-    if not (q0 > near or (q0 != least and sqrt(q0) != best)):
-        closest.append((0, x0, y0))
-    if not (q1 > near or (q1 != least and sqrt(q1) != best)):
-        closest.append((1, x1, y1))
-    if not (q2 > near or (q2 != least and sqrt(q2) != best)):
-        closest.append((2, x2, y2))
-    if not (q3 > near or (q3 != least and sqrt(q3) != best)):
-        closest.append((3, x3, y3))
-    if not (q4 > near or (q4 != least and sqrt(q4) != best)):
-        closest.append((4, x4, y4))
-    if not (q5 > near or (q5 != least and sqrt(q5) != best)):
-        closest.append((5, x5, y5))
-    if not (q6 > near or (q6 != least and sqrt(q6) != best)):
-        closest.append((6, x6, y6))
-    if not (q7 > near or (q7 != least and sqrt(q7) != best)):
-        closest.append((7, x7, y7))
-    for k, x, y in closest:
+    # the closest corners, in corner order: a corner is skipped where q > near or (q != least and sqrt(q) != best)
+    for k, q, x, y in ((0, q0, x0, y0), (1, q1, x1, y1), (2, q2, x2, y2), (3, q3, x3, y3),
+                       (4, q4, x4, y4), (5, q5, x5, y5), (6, q6, x6, y6), (7, q7, x7, y7)):
+        if q > near or (q != least and sqrt(q) != best):
+            continue
         if k < 4:
             half_x, half_y = hl, hw
         else:

@@ -172,6 +172,8 @@ class Extremes:
         self.reach(state)
 
     def _size(self, traffic, i: int) -> tuple[float, float]:
+        """Vehicle i's (length, width), kept from its first evaluation (`self._sizes.get(i) or self._size(...)` on
+        the per-look path: a hit costs no call)."""
         size = self._sizes[i] = (float(traffic.length[i]), float(traffic.width[i]))
         return size
 
@@ -179,10 +181,9 @@ class Extremes:
         """Vehicle i at the ego's state in one pass, nothing offered yet (looks.evaluate: the values to offer, their
         rates, what the horizon needs), for `look` (its `evaluated`), so that the master reads the rates at a
         step's end (`rates`) and looks there with one evaluation."""
-        size = self._sizes.get(i)
-        return self.arithmetic.evaluate(self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None
-                                         else size, state.time, state.x, state.y, state.psi, state.vx, state.vy,
-                                         state.ax, state.ay, state.yaw_rate)
+        return self.arithmetic.evaluate(self._a, self._b, traffic.row(i),
+                                        self._sizes.get(i) or self._size(traffic, i), state.time, state.x, state.y,
+                                        state.psi, state.vx, state.vy, state.ax, state.ay, state.yaw_rate)
 
     def rates(self, traffic, i: int, state) -> tuple[float, float, float, float]:
         """(distance rate, TTC rate, minus the DRAC rate, headway rate) of vehicle i at the ego's state (nan
@@ -195,10 +196,9 @@ class Extremes:
 
     def distance_rate(self, traffic, i: int, state) -> float:
         """`rates`' first: the distance's rate alone (the master's probe for a closest approach)."""
-        size = self._sizes.get(i)
-        return self.arithmetic.distance_rate(self._a, self._b, traffic.row(i), self._size(traffic, i)
-                                              if size is None else size, state.time, state.x, state.y, state.psi,
-                                              state.vx, state.vy, state.yaw_rate)
+        return self.arithmetic.distance_rate(self._a, self._b, traffic.row(i),
+                                             self._sizes.get(i) or self._size(traffic, i), state.time, state.x,
+                                             state.y, state.psi, state.vx, state.vy, state.yaw_rate)
 
     def look(self, traffic, i: int, state, acceleration: float, yaw_rate_bound: float,
              radius: float, evaluated=None) -> tuple[tuple[float, float, float, float], float]:
@@ -217,9 +217,8 @@ class Extremes:
         vehicle bounds."""
         if i >= self.size:
             self._grow(i + 1)
-        size = self._sizes.get(i)
         rates, horizon, self.quiet, self.course = self.arithmetic.look(
-            self._a, self._b, traffic.row(i), self._size(traffic, i) if size is None else size, state.time, state.x,
+            self._a, self._b, traffic.row(i), self._sizes.get(i) or self._size(traffic, i), state.time, state.x,
             state.y, state.psi, state.vx, state.vy, state.ax, state.ay, state.yaw_rate, evaluated, i, self._tables,
             acceleration, yaw_rate_bound, radius)
         return rates, horizon

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..sdl.events import Action, ApproachingVehicle, Brake, ClosureTrigger, EndOfScenario
+from ..sdl.events import Action, ApproachingVehicle, ClosureTrigger, EndOfScenario
 from .traffic import Traffic
 
 # why the run ended early, for the events it never reached (the user's own --until-distance and --until-time are not
@@ -83,27 +83,21 @@ def action_warnings(traffic: Traffic, vehicle_ids, first: np.ndarray, last: np.n
     first sample and the one it left at (-1: on the road at the end)."""
     found = []
     times = columns["time"]
-    # cut off: a vehicle's motions in order (row 0 its spawn, row k its action k) where one begins before the
-    # previous action's transition ended
-    if len(traffic.motion_owner):
-        owner = np.array(traffic.motion_owner, dtype=np.int64)
-        order = np.argsort(owner, kind="stable")
-        owner, rows = owner[order], np.array(traffic.motion_rows, dtype=float).reshape(-1, 7)[order]
-        position = np.arange(len(owner)) - np.searchsorted(owner, owner, side="left")
-        cut = np.flatnonzero((owner[1:] == owner[:-1]) & (position[:-1] >= 1)
-                             & (rows[1:, 0] < rows[:-1, 0] + rows[:-1, 6] - tolerance))
-        for j in cut.tolist():
-            i, k = int(owner[j]), int(position[j])
-            event = traffic.events[i]
-            ran, t = rows[j + 1, 0] - rows[j, 0], rows[j + 1, 0]
+    # cut off: a vehicle's motions in order (row 0 its spawn, row k its action k) where action k + 1 began before
+    # action k's transition ended
+    for i in np.flatnonzero(traffic.next_action[:traffic.size] >= 2).tolist():  # two actions fired or more
+        motions = traffic.history(i)[1:]
+        t0, duration = motions[:, 0], motions[:, 6]
+        event = traffic.events[i]
+        for j in np.flatnonzero(t0[1:] < t0[:-1] + duration[:-1] - tolerance).tolist():
+            k, ran = j + 1, t0[j + 1] - t0[j]
             found.append((event.line, f"line {event.line}: {_action(event, k)} of vehicle {vehicle_ids[i]} was cut "
-                                      f"off after {ran:.3g} s of its {rows[j, 6]:g} s transition by "
-                                      f"{_action(event, k + 1)} at t = {t:.3f} s"))
-    # never fired
-    for i, event in enumerate(traffic.events):
+                                      f"off after {ran:.3g} s of its {duration[j]:g} s transition by "
+                                      f"{_action(event, k + 1)} at t = {t0[j + 1]:.3f} s"))
+    # never fired: an action still armed at the end (traffic.trigger_seconds is NaN where none is)
+    for i in np.flatnonzero(~np.isnan(traffic.trigger_seconds[:traffic.size])).tolist():
+        event = traffic.events[i]
         fired = int(traffic.next_action[i])
-        if fired >= len(event.actions):
-            continue
         k = fired + 1
         action: Action = event.actions[fired]
         left = int(last[i])
@@ -129,11 +123,11 @@ def action_warnings(traffic: Traffic, vehicle_ids, first: np.ndarray, last: np.n
     return found
 
 
-def brake_warnings(events, brakes: dict[int, Brake], columns: dict, controller) -> list[tuple[int, str]]:
+def brake_warnings(events, columns: dict, controller) -> list[tuple[int, str]]:
     """(line, warning) for every BRK that came on but never took effect: released at the instant it came on, or, with
-    a controller in the loop (controller.ControllerModel), whose commands sent gave less brake than BRK's or some
-    throttle (the controller's override, or a throttle rule max) for part or all of its hold. events: the event log;
-    brakes: the scenario's BRK events by line."""
+    a controller in the loop (controller.ControllerModel), whose commands sent gave less brake than BRK's (the
+    driver_brake column: BRK's pedal while it holds) or some throttle (the controller's override, or a throttle rule
+    max) for part or all of its hold. events: the event log."""
     found = []
     on = None
     times = np.asarray(columns["time"])
@@ -144,8 +138,7 @@ def brake_warnings(events, brakes: dict[int, Brake], columns: dict, controller) 
             on = entry
             continue
         line, start, end = entry["line"], on["time_s"], entry["time_s"]
-        event = brakes[line]
-        pedal = f"{event.pedal * 100:g} %"
+        pedal = f"{on['pedal']:g} %"
         if end <= start:
             found.append((line, f"line {line}: BRK (brake {pedal}) never took effect: it was released at the instant "
                                 f"it came on (t = {start:.3f} s): {RELEASED_AT_ONCE[entry['reason']]}"))
@@ -156,7 +149,7 @@ def brake_warnings(events, brakes: dict[int, Brake], columns: dict, controller) 
         lo, hi = int(np.searchsorted(times, start, side="left")), int(np.searchsorted(times, end, side="left"))
         instants = times[lo:hi]
         spans = np.minimum(np.append(times[lo + 1:hi + 1], end)[:len(instants)], end) - instants
-        less = np.asarray(columns["brake"][lo:hi]) < event.pedal
+        less = np.asarray(columns["brake"][lo:hi]) < np.asarray(columns["driver_brake"][lo:hi])
         throttle = np.asarray(columns["throttle"][lo:hi]) > 0
         overridden = float(spans[less | throttle].sum())
         if overridden <= 0:

@@ -405,9 +405,8 @@ class Cosimulation:
         first, last = self.recorder.spans()
         tolerance = TIME_TOLERANCE if self.exact else MIN_LOOKAHEAD  # how exactly two fired instants' gap is known
         found = action_warnings(self.traffic, self.recorder.vehicle_ids, first, last, columns, state.time, tolerance)
-        brakes = {event.line: event for event in self.scenario.events if isinstance(event, Brake)}
-        if brakes:
-            found += brake_warnings(self.events, brakes, columns, self.options.controller)
+        if any(isinstance(event, Brake) for event in self.scenario.events):
+            found += brake_warnings(self.events, columns, self.options.controller)
         schedule = self.schedule
         found += unreached_warnings(schedule.events[schedule.next_event:], self.ended_by, state.time)
         return ineffective(found)

@@ -156,3 +156,26 @@ def test_the_events_a_run_stopped_at_the_first_contact_never_reached_are_one_war
                                 f"stop) at t = {end['time_s']:.3f} s, before the distance of lines 3, 4"]
     # the user's own --until-distance is not warned of
     assert api.run(path, fmu=simple_fmu, until_distance=1000.0, plot=False).warnings == []
+
+
+def test_the_overridden_part_of_a_hold_is_the_samples_whose_commands_have_less_brake_or_throttle():
+    # brake_warnings on a hold's samples written out: each sample's commands hold until the next sample. BRK on at
+    # 1.0 s, off at 3.5 s (2.5 s); the brake sent is below BRK's (driver_brake) from 2.0 to 2.5 s, and some throttle
+    # is sent from 3.0 s to the release: 0.5 + 0.5 = 1 s of the 2.5 s hold
+    from types import SimpleNamespace
+
+    from sdl_fmu.cosim.effects import brake_warnings
+
+    columns = {"time": np.array([0.0, 1.0, 2.0, 2.5, 3.0, 3.5, 4.0]),
+               "brake": np.array([0.0, 1.0, 0.3, 1.0, 1.0, 0.0, 0.0]),
+               "driver_brake": np.array([0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0]),
+               "throttle": np.array([0.5, 0.0, 0.0, 0.0, 0.2, 0.5, 0.5])}
+    events = [{"code": "BRK", "action": "on", "time_s": 1.0, "pedal": 100.0, "line": 7},
+              {"code": "A", "action": "spawn", "time_s": 1.5, "line": 3},
+              {"code": "BRK", "action": "off", "time_s": 3.5, "reason": "time", "line": 7}]
+    controller = SimpleNamespace(name="C", rules={"brake": "override", "throttle": "max", "steer": "driver"})
+    assert brake_warnings(events, columns, controller) == [(7, (
+        "line 7: BRK (brake 100 %) was overridden for 1 s of its 2.5 s hold (t = 1.000 to 3.500 s): the controller C "
+        "sent less brake than BRK's (arbitration brake = override) and throttle (arbitration throttle = max)"))]
+    # without a controller only a hold of no length is a warning
+    assert brake_warnings(events, columns, None) == []

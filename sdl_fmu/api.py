@@ -157,7 +157,8 @@ class Check:
 def check(scenario: str | os.PathLike | Scenario, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None,
           vehicle: str | os.PathLike | None = None, tires: str | os.PathLike | None = None) -> Check:
     """load() and the warnings a run of the whole scenario would print for this vehicle and Tire Attribute File,
-    without building or loading its FMU (`sdl-fmu check`)."""
+    without building or loading its FMU (`sdl-fmu check`); not those of what never took effect in a run (an action
+    never fired, a BRK overridden: cosim/effects.py), which depend on how the run goes."""
     vehicle_map = _vehicle_map(dynamics, vehicle)
     loaded = _checked(scenario, vehicle_map, skip_unsupported)
     friction = vehicle_map.friction

@@ -46,6 +46,7 @@ from .brake import BrakeHold
 from .closing import ClosingEnd
 from .clocks import SampleClocks
 from .driver import MAX_STEER, make_driver
+from .effects import action_warnings, brake_warnings, ineffective, unreached_warnings
 from .ego import step_until_time
 from .follow import REACTION_TIME, FollowDriver
 from .follower import CriticalityFollower
@@ -129,6 +130,7 @@ class Cosimulation:
         if model.friction is None:
             self.warnings += [rsa_without_effect(event.line, model.name)
                               for event in scenario.events if isinstance(event, SurfaceAttribute)]
+        self.ended_by: EndReason | None = None  # why the run ended (finish)
         self.collisions = 0
         self.collision_points: list[tuple[float, float]] = []
         self.steps = 0
@@ -366,12 +368,14 @@ class Cosimulation:
             self.release_brakes(state, "end")
         self.log("ES", "end", state, reason=reason)
         self.finished = True
+        self.ended_by = reason
 
     # ---- the result -----------------------------------------------------------------------------
 
     def result(self, state: EgoState, wall: float) -> RunRecord:
         recorder = self.recorder
         columns = recorder.columns()
+        self.warnings += self.never_took_effect(columns, state)
         final = {"time_s": state.time, "distance": state.s, "speed": state.v, "lateral": -state.y}
         timing = {"wall_s": wall, "real_time_factor": state.time / wall if wall > 0 else None,
                   "steps": self.steps, "samples": recorder.sample_count}
@@ -393,6 +397,19 @@ class Cosimulation:
             ttc_series=partial(ttc_series, self.traffic, *recorder.spans(), self.bounds, columns),
             lead_series=partial(lead_series, self.traffic, *recorder.spans(), self.bounds, columns),
         )
+
+    def never_took_effect(self, columns: dict, state: EgoState) -> list[str]:
+        """The warnings, in line order, for what never took effect in the run (effects.py): actions never fired or cut
+        off by the next, BRK events released at once or overridden by the controller, events an early end never
+        reached; from the traffic's motions, the samples and the event log, once."""
+        first, last = self.recorder.spans()
+        tolerance = TIME_TOLERANCE if self.exact else MIN_LOOKAHEAD  # how exactly two fired instants' gap is known
+        found = action_warnings(self.traffic, self.recorder.vehicle_ids, first, last, columns, state.time, tolerance)
+        if any(isinstance(event, Brake) for event in self.scenario.events):
+            found += brake_warnings(self.events, columns, self.options.controller)
+        schedule = self.schedule
+        found += unreached_warnings(schedule.events[schedule.next_event:], self.ended_by, state.time)
+        return ineffective(found)
 
     def driver_summary(self) -> dict | None:
         """summary.json's `driver` for the follow driver (docs/controllers.md); None (no key) for the lane driver."""

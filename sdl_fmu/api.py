@@ -44,8 +44,8 @@ from .sdl.checks import check_scenario, vehicle_warnings
 from .shipped import shipped_controller, shipped_fmu
 from .shipping import ClusterError
 from .ssp.folder import check_export_folder, write_export
-from .ssp.system import ExportError, build_system
-from .text import unescaped
+from .ssp.system import ExportError, build_system, fmu_file_name
+from .text import UnsafeName, safe_identifier, unescaped
 from .tire_files import TireFileError, default_attribute_file, read_attribute_file, slot_values
 from .units import from_si, length_label, speed_label
 from .vehicle import EgoModel, VehicleMap, VehicleMapError, load_vehicle_map, shipped_map_path
@@ -645,16 +645,27 @@ def _stop_time(reference: Result, step: float, until_time: float | None) -> floa
 
 
 @contextlib.contextmanager
-def _scenario_fmu(scenario: Scenario, model, **options):
-    """The scenario FMU of these options (docs/export.md), written into a temporary folder as <scenario>.fmu."""
+def _scenario_fmu(scenario: Scenario, name: str, model, **options):
+    """The scenario FMU of these options (docs/export.md), written into a temporary folder as <name>.fmu."""
     from .export.scenario_fmu import ScenarioFmuError, write_scenario_fmu  # the build side: its writer and runtime
 
     with tempfile.TemporaryDirectory(prefix="sdl-fmu-export-") as folder:
         try:
-            unit = write_scenario_fmu(scenario, Path(folder) / f"{Path(scenario.path).stem}.fmu", ego=model, **options)
+            unit = write_scenario_fmu(scenario, Path(folder) / f"{name}.fmu", ego=model, **options)
         except ScenarioFmuError as error:
             raise InputError(None, f"the scenario FMU cannot be written: {error}") from None
         yield unit
+
+
+def _export_name(scenario: Scenario) -> str:
+    """What an export of the scenario names its files after (`<name>.ssp`, `<name>.fmu`; docs/export.md, Names): its
+    file name's stem as a safe identifier. InputError (one line naming the file) when it cannot be made safe."""
+    path = Path(scenario.path)
+    try:
+        return safe_identifier(path.stem)
+    except UnsafeName as error:
+        raise InputError("scenario", f"{path}: an export names its files after the scenario's file name, and this "
+                                     f"one cannot name a file: {error}; rename the file") from None
 
 
 def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dynamics: Dynamics | None = None,
@@ -681,6 +692,7 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
         raise option_error("until_time", until_time, "give until_distance or until_time, not both")
     vehicle_map = _vehicle_map(dynamics, vehicle)
     scenario = _checked(scenario, vehicle_map, skip_unsupported)
+    name = _export_name(scenario)
     options = run_options(scenario, speed=speed, seed=seed, until_distance=until_distance, until_time=until_time,
                           driver=driver, on_collision=on_collision)
     in_the_loop = controller_model(controller, controller_map)
@@ -689,6 +701,12 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
     except ResultsFolderError as error:
         raise InputError("out", "", subject=str(error)) from None
     model = ego_model(dynamics, fmu, vehicle_map if vehicle is not None else None, fmi_version).with_tires(None)
+    for option, part in (("fmu", model), ("controller", in_the_loop)):  # the FMUs' names in the SSP, made safe
+        try:
+            if part is not None:
+                fmu_file_name(part.fmu_path, f"--{option} {part.fmu_path}")
+        except ExportError as error:
+            raise InputError(option, str(error)) from None
     # what a run of this scenario with this vehicle warns of (`sdl-fmu check`'s warnings): the scenario FMU does the same
     warnings = [*scenario.warnings, *model.warnings,
                 *vehicle_warnings(scenario, model.name, model.surface_meaning, model.brk_acts, model.known_attributes)]
@@ -701,9 +719,8 @@ def export(scenario: str | os.PathLike | Scenario, *, out: str | os.PathLike, dy
                         f"map's period {in_the_loop.period:g} s: an SSP master steps every FMU on one grid")
     start = {"speed": DEFAULT_SPEED if options.speed is None else options.speed, "x": 0.0,
              "y": -scenario.road.lane_center(1), "yaw": 0.0}  # where run starts the ego (cosim/master.py)
-    name = Path(scenario.path).stem
     arbitration = None if in_the_loop is None else dict(in_the_loop.rules)
-    with _scenario_fmu(scenario, model, fmi_version=fmi_version, speed=options.speed, seed=options.seed,
+    with _scenario_fmu(scenario, name, model, fmi_version=fmi_version, speed=options.speed, seed=options.seed,
                        until_distance=options.until_distance, until_time=options.until_time, step=step,
                        arbitration=arbitration, driver=options.driver, on_collision=options.on_collision) as unit:
         description = read_model_description(str(unit.path), validate=False)

@@ -36,12 +36,13 @@ HARNESS = textwrap.dedent("""
 """)
 
 
-def run_master(master: str, ssp: Path, stop_time: float, step: float, signals: dict[str, str]
+def run_master(master: str, ssp: Path, stop_time: float, step: float, signals: dict[str, str], cwd=None
                ) -> dict[str, np.ndarray]:
-    """The recipe of `master` run on `ssp`: {"time": ..., "component.variable": ...} at every communication point."""
+    """The recipe of `master` run on `ssp` (in the working folder `cwd`, default this process's): {"time": ...,
+    "component.variable": ...} at every communication point."""
     code = recipe(master) + HARNESS.format(master=master, marker=MARKER)
     completed = subprocess.run([sys.executable, "-c", code, str(ssp), repr(stop_time), repr(step),
-                                json.dumps(signals)], capture_output=True, text=True, timeout=900)
+                                json.dumps(signals)], capture_output=True, text=True, timeout=900, cwd=cwd)
     assert completed.returncode == 0, completed.stderr[-3000:]
     line = next((line for line in completed.stdout.splitlines() if line.startswith(MARKER)), None)
     assert line is not None, completed.stdout[-3000:] + completed.stderr[-3000:]

@@ -73,13 +73,15 @@ def _root_attributes(interface: Interface, description: str) -> dict[str, str]:
 
 
 def model_description(interface: Interface, guid: str, fmi_version: int, description: str, experiment: dict,
-                      sources: list[str]) -> bytes:
+                      sources: list[str], model_name: str = MODEL_IDENTIFIER) -> bytes:
+    """The modelDescription.xml; `model_name` is the scenario's name as written (the modelIdentifier is the generic
+    binary's, the same for every scenario)."""
     references = {v.name: position for position, v in enumerate(interface.variables, start=1)}
     depends = dependencies(interface)
     outputs = [v for v in interface.variables if v.role == OUTPUT]
     common = {"modelIdentifier": MODEL_IDENTIFIER, "canHandleVariableCommunicationStepSize": "true"}
     if fmi_version == 2:
-        root = ET.Element("fmiModelDescription", {"fmiVersion": "2.0", "modelName": MODEL_IDENTIFIER, "guid": guid,
+        root = ET.Element("fmiModelDescription", {"fmiVersion": "2.0", "modelName": model_name, "guid": guid,
                                                   **_root_attributes(interface, description),
                                                   "numberOfEventIndicators": "0"})
         co_simulation = ET.SubElement(root, "CoSimulation", {
@@ -109,7 +111,7 @@ def model_description(interface: Interface, guid: str, fmi_version: int, descrip
                     attributes["dependenciesKind"] = " ".join("dependent" for _ in depends[v.name])
                 ET.SubElement(element, "Unknown", attributes)
     else:
-        root = ET.Element("fmiModelDescription", {"fmiVersion": "3.0", "modelName": MODEL_IDENTIFIER,
+        root = ET.Element("fmiModelDescription", {"fmiVersion": "3.0", "modelName": model_name,
                                                   "instantiationToken": guid,
                                                   **_root_attributes(interface, description)})
         ET.SubElement(root, "CoSimulation", {

@@ -24,6 +24,7 @@ from ..fmu.package import LINUX_BINARY_DIRECTORY, WINDOWS_BINARY_DIRECTORY, FmiV
 from ..sdl.events import Scenario
 from ..sdl.parser import decode_text, describe
 from ..sdl.vehicles import VehicleModel, default_vehicle_table_path, load_vehicle_table
+from ..text import printable
 from .binary import INTERFACE_FILE, MODEL_IDENTIFIER, binary_key, cached_binaries, compiled_sources, scenario_interface
 from .description import documentation, model_description
 from .resolve import ARBITRATION, DRIVERS, default_slots, end_distance, parameter_starts, scenario_data
@@ -119,7 +120,7 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
     _check_starts(interface, starts)
     salt = f"{binary_key(fmi_version)} {INTERFACE_FILE.read_text(encoding='utf-8')} slots {slots}"
     data, guid = scenario_data(scenario, seed, slots, table, starts, salt)
-    source = Path(scenario.path).name
+    source = printable(Path(scenario.path).name, keep_lines=False)  # as written, in text XML can hold
     description = (f"The SDL scenario {source} as a co-simulation unit (seed {seed}): traffic, BRK, RSA surfaces, "
                    "the built-in driver, collisions and the run's end of `sdl-fmu run`, driven by the ego's pose and "
                    "speed. Road frame, SI, ISO 8855.")
@@ -137,7 +138,8 @@ def write_scenario_fmu(scenario: Scenario, out_path: str | os.PathLike, *, ego, 
         text = sdl_text(scenario)
         (root / TEXT_ENTRY).write_text(text, encoding="utf-8")
         (root / "modelDescription.xml").write_bytes(
-            model_description(interface, guid, fmi_version, description, experiment, sources))
+            model_description(interface, guid, fmi_version, description, experiment, sources,
+                              printable(Path(scenario.path).stem, keep_lines=False)))
         (root / DOCUMENTATION_ENTRY).parent.mkdir(parents=True)
         (root / DOCUMENTATION_ENTRY).write_text(
             documentation(interface, fmi_version, text, source, description, starts, scenario.road.lane_center(1),

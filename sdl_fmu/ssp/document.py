@@ -17,6 +17,10 @@ What the subset is, and why (measured with the three masters):
   libcosim applies a component's first set; fmpy's simulate_ssp reads none: it is passed as `parameter_set`);
 - the step as the OSP annotation `osp:FixedStepAlgorithm baseStepSize` in the DefaultExperiment (libcosim's step;
   ecos and fmpy take theirs from the caller).
+- every file under resources/ named so that its URI needs no escaping: a `source` is a URI (written escaped here),
+  which libcosim decodes (`a%20b.fmu` is the file `a b.fmu`) and ecos and fmpy read as the file's name as it is
+  (`a%20b.fmu`); only a name whose escape is itself is the same file to all three (the export's names are safe
+  identifiers: sdl_fmu/text.py, safe_identifier).
 
 The writer is deterministic: the same system gives the same bytes (fixed zip dates; elements in the order given).
 Every document is validated against the SSP 1.0 schemas that fmpy ships before anything is written.
@@ -29,6 +33,9 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
+from urllib.parse import quote
+
+from ..text import printable
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -137,6 +144,11 @@ def _value(parameter: Parameter) -> str:
     return str(int(parameter.value))
 
 
+def uri(path: str) -> str:
+    """A relative path inside the SSP as a URI reference (an SSD's `source`): each part percent-escaped."""
+    return quote(path, safe="/")
+
+
 def check(system: System) -> None:
     """The system's own consistency: unique names, typed connectors on both ends of each connection, the same type
     on both, a transformation only between Real connectors, finite numbers, a unit for each unit named."""
@@ -146,6 +158,10 @@ def check(system: System) -> None:
     sources = [c.source for c in system.components]
     if len(set(sources)) != len(sources) or any(c.parameter_source in sources for c in system.components):
         raise SspError(f"two components' files would share a name under {RESOURCES}/: {sources}")
+    for source in (*sources, *(c.parameter_source for c in system.components)):
+        if uri(source) != source:
+            raise SspError(f"{printable(source, keep_lines=False)}: a file name an SSP's source URI must escape "
+                           f"({uri(source)}), which ecos and fmpy do not undo and libcosim does")
     units = {u.name for u in system.units}
     connectors = {}
     for component in system.components:
@@ -199,15 +215,15 @@ def ssd(system: System) -> bytes:
     root = etree.Element(f"{{{SSD}}}SystemStructureDescription", nsmap={"ssd": SSD, "ssc": SSC, "ssv": SSV,
                                                                         "osp": OSP})
     root.set("version", "1.0")
-    root.set("name", system.name)
+    root.set("name", printable(system.name, keep_lines=False))  # text XML can hold
     if system.description:
-        root.set("description", system.description)
+        root.set("description", printable(system.description, keep_lines=False))
     if system.generation_tool:
         root.set("generationTool", system.generation_tool)
-    node = _element(root, SSD, "System", {"name": system.name})
+    node = _element(root, SSD, "System", {"name": root.get("name")})
     elements = _element(node, SSD, "Elements")
     for component in system.components:
-        element = _element(elements, SSD, "Component", {"name": component.name, "source": component.source,
+        element = _element(elements, SSD, "Component", {"name": component.name, "source": uri(component.source),
                                                         "type": "application/x-fmu-sharedlibrary"})
         if component.connectors:
             connectors = _element(element, SSD, "Connectors")
@@ -215,7 +231,7 @@ def ssd(system: System) -> bytes:
                 entry = _element(connectors, SSD, "Connector", {"name": connector.name, "kind": connector.kind})
                 _element(entry, SSC, connector.type, {"unit": connector.unit} if connector.type == "Real" else None)
         bindings = _element(element, SSD, "ParameterBindings")
-        _element(bindings, SSD, "ParameterBinding", {"source": component.parameter_source})
+        _element(bindings, SSD, "ParameterBinding", {"source": uri(component.parameter_source)})
     if system.connections:
         connections = _element(node, SSD, "Connections")
         for connection in system.connections:

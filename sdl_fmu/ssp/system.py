@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..text import UnsafeName, safe_identifier
 from ..vehicle.model import INTEGER_TYPES, REAL_TYPES, EgoModel
 from .document import BASE_UNITS, Component, Connection, Connector, Parameter, System, Unit, ValueType
 
@@ -43,6 +44,17 @@ REQUEST_INPUTS = {"active": "request_active", "throttle": "request_throttle", "b
 class ExportError(ValueError):
     """The vehicle (its FMU and map) cannot be connected in an SSP: one line naming the map file and key, or the
     FMU."""
+
+
+def fmu_file_name(fmu: Path, label: str) -> str:
+    """The name an FMU is stored under in the SSP (resources/) and beside it: its file name's stem as a safe
+    identifier (sdl_fmu/text.py; docs/export.md, Names) and ".fmu". ExportError naming `label` (the option and the
+    file) when the name cannot be made safe."""
+    try:
+        return f"{safe_identifier(Path(fmu).stem)}.fmu"
+    except UnsafeName as error:
+        raise ExportError(f"{label}: the export names this FMU after its file name, "
+                          f"and this one cannot name a file: {error}; rename the file") from None
 
 
 def ssp_type(variable) -> ValueType | None:
@@ -235,13 +247,18 @@ def build_system(name: str, scenario_fmu: Path, scenario_description, model: Ego
         if always_active:  # a map without `active`: the controller's requests always count
             scenario_starts["request_active"] = True
     connected = {c.end[1] for c in connections if c.end[0] == SCENARIO}
-    files = {scenario_fmu.name}
-    components = [Component(SCENARIO, scenario_fmu, tuple(scenario.connectors.values()),
-                            _scenario_parameters(scenario, scenario_starts, connected))]
-    for component in (Component(EGO, model.fmu_path, tuple(ego.connectors.values()), ego_parameters(model, start)),
-                      *extra):  # each FMU under its own file name, prefixed with the component's where two clash
-        file_name = component.fmu.name if component.fmu.name not in files else f"{component.name}_{component.fmu.name}"
-        files.add(file_name)
+    labels = {SCENARIO: f"the scenario FMU {scenario_fmu}", EGO: f"--fmu {model.fmu_path}",
+              CONTROLLER: f"--controller {controller.fmu_path}" if controller is not None else ""}
+    files: set[str] = set()
+    components = []
+    for component in (Component(SCENARIO, scenario_fmu, tuple(scenario.connectors.values()),
+                                _scenario_parameters(scenario, scenario_starts, connected)),
+                      Component(EGO, model.fmu_path, tuple(ego.connectors.values()), ego_parameters(model, start)),
+                      *extra):  # each FMU under its own safe name, prefixed with the component's where two clash
+        file_name = fmu_file_name(component.fmu, labels[component.name])
+        while file_name.lower() in files:  # told apart by case only: one file where case does not count
+            file_name = f"{component.name}_{file_name}"
+        files.add(file_name.lower())
         components.append(Component(component.name, component.fmu, component.connectors, component.parameters,
                                     file_name=file_name))
     return System(name, tuple(components), tuple(connections), stop_time, step, units=tuple(units.units.values()),

@@ -600,7 +600,7 @@ def _aeb_grid(aeb, tests: list, options: dict, footprint, out, workers, schedule
     identity, and the rest run (each kept there as it finishes)."""
     from .verify.aeb import kept
 
-    pack = kept.identity(options, __version__)
+    pack = None if out is None else kept.identity(options, __version__)
     done = {} if out is None else {kept.key(o.test): o for o in kept.finished(out, tests, pack, timeout)}
     todo = [test for test in tests if kept.key(test) not in done]
     live = progress is None and sys.stderr.isatty()

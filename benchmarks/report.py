@@ -386,8 +386,50 @@ def _controller_isolation(entry: dict | None) -> list[str]:
         _measured(entry["measured"]), ""]
 
 
+def hosted_controller(results: Path) -> list[str]:
+    """Section 11's last part: a hosted controller's per-sample cost before and after the host's protocol was
+    slimmed (benchmarks/hosted_controller.py)."""
+    data = _load("hosted_controller", results)
+    before, after = data["reference"]["hosted"], data["new"]["hosted"]
+    after_in = data["new"]["in_process"]["sample_cpu_us"]
+    after_ratio = data["new"]["hosted_over_in_process"]["sample_cpu"]
+    rows = []
+    for code, label in (("reference", "before (main)"), ("new", "after")):
+        a, b, ratio = data[code]["in_process"], data[code]["hosted"], data[code]["hosted_over_in_process"]
+        rows.append([label, f"{a['sample_us']:.0f} / **{b['sample_us']:.0f}**",
+                     f"{a['sample_cpu_us']:.0f} / **{b['sample_cpu_us']:.0f}** + {b['sample_host_cpu_us']:.0f}",
+                     f"{ratio['sample_cpu']:.2f}", f"{a['loop_us_per_step']:.0f} / **{b['loop_us_per_step']:.0f}**",
+                     f"{a['run_cpu_us_per_step']:.0f} / **{b['run_cpu_us_per_step']:.0f}** + "
+                     f"{b['run_host_cpu_us_per_step']:.0f}", f"{ratio['run_cpu']:.2f}"])
+    return [
+        "A hosted controller's cost per sample, before and after its host's protocol was slimmed (an answer's length "
+        "and body taken in one read on either side, the messages' text formatted only for a message), side by side "
+        "in one process (script: `benchmarks/hosted_controller.py`): the example AEB in process and a foreign copy "
+        "of it in a host, each through this checkout's sdl-fmu and through main's (its own host process), the four "
+        "interleaved, medians. A sample in a loop (wall µs; CPU µs of this process, + the host's), and a CCRs test "
+        "through `api.run` (the master loop's wall µs per step; CPU µs per step of this process, + the host's). The "
+        "controller is in a closed loop: sample k + 1's inputs depend on the ego's answer to sample k's request, so "
+        "one request per sample is the least there can be (batching samples would need the controller rolled back, "
+        "which sdl-fmu never does: [docs/controllers.md](docs/controllers.md)); what a request costs beyond the "
+        "in-process sample is the pipe's two wake-ups, which a loaded machine makes long.", "",
+        *_table(["protocol", "sample µs (in process / host)", "sample CPU µs (in process / host + host process)",
+                 "sample CPU, host / in process", "CCRs loop µs per step (in process / host)",
+                 "CCRs CPU µs per step (in process / host + host process)", "CCRs CPU, host / in process"], rows), "",
+        _measured(data["measured"]), "",
+        f"- A hosted sample's CPU (both processes), after against before: {_both(after):.0f} µs against "
+        f"{_both(before):.0f} "
+        f"µs ({_pct(_both(after) / _both(before) - 1)}), the in-process sample {after_in:.0f} µs: the host's "
+        f"per-sample cost is **not** brought near the in-process one (x {after_ratio:.2f}); a whole CCRs test costs "
+        f"x {data['new']['hosted_over_in_process']['run_cpu']:.2f} the CPU of the in-process one.", ""]
+
+
+def _both(hosted: dict) -> float:
+    """A hosted sample's CPU µs, this process's and the host's."""
+    return hosted["sample_cpu_us"] + hosted["sample_host_cpu_us"]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, scenario_step, export_speed, isolation)
+            aeb_ccr, scenario_step, export_speed, isolation, hosted_controller)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -414,6 +456,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/scenario_step.py --json benchmarks/results/scenario_step.json",
         "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
         "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json  # --part vehicles|controller",
+        "python benchmarks/hosted_controller.py --reference CHECKOUT --json benchmarks/results/hosted_controller.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

@@ -34,8 +34,9 @@ from .cosim import master
 from .cosim.ego import FmuError
 from .hold import HOLD_VARIABLE, hold_here, holding  # noqa: F401 (HOLD_VARIABLE: the tests' name for it)
 from .names import EXAMPLE_CONTROLLER, SHIPPED, Dynamics
-from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DRIVERS, LIMITS, MAX_TIME, ON_COLLISION,
-                      InputError, checked_choice, checked_option, checked_seed, option_error, regular_file)
+from .options import (DEFAULT_DRIVER_PERIOD, DEFAULT_SPEED, DEFAULT_STEP, DEFAULT_TEST_TIMEOUT, DRIVERS, LIMITS,
+                      MAX_TIME, ON_COLLISION, InputError, RunTimeout, checked_choice, checked_option, checked_seed,
+                      option_error, regular_file)
 from .paths import SCENARIO_DIRECTORY
 from .results import RunRecord, scenario_units, summary, timeseries_table, write_results
 from .results.folder import ResultsFolderError, check_results_folder
@@ -55,10 +56,6 @@ from .vehicle.isolated import FmuTimeout, deadline
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
            "export", "Export", "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model",
            "LIMITS", "RUN_OPTIONS", "DRIVERS", "ON_COLLISION"]
-
-
-class RunTimeout(RuntimeError):
-    """A run stopped because it exceeded its wall-clock `timeout` (run(..., timeout=...))."""
 
 
 def _first_line(error: BaseException) -> str:
@@ -522,15 +519,20 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
            vehicle: str | os.PathLike | None = None, only: Sequence[str] | None = None,
            out: str | os.PathLike | None = None, pack: str = "vehicle", params: dict[str, float] | None = None,
            controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
-           workers: int | None = None, scheduler: str | None = None) -> VerifyResult:
+           workers: int | None = None, scheduler: str | None = None, test_timeout: float | None = None,
+           progress: bool | None = False) -> VerifyResult:
     """Runs a test pack (docs/verification.md) against one vehicle: a shipped model (`dynamics`), or `fmu` driven
     through the vehicle map `vehicle`, with FMU start values `params` (SI, as run's). pack "vehicle": the standard
     manoeuvres (`only`: some of them); a manoeuvre the vehicle cannot be driven through fails with its reason.
     pack "aeb-ccr": the Euro NCAP car-to-car rear grid (`only`: some of CCRs, CCRm, CCRb) with the controller
     `controller` and its map `controller_map` in the loop (`controller="example-aeb"`: the shipped example AEB;
     none: the vehicle alone), run on Dask as a sweep runs (`workers` processes, default one per core, or
-    `scheduler`'s cluster; workers=0: in this process). Only user mistakes (options, FMU, map, results folder) raise
-    InputError; a test or manoeuvre that fails is a result."""
+    `scheduler`'s cluster; workers=0: in this process), each test stopped after `test_timeout` s of wall clock
+    (default options.DEFAULT_TEST_TIMEOUT; its end is then `timeout`). With `out`, each finished test is kept there as
+    it finishes, and a pack interrupted (KeyboardInterrupt) is resumed by the same call: the tests kept are not run
+    again (docs/verification.md). progress: a line on stderr per test (tests done, failed, timed out, elapsed); None:
+    rewritten in place on a terminal, else a line per test that failed or timed out. Only user mistakes (options,
+    FMU, map, results folder) raise InputError; a test or manoeuvre that fails is a result."""
     from . import verify as vehicle_pack  # matplotlib for its report: loaded only to verify
     from .verify.datasheet import datasheet, provenance
 
@@ -543,10 +545,14 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
         if controller is not None or controller_map is not None:
             raise option_error("controller", controller or controller_map,
                                "applies to the aeb-ccr pack (the vehicle pack drives the vehicle alone)")
+        if test_timeout is not None:
+            raise option_error("test_timeout", test_timeout, "applies to the aeb-ccr pack")
     else:
         from .verify import aeb
 
         known = list(aeb.GROUPS)
+        test_timeout = (DEFAULT_TEST_TIMEOUT if test_timeout is None
+                        else checked_option("test_timeout", test_timeout, low_open=True))
     names = known if only is None else list(only)
     unknown = [name for name in names if name not in known]
     if unknown or not names:
@@ -580,16 +586,46 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
                    "controller": None if controller is None else str(controller.fmu_path.absolute()),
                    "controller_map": None if controller is None else str(Path(controller.map_path).absolute())}
         options = {key: value for key, value in options.items() if value}
-        try:
-            outcomes = aeb.run_grid(aeb.grid(names), options, run, (tuned.length, tuned.width),
-                                    workers=workers, scheduler=scheduler)
-        except ClusterError as error:
-            raise InputError("workers" if scheduler is None else "scheduler", str(error)) from None
+        outcomes = _aeb_grid(aeb, aeb.grid(names), options, (tuned.length, tuned.width), out, workers, scheduler,
+                             test_timeout, progress)
         folder = None if out is None else aeb.write(out, outcomes, identity, sheet, _controller_identity(controller),
                                                     tool)
         return VerifyResult(identity, outcomes, aeb.table(outcomes), folder, aeb.passed(outcomes), pack)
     except ResultsFolderError as error:
         raise InputError("out", "", subject=str(error)) from None
+
+
+def _aeb_grid(aeb, tests: list, options: dict, footprint, out, workers, scheduler, timeout: float,
+              progress: bool | None) -> list:
+    """The AEB pack's outcomes in the grid's order: those kept in `out`'s journal by an interrupted pack of the same
+    identity, and the rest run (each kept there as it finishes)."""
+    from .verify.aeb import kept
+
+    pack = None if out is None else kept.identity(options, __version__)
+    done = {} if out is None else {kept.key(o.test): o for o in kept.finished(out, tests, pack, timeout)}
+    todo = [test for test in tests if kept.key(test) not in done]
+    live = progress is None and sys.stderr.isatty()
+    shown = aeb.Progress(len(tests), list(done.values()), every=bool(progress) or live, live=live,
+                         stream=unescaped(sys.stderr) if live else None)
+    record = None if out is None else kept.Recorder(Path(out), pack, timeout)
+
+    def finished(outcome) -> None:
+        if record is not None:
+            record(outcome)
+        if progress is not False:
+            shown(outcome)
+
+    try:
+        ran = aeb.run_grid(todo, options, run, footprint, workers=workers, scheduler=scheduler, timeout=timeout,
+                           progress=finished)
+    except ClusterError as error:
+        raise InputError("workers" if scheduler is None else "scheduler", str(error)) from None
+    finally:
+        if record is not None:
+            record.close()
+        shown.close()
+    done.update((kept.key(outcome.test), outcome) for outcome in ran)
+    return [done[kept.key(test)] for test in tests]
 
 
 def _controller_identity(controller) -> dict | None:

@@ -17,7 +17,7 @@ from . import __version__, api
 from . import sweep as sweeping
 from .hold import hold_here
 from .names import SHIPPED
-from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DRIVERS, ON_COLLISION, InputError
+from .options import DEFAULT_DRIVER_PERIOD, DEFAULT_STEP, DEFAULT_TEST_TIMEOUT, DRIVERS, ON_COLLISION, InputError
 from .sdl import ScenarioError, describe
 from .text import EscapingStream
 from .units import length_label, speed_label
@@ -190,9 +190,21 @@ def _sweep(args) -> int:
 def _verify(args) -> int:
     only = None if args.only is None else [name.strip() for name in args.only.split(",") if name.strip()]
     out = Path(args.out) if args.out is not None else Path("verify") / _verify_folder_name(args)
-    result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out,
-                        pack=args.pack, params=_parse_parameters(args.param), controller=args.controller,
-                        controller_map=args.controller_map, workers=args.workers, scheduler=args.scheduler)
+    try:
+        result = api.verify(dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, only=only, out=out,
+                            pack=args.pack, params=_parse_parameters(args.param), controller=args.controller,
+                            controller_map=args.controller_map, workers=args.workers, scheduler=args.scheduler,
+                            test_timeout=args.test_timeout, progress=None)
+    except KeyboardInterrupt as stop:
+        from .verify.aeb.kept import JOURNAL_NAME
+
+        kept = out / JOURNAL_NAME
+        if args.pack == "vehicle" or not kept.is_file():
+            raise  # nothing was written
+        how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
+        print(f"sdl-fmu: verify {how}; the finished tests are in {kept}: the same command resumes the pack",
+              file=sys.stderr)
+        return EXIT_TERMINATED if isinstance(stop, Terminated) else EXIT_INTERRUPTED
     print(f"{result.vehicle['name']} ({Path(result.vehicle['fmu']).name}, GUID {result.vehicle['guid']})")
     print(result.table)
     print(f"results: {result.folder / 'verify.json'}, {result.folder / 'report.html'}")
@@ -352,6 +364,9 @@ def parser() -> argparse.ArgumentParser:
     where.add_argument("--workers", type=int, help="aeb-ccr: worker processes of a local Dask cluster (default: one "
                        "per core; 0: in this process)")
     where.add_argument("--scheduler", help="aeb-ccr: address of an existing Dask scheduler (tcp://host:port)")
+    verify.add_argument("--test-timeout", type=_float_argument, metavar="S",
+                        help=f"aeb-ccr: wall-clock limit of one test, s (default {DEFAULT_TEST_TIMEOUT:g}); a test "
+                        "that outlasts it ends as timed out")
     verify.add_argument("--strict", action="store_true", help="exit 1 when a criterion fails (a manoeuvre fails; "
                         "aeb-ccr: a test scores less than its full points)")
     verify.add_argument("--out", help="results folder: new, empty, or an earlier verify folder "

@@ -38,8 +38,7 @@ import traceback
 from pathlib import Path
 from typing import Callable, Literal
 
-import numpy as np
-
+from . import journal
 from .results.folder import SWEEP_MANIFEST_FORMAT, SWEEP_MANIFEST_NAME, folder_kind, other_kind_text
 from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
 from .shipping import one_file as _one_file, passed_on as _passed_on
@@ -392,12 +391,12 @@ def _write_manifest(out: Path, coming: dict[str, Path] | None = None) -> None:
 
     coming = coming or {}
     files = {}
-    journal = _manifest_entry(out, JOURNAL_NAME)  # the journal's start as compacted (rows are appended after it)
+    started = _manifest_entry(out, JOURNAL_NAME)  # the journal's start as compacted (rows are appended after it)
     for name in sorted(OWN_FILES):
         now = ownership.record(out / name, prefix=name == JOURNAL_NAME) if (out / name).is_file() else None
-        if name == JOURNAL_NAME and name not in coming and journal is not None and ownership.unchanged(out / name,
-                                                                                                       journal):
-            files[name] = journal
+        if (name == JOURNAL_NAME and name not in coming and started is not None
+                and ownership.unchanged(out / name, started)):
+            files[name] = started
         elif name in coming:
             files[name] = [now, ownership.record(coming[name], prefix=name == JOURNAL_NAME)]
         elif now is not None:
@@ -445,17 +444,9 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
         raise SweepError(f"--out {out}: holds a different sweep ({earlier.get('scenario')}, varying "
                          f"{', '.join(earlier.get('vary', {}))}; its {' and '.join(differ)} differ: a changed "
                          "file or option); choose another folder")
-    rows = {}
-    if (out / JOURNAL_NAME).exists():
-        for line in (out / JOURNAL_NAME).read_text(encoding="utf-8").splitlines():
-            try:
-                row = json.loads(line)
-            except ValueError:
-                continue  # a line cut short by the interruption (or damaged): that run is simply run again
-            if (isinstance(row, dict) and row.get("status") == "ok" and isinstance(row.get("key"), str)
-                    and type(row.get("run")) is int):
-                rows[row["key"]] = row
-    return list(rows.values())
+    # a line cut short by the interruption (or damaged) is dropped by the journal: that run is simply run again
+    return list(journal.rows(out / JOURNAL_NAME, lambda row: row.get("status") == "ok"
+                             and type(row.get("run")) is int).values())
 
 
 def write_table(rows: list[dict], out: Path, varied: list[str], units: Units) -> None:
@@ -683,14 +674,14 @@ def _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, sched
     return sorted(rows, key=lambda r: r["run"])
 
 
-def _keep_only(journal: Path, rows: list[dict]) -> None:
+def _keep_only(path: Path, rows: list[dict]) -> None:
     """The journal with only the rows kept (the `ok` ones): the runs that failed are run again."""
-    partial = journal.with_name(journal.name + PARTIAL)
+    partial = path.with_name(path.name + PARTIAL)
     try:
-        partial.write_text("".join(json.dumps(row, default=_plain) + "\n" for row in rows), encoding="utf-8")
-        _write_manifest(journal.parent, {journal.name: partial})
-        os.replace(partial, journal)
-        _write_manifest(journal.parent)
+        partial.write_text("".join(journal.line(row) for row in rows), encoding="utf-8")
+        _write_manifest(path.parent, {path.name: partial})
+        os.replace(partial, path)
+        _write_manifest(path.parent)
     finally:
         partial.unlink(missing_ok=True)
 
@@ -725,7 +716,7 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
                    for index, values in todo}
         pending = set(futures)
         last_progress = time.monotonic()
-        with open(out / JOURNAL_NAME, "a", encoding="utf-8") as journal:
+        with open(out / JOURNAL_NAME, "a", encoding="utf-8") as stream:
             while pending:
                 finished = [future for future in pending if future.done()]
                 now = time.monotonic()
@@ -735,7 +726,7 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
                         row = future.result()
                     except Exception as error:  # the worker died or the task could not run
                         row = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
-                    rows.append(_record(journal, row, *futures[future], columns))
+                    rows.append(_record(stream, row, *futures[future], columns))
                     bar.update()
                     last_progress = now
                 if finished or not pending:
@@ -746,7 +737,7 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
                     for future in stuck:
                         pending.discard(future)
                         future.cancel()
-                        rows.append(_record(journal, {"status": "timeout", "error": f"no result within "
+                        rows.append(_record(stream, {"status": "timeout", "error": f"no result within "
                                                       f"{patience:.0f} s: given up"}, *futures[future], columns))
                         bar.update()
                     last_progress = now
@@ -758,11 +749,10 @@ def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> l
     return rows
 
 
-def _record(journal, row: dict, index: int, values: dict, columns: dict[str, str]) -> dict:
+def _record(stream, row: dict, index: int, values: dict, columns: dict[str, str]) -> dict:
     row = {"run": index, **{columns[name]: value for name, value in values.items()}, **row,
            "key": _key(index, values)}
-    journal.write(json.dumps(row, default=_plain) + "\n")
-    journal.flush()
+    journal.append(stream, row)
     return row
 
 
@@ -780,12 +770,6 @@ def failure_line(rows: list[dict], table: Path) -> str | None:
         error = (str(first.get("error") or "").strip().splitlines() or ["no error given"])[0]
         return f"all {len(rows)} runs {what} {where}; run {first['run']}: {error}"
     return f"{len(bad)} of {len(rows)} runs {what} {where}"
-
-
-def _plain(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    return str(value)
 
 
 def _stderr_is_terminal() -> bool:

@@ -20,6 +20,7 @@ report); anything else is refused in one line naming the folder and what it hold
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import re
@@ -41,7 +42,8 @@ EARLIER = {"run": "an earlier run's results folder", "verify": "an earlier verif
            "export": "an earlier export folder", "sweep": "an interrupted sweep's folder"}
 # the names sdl-fmu writes into results folders (run, verify): one of them held by a file that is not sdl-fmu's is
 # refused before the run (it would have to be overwritten)
-RESULT_NAMES = ("timeseries.csv", "traffic.csv", "summary.json", "plot.png", "verify.json", "report.html")
+RESULT_NAMES = ("timeseries.csv", "traffic.csv", "summary.json", "plot.png", "verify.json", "report.html",
+                "tests.csv", "tests-rows.jsonl")
 _PARTIAL, _OLD = "partial", "old"
 _SIBLING = re.compile(r"\.(?P<name>.+)\.(?P<kind>partial|old)-(?P<pid>\d+)-[A-Za-z0-9_]+")
 
@@ -185,6 +187,35 @@ def check_results_folder(out: str | os.PathLike, kind: FolderKind = "run") -> Pa
         raise ResultsFolderError(f"{shown}: {existing} is not a folder")
     _probe_writable(existing, shown)
     return target
+
+
+def with_journal(out: str | os.PathLike, name: str, kind: FolderKind) -> Path:
+    """The journal `name` (sdl_fmu/journal.py) in the results folder `out` (new, empty or an earlier results folder
+    of `kind`, as check_results_folder allows; made if need be), and the folder's signed manifest proving it
+    sdl-fmu's whatever is appended to it (its start, empty, is recorded: a sweep's journal is proved the same way),
+    the files sdl-fmu wrote there before still proved. The folder is left incomplete (`complete` false) until
+    write_results_folder replaces it with the results, the journal gone. An existing journal it proves is kept."""
+    from .. import ownership
+
+    shown = os.fspath(out)
+    target = check_results_folder(out, kind)
+    path = target / name
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        own = read_manifest(target) or []
+        if name in own and path.is_file():
+            return path
+        if os.path.lexists(path):
+            raise ResultsFolderError(_clash(shown, name))
+        files = {other: ownership.record(target / other) for other in own if os.path.lexists(target / other)}
+        start = {"size": 0, "sha256": hashlib.sha256(b"").hexdigest(), "appended": True}
+        files[name] = [None, start]  # absent, or appended to from empty
+        ownership.write_json(target / MANIFEST_NAME, ownership.signed({"format": MANIFEST_FORMAT, "kind": kind,
+                                                                      "complete": False, "files": files}))
+        path.touch()
+    except OSError as error:
+        raise ResultsFolderError(f"{shown}: cannot write: {error.strerror or error}") from None
+    return path
 
 
 def _clash(shown: str, name: str) -> str:

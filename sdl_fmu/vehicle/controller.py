@@ -319,7 +319,10 @@ class IsolatedController(Hosted):
     def sample(self, k: int, signals: Mapping[str, float]) -> Request:
         """As ControllerInstance.sample, in the host."""
         period = self.model.period
-        where = f"in {self._prefix}DoStep from t = {k * period:.6f} s to {(k + 1) * period:.6f} s"
+
+        def where() -> str:  # formatted only for a message
+            return f"in {self._prefix}DoStep from t = {k * period:.6f} s to {(k + 1) * period:.6f} s"
+
         request = ("sample", None, None, (k, {name: signals[name] for name in self._names}))
         return Request(*self._translated(lambda: self._send(request, where)))
 

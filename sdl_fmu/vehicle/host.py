@@ -19,6 +19,7 @@ import struct
 import sys
 
 _HEADER = struct.Struct("<Q")
+_READ = 1 << 16  # bytes asked of the pipe per read
 
 
 def _die_with_parent() -> None:
@@ -33,15 +34,21 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
-def _read(fd: int, count: int) -> bytes | None:
-    chunks = []
-    while count:
-        chunk = os.read(fd, count)
-        if not chunk:
-            return None
-        chunks.append(chunk)
-        count -= len(chunk)
-    return b"".join(chunks)
+def _requests(fd: int):
+    """The requests' bodies as they come, until the pipe closes. A read takes what the pipe holds (a request's length
+    and body, written at once, come in one read); only one request is outstanding at a time."""
+    buffer = b""
+    while True:
+        end = None
+        while end is None or len(buffer) < end:
+            chunk = os.read(fd, _READ)
+            if not chunk:
+                return
+            buffer += chunk
+            if end is None and len(buffer) >= _HEADER.size:
+                end = _HEADER.size + _HEADER.unpack_from(buffer)[0]
+        yield buffer[_HEADER.size:end]
+        buffer = buffer[end:]
 
 
 def _write(fd: int, reply) -> None:
@@ -57,15 +64,13 @@ def _first_line(error: BaseException) -> str:
 
 
 def serve(requests: int, replies: int) -> None:
+    """Answers each request on `requests` on `replies` (see the module) until the request pipe closes."""
     from .instance import EgoInstance, FmuError
     from .unpack import adopt
 
     instance, snapshots, count = None, {}, 0
-    while True:
-        header = _read(requests, _HEADER.size)
-        if header is None:
-            break
-        request = pickle.loads(_read(requests, _HEADER.unpack(header)[0]) or b"")
+    for body in _requests(requests):
+        request = pickle.loads(body)
         kind = request[0]
         try:
             if kind == "open":

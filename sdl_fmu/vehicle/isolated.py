@@ -37,10 +37,13 @@ import sys
 import threading
 import time as wall_clock
 from pathlib import Path
+from typing import Callable, Union
 
 from .instance import EgoState, FmuError, _make_state
 
 ISOLATION_VARIABLE = "SDL_FMU_ISOLATION"
+Where = Union[str, Callable[[], str]]  # the call and instant a message names, or a function giving them
+_READ = 1 << 16  # bytes asked of the pipe per read: an answer's length and body at once
 CLOSE_GRACE = 10.0  # s: an FMU that does not terminate and free itself within this is killed
 START_LIMIT = 120.0  # s for a host to start (an interpreter and fmpy): beyond it, it hangs
 _HEADER = struct.Struct("<Q")
@@ -132,9 +135,10 @@ class _Host:
         self.busy = False
         self.thread = threading.get_ident()
 
-    def call(self, request: tuple, where: str, limit: float | None = None):
+    def call(self, request: tuple, where: Where, limit: float | None = None):
         """Sends a request and waits for its answer; FmuError for the FMU's own refusal, for the host's end, and
-        FmuTimeout past the deadline (`limit` s from now, or the context's deadline)."""
+        FmuTimeout past the deadline (`limit` s from now, or the context's deadline). `where` names the call and the
+        instant in those messages (a function giving the text: formatted only for a message)."""
         self.busy = True
         data = pickle.dumps(request, protocol=pickle.HIGHEST_PROTOCOL)
         try:
@@ -146,33 +150,37 @@ class _Host:
         end = _deadline.get()
         if limit is not None:
             end = wall_clock.monotonic() + limit if end is None else min(end, wall_clock.monotonic() + limit)
-        size, = _HEADER.unpack(self._read(_HEADER.size, where, end))
-        status, value = pickle.loads(self._read(size, where, end))
+        status, value = pickle.loads(self._answer(where, end))
         self.busy = False
         if status == "error":
             raise FmuError(value)
         return value
 
-    def _read(self, count: int, where: str, end: float | None) -> bytes:
-        chunks, missing = [], count
-        while missing:
+    def _answer(self, where: Where, end: float | None) -> bytes:
+        """The answer's body. Its length and body come in one read where the pipe holds both (the host writes them
+        at once), so an answer usually costs one wait and one read; only one request is ever outstanding, so a read
+        never takes part of the next answer."""
+        buffer, size = b"", None
+        while size is None or len(buffer) < _HEADER.size + size:
             if end is not None:
                 remaining = end - wall_clock.monotonic()
                 if remaining <= 0 or not select.select([self._replies], [], [], remaining)[0]:
                     if wall_clock.monotonic() >= end:
                         self.kill()
-                        raise FmuTimeout(f"did not answer {where} before the wall-clock limit (its process was "
-                                         "ended)")
+                        raise FmuTimeout(f"did not answer {_text(where)} before the wall-clock limit (its process "
+                                         "was ended)")
                     continue
-            chunk = os.read(self._replies, missing)
+            chunk = os.read(self._replies, _READ)
             if not chunk:
                 self._ended(where)
-            chunks.append(chunk)
-            missing -= len(chunk)
-        return b"".join(chunks)
+            buffer += chunk
+            if size is None and len(buffer) >= _HEADER.size:
+                size, = _HEADER.unpack_from(buffer)
+        return buffer[_HEADER.size:]
 
-    def _ended(self, where: str):
+    def _ended(self, where: Where):
         """The host is gone: how it ended, as one FmuError."""
+        where = _text(where)
         try:
             code = self.process.wait(timeout=CLOSE_GRACE)
         except subprocess.TimeoutExpired:
@@ -205,6 +213,10 @@ class _Host:
                 pass
         self._requests = self._replies = -1
         self.busy = False
+
+
+def _text(where: Where) -> str:
+    return where if isinstance(where, str) else where()
 
 
 def _stderr_fd() -> int:
@@ -282,7 +294,7 @@ class Hosted:
         """The error of a failure before the FMU was opened (its unpack, its host's start)."""
         return FmuError(text)
 
-    def _send(self, request: tuple, where: str):
+    def _send(self, request: tuple, where: Where):
         if self._host is None:
             raise FmuError("the instance is closed")
         return self._host.call(request, where)
@@ -324,7 +336,7 @@ class IsolatedInstance(Hosted):
         self.warnings, state = self._open(model, ("open", dict(start), dict(parameters), instance_name))
         self._state = _make_state(state)
 
-    def _call(self, kind: str, where: str, argument=None):
+    def _call(self, kind: str, where: Where, argument=None):
         request = (kind, self._controls, self._friction, argument)
         self._controls = self._friction = None
         return self._send(request, where)
@@ -337,8 +349,9 @@ class IsolatedInstance(Hosted):
         return self._state
 
     def step_to(self, end: float) -> None:
-        self._state = _make_state(self._call("step", f"in {self._prefix}DoStep from t = {self.time:.6f} s to "
-                                                     f"{end:.6f} s", end))
+        start = self.time
+        self._state = _make_state(self._call("step", lambda: f"in {self._prefix}DoStep from t = {start:.6f} s to "
+                                                             f"{end:.6f} s", end))
         self.time = end
 
     def step(self, h: float) -> None:

@@ -11,9 +11,11 @@ the controller says it hangs (it creates a file), never after a guessed time."""
 import csv
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -206,4 +208,84 @@ def test_a_controller_in_a_host_gives_the_same_results(work, simple_fmu):
         rows = list(csv.DictReader(outputs[-1].decode().splitlines()))
         assert {row["request_active"] for row in rows} == {"0", "1"}  # the AEB acted
     assert outputs[0] == outputs[1]
+    assert_clean(work)
+
+
+def journal_rows(path) -> list[dict]:
+    """The rows of a pack's journal that are whole (an interruption may cut its last line short)."""
+    rows = []
+    for line in path.read_text().splitlines():
+        try:
+            rows.append(json.loads(line))
+        except ValueError:
+            continue
+    return rows
+
+
+@pytest.mark.parametrize("how", ["ctrl-c", pytest.param("sigterm", marks=SLOW)])
+def test_a_hung_controller_times_out_each_aeb_test_and_the_interrupted_pack_resumes(aeb, work, simple_fmu, how):
+    """verify --pack aeb-ccr --test-timeout with a controller that hangs from its first sample (trigger_time 0): every
+    test hangs, so any timeout ends each one, whatever the machine's speed. Each finished test is kept in the
+    journal as it ends and said on stderr (tests done, failed, timed out, elapsed); Ctrl-C (or SIGTERM), sent once two
+    are kept (read from what the command wrote), keeps them and says so; the same command then runs only the others (one
+    progress line each, counting from the kept ones), and every test is reported as timed out: never passed, no
+    points, counted in the totals."""
+    fmu, _ = aeb
+    out = work / "work" / "aeb"
+    journal = out / "tests-rows.jsonl"
+    hang = hostile_controller_map(work, "hang", trigger_time=0.0)
+    command = ["verify", "--pack", "aeb-ccr", "--only", "CCRb", "--workers", "0", "--test-timeout", "0.2", "--fmu",
+               simple_fmu, "--controller", fmu, "--controller-map", hang, "--out", out]
+    process = popen_capped(*command, cwd=work / "work", env=environment(work))
+    try:
+        deadline = time.monotonic() + HANG_LIMIT  # only against a hang: the loop ends once two tests are kept
+        while not (journal.is_file() and len(journal_rows(journal)) >= 2):
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "no test was kept"
+            time.sleep(0.02)
+        process.send_signal(signal.SIGINT if how == "ctrl-c" else signal.SIGTERM)
+        stdout, stderr = process.communicate(timeout=HANG_LIMIT)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    lines = stderr.splitlines()
+    code, what = {"ctrl-c": (130, "interrupted (Ctrl-C)"), "sigterm": (143, "terminated (SIGTERM)")}[how]
+    assert process.returncode == code and lines[-1] == (
+        f"sdl-fmu: verify {what}; the finished tests are in {journal}: the same command resumes the pack"), stderr
+    kept = journal_rows(journal)
+    assert len(kept) >= 2 and all(row["outcome"]["end"] == "timeout" for row in kept), kept
+    # one progress line per kept test (the last may have been cut short by the signal, after its row was written)
+    assert len(kept) - 1 <= len(lines) - 1 <= len(kept), stderr
+    for n, line in enumerate(lines[:-1], 1):
+        assert re.fullmatch(rf"aeb-ccr: {n}/20 tests done, 0 failed, {n} timed out, \d+ s", line), line
+    assert stdout == "" and os.listdir(work / "work") == ["aeb"]
+    assert_clean(work)
+
+    resumed = capped(*command, cwd=work / "work", env=environment(work))
+    assert resumed.returncode == 0, resumed.stderr
+    # the kept tests are not run again: one line per test run, counting on from the kept ones
+    lines = resumed.stderr.splitlines()
+    assert len(lines) == 20 - len(kept), resumed.stderr
+    for n, line in enumerate(lines, len(kept) + 1):
+        assert re.fullmatch(rf"aeb-ccr: {n}/20 tests done, 0 failed, {n} timed out, \d+ s", line), line
+    document = json.loads((out / "verify.json").read_text())
+    tests = document["tests"]
+    assert len(tests) == 20
+    for test in tests:
+        assert (test["end"], test["passed"], test["score"], test["impact"]) == ("timeout", False, None, None), test
+        assert test["error"].startswith("the run exceeded its time limit of 0.2 s (wall clock): the controller "
+                                        "HostileAeb.fmu did not answer "), test["error"]
+    # the kept tests' outcomes are those the interrupted pack wrote, to the microsecond of their wall time
+    by_key = {json.dumps({k: t[k] for k in ("group", "ego_speed_kmh", "target_speed_kmh", "overlap_pct",
+                                            "target_decel_mps2", "headway_m")}, sort_keys=True): t for t in tests}
+    for row in kept:
+        assert by_key[row["key"]] == row["outcome"]
+    assert document["totals"]["CCRb"] == {"tests": 20, "impacts": 0, "errors": 0, "timeouts": 20, "points": 0.0,
+                                          "max_points": 20.0, "score_pct": 0.0, "passed": 0}
+    assert document["passed"] is False
+    assert "CCRb: 0.00 of 20 points (0.0 %), 0 impact(s) in 20 tests, 20 timed out" in resumed.stdout
+    assert sum(line.split().count("t/o") for line in resumed.stdout.splitlines()) == 20  # the grid's cells
+    # the results replaced the journal
+    assert sorted(os.listdir(out)) == [".sdl-fmu-results.json", "report.html", "tests.csv", "verify.json"]
     assert_clean(work)

@@ -230,3 +230,43 @@ def test_the_pack_from_the_command_line(tmp_path, simple_fmu):
     again = json.loads((tmp_path / "strict" / "verify.json").read_text())["tests"]
     assert [{k: v for k, v in t.items() if k != "wall_time_s"} for t in again] == [
         {k: v for k, v in t.items() if k != "wall_time_s"} for t in tests]
+
+
+# ---- the finished tests kept for a resume (verify/aeb/kept.py) ---------------------------------------------------
+
+
+def test_a_resume_keeps_the_tests_of_the_same_pack_and_timeouts_only_under_a_timeout_as_long(tmp_path):
+    # the journal as an interrupted pack leaves it: rows appended one by one (the last cut short), each with the
+    # pack's identity and the timeout it ran under; what a resume keeps follows from the rows alone
+    import json
+
+    from sdl_fmu.verify.aeb import kept
+    from sdl_fmu.verify.aeb.outcome import TestOutcome
+
+    tests = grid(["CCRb"])[:4]
+    out = tmp_path / "aeb"
+    recorder = kept.Recorder(out, "pack-a", 10.0)
+    scored = TestOutcome(tests[0], impact=False, relative_impact_speed_kmh=0.0, score=1.0, end="stopped")
+    recorder(scored)
+    recorder(TestOutcome(tests[1], end="timeout", error="the run exceeded its time limit of 10 s (wall clock)"))
+    recorder(TestOutcome(tests[2], error="the controller Aeb.fmu failed: it crashed (SIGSEGV)"))
+    recorder(TestOutcome(tests[3], error="KilledWorker: lost", extra={"rerun": True}))  # not the test's result
+    recorder.close()
+    other = kept.Recorder(out, "pack-b", 10.0)  # another pack's row, in the same journal
+    other(TestOutcome(tests[3], impact=True, score=0.0, end="contact"))
+    other.close()
+    with (out / kept.JOURNAL_NAME).open("a") as journal:
+        journal.write(json.dumps({"key": kept.key(tests[3]), "pack": "pack-a"})[:20])  # cut short
+    found = kept.finished(out, tests, "pack-a", 10.0)
+    assert [o.test for o in found] == tests[:3]
+    assert [(o.end, o.score, o.passed, o.timed_out, o.failed) for o in found] == [
+        ("stopped", 1.0, True, False, False), ("timeout", None, False, True, False),
+        ("error", None, False, False, True)]
+    assert found[0].to_json() == scored.to_json()
+    # a longer timeout runs the timed-out test again; a shorter one keeps it; another pack keeps only its own
+    assert [o.test for o in kept.finished(out, tests, "pack-a", 20.0)] == [tests[0], tests[2]]
+    assert len(kept.finished(out, tests, "pack-a", 5.0)) == 3
+    assert [o.test for o in kept.finished(out, tests, "pack-b", 10.0)] == [tests[3]]
+    # the journal is proved sdl-fmu's by the folder's manifest; a journal the manifest does not list is not read
+    (out / ".sdl-fmu-results.json").unlink()
+    assert kept.finished(out, tests, "pack-a", 10.0) == []

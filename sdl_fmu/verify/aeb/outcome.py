@@ -10,7 +10,7 @@ from ...units import KILOMETRE_PER_HOUR
 from .protocol import COLOURS, Test, score
 from .scenario import TARGET
 
-End = Literal["contact", "stopped", "slower", "time_limit", "error"]
+End = Literal["contact", "stopped", "slower", "time_limit", "timeout", "error"]  # timeout: --test-timeout passed
 # km/h: below this the ego counts as stopped where a test ends by no longer closing on a stationary target (the
 # run's end is located where the speeds meet: a stop gives exactly 0 in the shipped FMUs)
 STOPPED_KMH = 1e-3
@@ -34,8 +34,18 @@ class TestOutcome:
 
     @property
     def passed(self) -> bool:
-        """A test passes when it scores the full points (the green band); a run that failed does not."""
+        """A test passes when it scores the full points (the green band); a run that failed or timed out does not."""
         return self.score is not None and self.score >= 1.0
+
+    @property
+    def timed_out(self) -> bool:
+        """The run was stopped by the pack's per-test wall-clock limit (verify --test-timeout)."""
+        return self.end == "timeout"
+
+    @property
+    def failed(self) -> bool:
+        """The run failed otherwise (an FMU's or controller's error, a worker lost)."""
+        return self.error is not None and not self.timed_out
 
     @property
     def colour(self) -> str:
@@ -47,6 +57,17 @@ class TestOutcome:
                 "speed_reduction_kmh": self.speed_reduction_kmh, "min_gap_m": self.min_gap_m,
                 "min_ttc_s": self.min_ttc_s, "score": self.score, "passed": self.passed, "end": self.end,
                 "end_time_s": self.end_time_s, "error": self.error, "wall_time_s": round(self.wall_s, 3)}
+
+    @classmethod
+    def from_json(cls, test: Test, data: dict) -> TestOutcome:
+        """The outcome of `test` as to_json wrote it (a finished test kept in the pack's journal)."""
+        return cls(test, **{key: data.get(key) for key in RESULT_KEYS}, end=data.get("end", "error"),
+                   wall_s=data.get("wall_time_s") or 0.0)
+
+
+# the results to_json writes under their own names (from_json reads them back)
+RESULT_KEYS = ("impact", "impact_speed_kmh", "relative_impact_speed_kmh", "speed_reduction_kmh", "min_gap_m",
+               "min_ttc_s", "score", "end_time_s", "error")
 
 
 def target_speed(test: Test, time: float) -> float:

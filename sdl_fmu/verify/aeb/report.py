@@ -52,7 +52,8 @@ def table(outcomes: list[TestOutcome]) -> str:
         mine = [o for o in outcomes if o.test.group == group]
         if not mine:
             continue
-        lines.append(f"{group}: relative impact speed, km/h ('-' avoided, '!' the run failed), per overlap")
+        lines.append(f"{group}: relative impact speed, km/h ('-' avoided, '!' the run failed, 't/o' timed out), per "
+                     "overlap")
         lines.append(f"  {'':<16} " + " ".join(f"{f'{p:+d}%':>6}" for p in OVERLAPS_PCT))
         for row, cells in _rows(mine):
             text = " ".join(f"{_cell_text(cells.get(p)):>6}" for p in OVERLAPS_PCT)
@@ -61,13 +62,16 @@ def table(outcomes: list[TestOutcome]) -> str:
     for group, total in totals(outcomes).items():
         lines.append(f"{group}: {total['points']:.2f} of {total['max_points']:.0f} points ({total['score_pct']:.1f} %),"
                      f" {total['impacts']} impact(s) in {total['tests']} tests"
-                     + (f", {total['errors']} run(s) failed" if total["errors"] else ""))
+                     + (f", {total['errors']} run(s) failed" if total["errors"] else "")
+                     + (f", {total['timeouts']} timed out" if total["timeouts"] else ""))
     return "\n".join(lines)
 
 
 def _cell_text(outcome: TestOutcome | None) -> str:
     if outcome is None:
         return ""
+    if outcome.timed_out:
+        return "t/o"
     if outcome.error is not None:
         return "!"
     return f"{outcome.relative_impact_speed_kmh:.1f}" if outcome.impact else "-"
@@ -100,8 +104,8 @@ def _cell_html(outcome: TestOutcome | None) -> str:
     if outcome is None:
         return "<td></td>"
     e = html.escape
-    text = "run failed" if outcome.error else (shown("_kmh", outcome.relative_impact_speed_kmh) if outcome.impact
-                                               else "avoided")
+    text = ("timed out" if outcome.timed_out else "run failed" if outcome.error
+            else shown("_kmh", outcome.relative_impact_speed_kmh) if outcome.impact else "avoided")
     details = outcome.error or "; ".join(
         f"{name} {shown(key, getattr(outcome, key))}" for name, key in (
             ("impact speed", "impact_speed_kmh"), ("speed reduction", "speed_reduction_kmh"),
@@ -130,8 +134,8 @@ def grid_html(outcomes: list[TestOutcome]) -> str:
 
 def legend_html() -> str:
     cells = "".join(f"<td style='background:{FILL[colour]}'>{points:g} pt</td>" for points, colour in COLOURS.items())
-    return (f"<table><tr><th>points (colour)</th>{cells}<td style='background:{FILL['grey']}'>run failed</td></tr>"
-            "</table>")
+    return (f"<table><tr><th>points (colour)</th>{cells}<td style='background:{FILL['grey']}'>run failed or timed "
+            "out</td></tr></table>")
 
 
 def bands_html() -> str:
@@ -172,7 +176,8 @@ def report_html(outcomes: list[TestOutcome], vehicle: dict, sheet: dict, control
     e = html.escape
     rows = "".join(f"<tr><td>{g}</td><td class='n'>{t['tests']}</td><td class='n'>{t['impacts']}</td>"
                    f"<td class='n'>{t['points']:.2f} / {t['max_points']:.0f}</td><td class='n'>{t['score_pct']:.1f} %"
-                   f"</td><td class='n'>{t['errors']}</td></tr>" for g, t in totals(outcomes).items())
+                   f"</td><td class='n'>{t['errors']}</td><td class='n'>{t['timeouts']}</td></tr>"
+                   for g, t in totals(outcomes).items())
     image = plot_png(outcomes)
     figure = (f"<img alt='relative impact speed against ego speed' src='data:image/png;base64,"
               f"{base64.b64encode(image).decode()}'>" if image else "")
@@ -191,7 +196,7 @@ and ends at contact, when the ego stops or when it is slower than the target. Ta
 <tr><th>GUID</th><td>{e(str(vehicle.get('guid')))}</td></tr><tr><th>map</th><td>{e(str(vehicle.get('map')))}</td></tr>
 </table>
 <h2>Totals</h2><table><tr><th>group</th><th>tests</th><th>impacts</th><th>points</th><th>score</th>
-<th>runs failed</th></tr>{rows}</table>
+<th>runs failed</th><th>timed out</th></tr>{rows}</table>
 <h2>The grids</h2>{legend_html()}{grid_html(outcomes)}{figure}
 <h2>Controller</h2>{in_the_loop}
 {datasheet_html(sheet)}

@@ -1,13 +1,13 @@
 """The values a sweep varies (`--vary NAME=VALUES`, docs/sweeps.md): grids and random designs, each counted from its
 text before any value is made, reproducible from --sample-seed.
 
-VALUES is `a,b,c`, a range `start:stop:step` (stop included), or n random values: `uniform(lo,hi,n)`, `integers(lo,hi,n)`,
-`normal(mu,sigma,n)`, `choice(a,b,...,n)`, or a Latin hypercube `lhs(lo,hi,n)`; a scenario parameter declared with a
-range (`// @param NAME = VALUE [UNIT] in LOW..HIGH`) also takes `uniform(n)` and `lhs(n)` over it, its `normal` is
-truncated to it (drawn from the normal distribution restricted to the range, never clipped), and every value given it
-must lie in it. The lhs() of one sweep form one design of n runs (every lhs() gives the same n), whose columns are
-zipped, not combined: each dimension has exactly one value in each of its n equal strata. A parameter that only whole
-fields use (a model, a lane) gets its continuous draws rounded to whole numbers."""
+VALUES is `a,b,c`, a range `start:stop:step` (stop included), or n random values: `uniform(lo,hi,n)`,
+`integers(lo,hi,n)`, `normal(mu,sigma,n)`, `choice(a,b,...,n)`, or a Latin hypercube `lhs(lo,hi,n)`. A scenario
+parameter declared with a range (`// @param NAME = VALUE [UNIT] in LOW..HIGH`) also takes `uniform(n)` and `lhs(n)`
+over it, its `normal` is truncated to it (drawn from the normal distribution restricted to the range, never clipped),
+and every value given it must lie in it. The lhs() of one sweep form one design of n runs (every lhs() gives the same
+n), whose columns are zipped, not combined: each dimension has exactly one value in each of its n equal strata. A
+parameter that only whole fields use (a model, a lane) gets its continuous draws rounded to whole numbers."""
 
 from __future__ import annotations
 

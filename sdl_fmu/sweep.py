@@ -498,17 +498,14 @@ def preflight(scenario: str, varied: dict[str, list], joint: Sequence[str], fixe
     try:  # an FMU that cannot even be instantiated is a bad --fmu, not a table of failed runs
         model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
     except Exception as error:  # noqa: BLE001 - whatever the FMU's start raised
-        raise api.InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: "
-                                    f"{str(error).strip().splitlines()[0] if str(error).strip() else error!r}") from None
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
+        raise api.InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {reason}") from None
     api.check_value_names(loaded, list(varied), model)
     settings = [name for name in varied if api.value_target(name, loaded) == "scenario"]
     if settings:
-        seen = set()
-        for values in combinations({name: varied[name] for name in settings}, [n for n in joint if n in settings]):
-            key = tuple(values.values())
-            if key not in seen:
-                seen.add(key)
-                api.load(loaded, set=values, **vehicle)
+        distinct = {tuple(values.items()): values for values in
+                    combinations({name: varied[name] for name in settings}, [n for n in joint if n in settings])}
+        api.check_settings(loaded, distinct.values(), **vehicle)
     return loaded, model, scenario_path
 
 

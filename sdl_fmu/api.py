@@ -258,6 +258,9 @@ def check_value_names(scenario: Scenario, names: Sequence[str], model: EgoModel 
         if target == "scenario" and not name.startswith("$") and address(name) is None and has_fmu:
             raise option_error(option, name, f"is both a parameter of {Path(scenario.path).name} and an FMU "
                                              f"parameter of {model.name}: write ${name} or param.{name}")
+        if target == "fmu" and model is not None and not has_fmu and name.startswith("param."):
+            raise option_error(option, name, f"the FMU {model.name} has no parameter {fmu_name!r} (parameters: "
+                                             f"{', '.join(model.parameter_names())})")
         if target == "fmu" and model is not None and not has_fmu:
             raise option_error(option, name, "is no run option (" + ", ".join(VALUE_OPTIONS) + "), no parameter "
                                f"of {Path(scenario.path).name} (declared: {', '.join(declared) or 'none'}; or an "

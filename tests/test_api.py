@@ -182,7 +182,8 @@ def test_a_mapping_of_values_goes_where_each_name_says(simple_fmu):
                           (["gap", "$gap"], "vary $gap: is the parameter gap names too; give it once"),
                           (["lead_speed"], "vary lead_speed: is no run option (speed, seed, until_distance, "
                                            "until_time), no parameter of m.sdl (declared: mass, gap;"),
-                          (["$width"], "vary $width: m.sdl declares no parameter 'width' (declared: mass, gap)")):
+                          (["$width"], "vary $width: m.sdl declares no parameter 'width' (declared: mass, gap)"),
+                          (["param.grip"], "vary param.grip: the FMU simple has no parameter 'grip' (parameters: ")):
         with pytest.raises(api.InputError) as caught:
             api.check_value_names(scenario, names, model)
         assert str(caught.value).startswith(needle), str(caught.value)

@@ -1,5 +1,5 @@
-"""The `sdl-fmu` command line: build, check, run, sweep, verify, export. It only parses arguments, calls sdl_fmu.api
-and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
+"""The `sdl-fmu` command line: build, check, resolve, run, sweep, verify, export. It only parses arguments, calls
+sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
 line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
@@ -92,7 +92,7 @@ def _made_by_mkdir(folder: Path) -> list[Path]:
 
 def _check(args) -> int:
     checked = api.check(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics,
-                        vehicle=args.vehicle, tires=args.tires)
+                        vehicle=args.vehicle, tires=args.tires, set=_parse_settings(args.set))
     print(describe(checked.scenario))
     for warning in checked.warnings:
         print(f"warning: {warning}", file=sys.stderr)
@@ -113,6 +113,30 @@ def _parse_parameters(assignments: list[str]) -> dict[str, float]:
     return parameters
 
 
+def _parse_settings(assignments: list[str]) -> dict[str, float]:
+    """--set NAME=VALUE ...: scenario parameters (a declared name or an address), in the file's units."""
+    settings = {}
+    for assignment in assignments:
+        name, separator, value = assignment.partition("=")
+        try:
+            if not separator or not name.strip():
+                raise ValueError
+            settings[name.strip()] = float(value)
+        except ValueError:
+            raise InputError("set", "", subject=f"{assignment}: expected NAME=VALUE with a number (a scenario "
+                                                "parameter or an address LINE.N, in the file's units)") from None
+    return settings
+
+
+def _resolve(args) -> int:
+    settings = _parse_settings(args.set)
+    if args.out is None:
+        sys.stdout.write(api.resolve(args.scenario, settings, skip_unsupported=args.skip_unsupported))
+        return 0
+    print(api.write_resolved(args.scenario, args.out, settings, skip_unsupported=args.skip_unsupported))
+    return 0
+
+
 def _run(args) -> int:
     out = Path(args.out) if args.out is not None else Path("runs") / api.resolve_scenario(args.scenario).stem
     result = api.run(args.scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
@@ -120,7 +144,7 @@ def _run(args) -> int:
                      until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,
                      progress=None, out=out, controller=args.controller, controller_map=args.controller_map,
-                     driver=args.driver, on_collision=args.on_collision)
+                     driver=args.driver, on_collision=args.on_collision, set=_parse_settings(args.set))
     scenario = result.scenario
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
@@ -134,7 +158,6 @@ def _run(args) -> int:
 
 
 def _sweep(args) -> int:
-    varied = sweeping.parse_vary(args.vary, args.sample_seed)
     fixed = {"dynamics": args.dynamics} if args.dynamics else {}
     if args.fmu:
         fixed["fmu"] = args.fmu
@@ -157,12 +180,16 @@ def _sweep(args) -> int:
     if args.skip_unsupported:
         fixed["skip_unsupported"] = True
     scenario = api.resolve_scenario(args.scenario)
+    # the scenario's declared ranges and whole parameters shape the values (lhs(n), normal truncated to the range)
+    declared = api.load(scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics, vehicle=args.vehicle)
+    varied = sweeping.parse_vary(args.vary, args.sample_seed, declared)
+    joint = sweeping.lhs_names(args.vary)
+    if args.rerun is not None:
+        return _rerun(args, scenario, varied, joint, fixed)
     out = Path(args.out) if args.out is not None else Path("sweeps") / scenario.stem
-    sweeping.check_workers(args.workers)
-    sweeping.check_scheduler(args.scheduler)
     try:
         rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
-                              timeout=args.timeout, progress=None, **fixed)
+                              timeout=args.timeout, progress=None, joint=joint, sort=args.sort, **fixed)
     except KeyboardInterrupt as stop:
         how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
         if (out / sweeping.JOURNAL_NAME).exists():
@@ -180,10 +207,34 @@ def _sweep(args) -> int:
     print(f"{scenario.name}: {len(rows)} runs: {counts['ok']} ok, {counts['failed']} failed, "
           f"{counts['timeout']} timed out")
     print(f"table: {out / sweeping.TABLE_NAME}, {table}")
+    if args.sort is not None:
+        column, descending = sweeping.sort_column(args.sort, declared, None, varied)
+        column = next((key for key in (rows[0] if rows else {}) if key == column or key.startswith(f"{column}_")),
+                      column)  # an FMU parameter's column carries the unit its FMU declares
+        first = ", ".join(f"run {row['run']} ({column} {row[column]:.6g})" for row in rows[:3]
+                          if isinstance(row.get(column), (int, float)))
+        print(f"ranked by {column} ({'descending' if descending else 'ascending'}): {first or 'no run has it'}; "
+              "the same command with --rerun RUN --out DIR runs one again")
     print(f"plot: {out / sweeping.PLOT_NAME}")
     if failures is not None:
         print(f"sdl-fmu: {failures}; the same command runs them again", file=sys.stderr)
         return EXIT_RUNS_FAILED
+    return 0
+
+
+def _rerun(args, scenario: Path, varied: dict, joint: list, fixed: dict) -> int:
+    """sweep ... --rerun K --out DIR: run K of that sweep alone, into a results folder (as `run` writes one)."""
+    out = Path(args.out) if args.out is not None else Path("runs") / f"{scenario.stem}-run{args.rerun}"
+    result, values = sweeping.rerun(str(scenario), varied, args.rerun, out, joint=joint, **fixed)
+    units, final = result.scenario.units, result.final
+    print(f"{scenario.name} run {args.rerun} ({', '.join(f'{k}={v:g}' for k, v in values.items())}): "
+          f"{result.raw.dynamics} dynamics, {result.collisions} collision(s), ended at {final['time_s']:.2f} s, "
+          f"distance {final['distance']:.1f} {length_label(units)}, speed {final['speed']:.1f} {speed_label(units)}")
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"results: {out / 'timeseries.csv'}, {out / 'summary.json'}")
+    resolve, rest = sweeping.row_commands(str(scenario), values, result.scenario)
+    print(f"its scenario as plain SDL: {resolve}" + (f" (then sdl-fmu run FILE {rest})" if rest else ""))
     return 0
 
 
@@ -254,6 +305,13 @@ exit codes: 0 done, 1 the scenario file is wrong (verify --strict: a criterion f
             3 a sweep with failed runs, 130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
 
 
+def _set_argument(command) -> None:
+    command.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                         help="a scenario parameter: a NAME the file declares (// @param NAME = VALUE) or an address "
+                              "LINE.N (parameter N of the event on line LINE, 0 its distance), in the file's units "
+                              "(repeatable)")
+
+
 def _loop_arguments(command, every: str = "") -> None:
     """run's and sweep's options of what drives the ego: a controller in the loop, the built-in driver, collisions."""
     command.add_argument("--controller", metavar="FMU", help=f"controller FMU in the loop{every} (AEB, ACC, ...; "
@@ -291,7 +349,16 @@ def parser() -> argparse.ArgumentParser:
     check.add_argument("--tires", help="Tire Attribute File, as run --tires (advanced dynamics)")
     check.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _set_argument(check)
     check.set_defaults(handler=_check)
+
+    resolve = commands.add_parser("resolve", help="the plain SDL with the scenario's parameters in place")
+    resolve.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    _set_argument(resolve)
+    resolve.add_argument("--skip-unsupported", action="store_true",
+                         help="read a file with lines sdl-fmu does not simulate (they are kept as they are)")
+    resolve.add_argument("--out", metavar="FILE", help="a new file to write (never replaced; default: stdout)")
+    resolve.set_defaults(handler=_resolve)
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
     run.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
@@ -310,6 +377,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--until-time", type=_float_argument, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="FMU start value, SI, within its declared min/max (repeatable)")
+    _set_argument(run)
     run.add_argument("--tires", help="Tire Attribute File (advanced dynamics)")
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")
@@ -321,8 +389,14 @@ def parser() -> argparse.ArgumentParser:
     sweep = commands.add_parser("sweep", help="many runs over varied values on Dask, one table of summaries")
     sweep.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
     sweep.add_argument("--vary", action="append", default=[], metavar="NAME=VALUES", required=True,
-                       help="speed, seed, until_distance, until_time, an FMU parameter (param.NAME) or rsa.LINE"
-                            "[.LANE]; VALUES: a,b,c | start:stop:step | uniform(lo,hi,n) | integers(lo,hi,n)")
+                       help="speed, seed, until_distance, until_time, a scenario parameter ($NAME, LINE.N, rsa.LINE"
+                            "[.LANE]) or an FMU parameter (param.NAME); VALUES: a,b,c | start:stop:step | "
+                            "uniform(lo,hi,n) | integers(lo,hi,n) | normal(mu,sigma,n) | choice(a,b,...,n) | "
+                            "lhs(lo,hi,n); with a declared range also uniform(n), lhs(n)")
+    sweep.add_argument("--sort", metavar="MEASURE[:desc]", help="rank the table by this column (min_ttc_s, "
+                       "collisions, ...), ascending, or descending with :desc; a rank column first")
+    sweep.add_argument("--rerun", type=int, metavar="K", help="run K of this sweep (the table's run) again, alone, "
+                       "into --out as a run's results folder (default runs/<scenario>-runK)")
     where = sweep.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
@@ -336,7 +410,8 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("--until-distance", type=_float_argument,
                        help="end every run at this distance, scenario units (or vary until_distance)")
     sweep.add_argument("--until-time", type=_float_argument, help="end every run at this time, s (or vary until_time)")
-    sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
+    sweep.add_argument("--sample-seed", type=int, default=0, help="seed of the random values (uniform, integers, "
+                       "normal, choice, lhs; default 0)")
     sweep.add_argument("--timeout", type=_float_argument, default=600.0,
                        help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",

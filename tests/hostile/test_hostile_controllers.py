@@ -2,11 +2,11 @@
 IsolatedController in a host process, vehicle/isolated.py; docs/controllers.md).
 
 The hostile controller (tests/controllers/hostile_aeb.c, compiled here) crashes, exits, hangs, requests NaN, inf or
-1e308, or lies about its FMU state on demand, from its sample at t = 1 s. The ego is the shipped Simple FMU (in sdl-fmu's own
-process), the scenario brakes with a BRK whose distance threshold the master bisects on saved and restored ego
-states. Every case runs the real command line under a 1.5 GB address-space cap (tests/hostile_fmus.py), with a private
-$TMPDIR that must be empty afterwards and no host process left; timeouts only catch hangs, and a signal is sent when
-the controller says it hangs (it creates a file), never after a guessed time."""
+1e308, or lies about its FMU state on demand, from its sample at t = 1 s. The ego is the shipped Simple FMU (in
+sdl-fmu's own process), the scenario brakes with a BRK whose distance threshold the master bisects on saved and
+restored ego states. Every case runs the real command line under a 1.5 GB address-space cap (tests/hostile_fmus.py),
+with a private $TMPDIR that must be empty afterwards and no host process left; timeouts only catch hangs, and a
+signal is sent when the controller says it hangs (it creates a file), never after a guessed time."""
 
 import csv
 import json

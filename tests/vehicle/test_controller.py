@@ -67,7 +67,8 @@ SHAPE_MISTAKES = [
      "has no throttle"),
     (lambda t: t.replace("cycle_time = 0.01", 'cycle_time = "fast"'), "parameters.cycle_time", "finite number"),
     # the vehicle map's ranges (an output offset of 1e308 once ran, its column empty, numpy's RuntimeWarning)
-    (lambda t: t.replace('{ variable = "brake_cmd_pct", scale = 0.01 }', '{ variable = "brake_cmd_pct", offset = 1e308 }'),
+    (lambda t: t.replace('{ variable = "brake_cmd_pct", scale = 0.01 }',
+                         '{ variable = "brake_cmd_pct", offset = 1e308 }'),
      "outputs.brake.offset", "1e+308 is outside its range: |offset| <= 1e+06"),
     (lambda t: t.replace('{ variable = "v_host", unit = "km/h" }', '{ variable = "v_host", scale = 1e308 }'),
      "inputs.ego_v.scale", "1e+308 is outside its range: 1e-06 <= |scale| <= 1e+06"),

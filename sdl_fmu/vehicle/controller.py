@@ -140,7 +140,7 @@ class ControllerModel:
     def summary(self) -> dict:
         """What summary.json records about the controller (docs/controllers.md)."""
         return {"name": self.name, "fmu": self.fmu_path.name, "fmi_version": self.fmi_version, "guid": self.guid,
-                "map": None if self.map_path is None else str(self.map_path), "period_s": self.period,
+                "map": None if self.map_path is None else Path(self.map_path).name, "period_s": self.period,
                 "can_roll_back": self.can_roll_back, "inputs": [port.name for port in self.inputs],
                 "outputs": [port.name for port in self.outputs], "arbitration": dict(self.rules)}
 

@@ -506,7 +506,7 @@ class EgoModel:
     def summary(self) -> dict:
         """What summary.json records about the vehicle."""
         return {"name": self.name, "fmu": str(self.fmu_path.name), "fmi_version": self.fmi_version,
-                "map": None if self.map_path is None else str(self.map_path), "can_roll_back": self.can_roll_back,
+                "map": None if self.map_path is None else self.map_path.name, "can_roll_back": self.can_roll_back,
                 "friction": self.surface_meaning, "brk_acts": self.brk_acts}
 
     def unzipped(self) -> str:

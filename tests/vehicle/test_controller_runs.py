@@ -91,6 +91,8 @@ def test_a_ttc_latched_brake_hits_at_the_hand_computed_speed(tmp_path, ccrs, con
     # the Simple model integrates the locked slide to ~1e-9 relative (docs/verification.md)
     assert collision["speed"] == pytest.approx(expected, abs=1e-5)
     assert expected == pytest.approx(4.0976, abs=1e-4)  # the worked number: 14.75 km/h
+    # the target stands still and the ego brakes straight: the relative impact speed is the ego's
+    assert collision["relative_speed"] == pytest.approx(expected, abs=1e-5)
     assert collision["distance"] == pytest.approx(SPAWN - (EGO_LENGTH + TARGET_LENGTH) / 2, abs=1e-6)
     assert "time_uncertainty_s" not in collision
     summary = result.summary

@@ -737,8 +737,9 @@ def verify(*, dynamics: Dynamics | None = None, fmu: str | os.PathLike | None = 
             check_results_folder(out, "verify")
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
-    identity = {"name": model.name, "fmu": str(model.fmu_path), "guid": model.guid, "fmi_version": model.fmi_version,
-                "map": None if model.map_path is None else str(model.map_path),
+    # the files by name: no machine's path in results (docs/results.md)
+    identity = {"name": model.name, "fmu": model.fmu_path.name, "guid": model.guid, "fmi_version": model.fmi_version,
+                "map": None if model.map_path is None else Path(model.map_path).name,
                 "friction": None if model.friction is None else model.friction.meaning}
     sheet, tool = datasheet(model, params), provenance()
     try:

@@ -627,7 +627,9 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
         fixed["controller_map"] = str(Path(controller.map_path).absolute())  # example-aeb: the shipped map
     bundles = _pack(scenario_path, fixed)
     out = Path(out).absolute()
-    spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
+    # sweep.json: the files by name (their digests tell them apart), no machine's path (docs/sweeps.md)
+    named = {key: Path(value).name if key in SHIPPED and value is not None else value for key, value in fixed.items()}
+    spec = {"scenario": Path(scenario_path).name, "vary": varied, "fixed": json.loads(json.dumps(named, default=str)),
             "files": {option: bundle.digest for option, bundle in bundles.items()}}
     if joint:
         spec["joint"] = list(joint)

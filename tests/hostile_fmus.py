@@ -133,7 +133,7 @@ speed = {{ variable = "v_init" }}
 CONTROLLER_SOURCE = Path(__file__).parent / "controllers" / "hostile_aeb.c"
 CONTROLLER_GUID = "{5d1e7f3a-4b2c-4e8d-9a61-0c3f2b7e4a10}"
 CONTROLLER_IDENTIFIER = "HostileAeb"
-CONTROLLER_MODES = {"honest": 0, "hang": 1, "crash": 2, "exit": 3, "nan": 4, "inf": 5, "lie": 6}
+CONTROLLER_MODES = {"honest": 0, "hang": 1, "crash": 2, "exit": 3, "nan": 4, "inf": 5, "lie": 6, "huge": 7}
 CONTROLLER_VARIABLES = [  # name, causality, variability, start (None: an output); SI, no units declared
     ("ttc", "input", "continuous", 1000.0), ("brake", "output", "discrete", None),
     ("mode", "parameter", "fixed", 0.0), ("trigger_time", "parameter", "fixed", 1.0),

@@ -70,6 +70,15 @@ DriverName = Literal["lane", "follow"]  # the built-in driver (docs/controllers.
 OnCollision = Literal["continue", "stop"]  # what the first contact does
 
 
+def impact_speed(state: EgoState, speed: float, lateral_rate: float) -> float:
+    """The relative impact speed of a contact (summary.json's `relative_speed`, SI): the magnitude of the traffic
+    vehicle's velocity minus the ego's, on the road's axes. The vehicle moves along the road at -speed (its speed
+    counts toward the driver) and across it at -lateral_rate (lateral is positive right, the road's y left); the
+    ego's body-frame velocity (vx, vy) turned by its yaw (looks.ego)."""
+    c, s = math.cos(state.psi), math.sin(state.psi)
+    return math.hypot(-speed - (state.vx * c - state.vy * s), -lateral_rate - (state.vx * s + state.vy * c))
+
+
 @dataclass
 class RunOptions:
     dynamics: Dynamics = "simple"  # the shipped map run_scenario drives an FMU given as a path with
@@ -311,9 +320,10 @@ class Cosimulation:
         contacts = active[overlap & ~traffic.in_contact[active]]
         for i in contacts:
             self.collisions += 1
-            station, lateral, _ = traffic.at(i, state.time)
+            station, lateral, speed, lateral_rate, _ = traffic.motion_of(int(i), state.time)
             self.collision_points.append(((state.x + station) / 2, (-state.y + lateral) / 2))
-            self.log("A", "collision", state, vehicle=recorder.vehicle_ids[i])
+            self.log("A", "collision", state, vehicle=recorder.vehicle_ids[i],
+                     relative_speed=impact_speed(state, speed, lateral_rate))
         if len(contacts) and self.options.on_collision == "stop":
             self.finish(state, "collision")
         changed = active[overlap != traffic.in_contact[active]]

@@ -229,12 +229,12 @@ def key_units(units: Units) -> dict[str, str]:
     themselves keep their first names: docs/results.md), and the sign of lateral."""
     length, speed = length_label(units), speed_label(units)
     return {"time_s": "s", "distance": length, "speed": speed, "lateral": f"{length}, {LATERAL_SIGN}",
-            "timing.wall_s": "s", "timing.real_time_factor": "simulated s per wall-clock s"}
+            "relative_speed": speed, "timing.wall_s": "s", "timing.real_time_factor": "simulated s per wall-clock s"}
 
 
 def _summary_fields(result: RunRecord, events) -> dict:
     return {
-        "scenario": str(result.scenario_path),
+        "scenario": Path(str(result.scenario_path)).name,  # its name: no machine's path in results
         "units": result.units,
         "key_units": key_units(result.units),
         "dynamics": result.dynamics,

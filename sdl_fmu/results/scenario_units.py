@@ -10,6 +10,8 @@ from ..units import Units, from_si
 
 # the keys of `final` and of every event that carry the ego's distance, speed or lateral position
 EGO_KEYS = ("distance", "speed", "lateral")
+# the keys of some events that carry another speed: a collision's relative impact speed
+EVENT_SPEEDS = ("relative_speed",)
 # the keys of `criticality` (run-wide and per vehicle) that carry a length (min_distance) or a length per s^2
 # (max_drac); the others are times in s
 CRITICALITY_LENGTHS = ("min_distance", "max_drac")
@@ -21,9 +23,11 @@ def final(values: dict, units: Units) -> dict:
 
 
 def event(entry: dict, units: Units) -> dict:
-    """One summary.json event: the ego's distance, speed and lateral position, and a BRK event's threshold
-    `magnitude` (a distance or a speed; a time threshold stays in s), in the scenario's units."""
-    converted = {key: from_si(value, units) if key in EGO_KEYS else value for key, value in entry.items()}
+    """One summary.json event: the ego's distance, speed and lateral position, a collision's relative impact speed,
+    and a BRK event's threshold `magnitude` (a distance or a speed; a time threshold stays in s), in the scenario's
+    units."""
+    converted = {key: from_si(value, units) if key in EGO_KEYS or key in EVENT_SPEEDS else value
+                 for key, value in entry.items()}
     if "magnitude" in converted and converted.get("threshold") != "time":
         converted["magnitude"] = from_si(converted["magnitude"], units)
     return converted

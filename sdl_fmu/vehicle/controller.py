@@ -15,9 +15,9 @@ from typing import Literal, Mapping, NamedTuple
 
 from .controller_map import (REQUESTS, SIGNALS, ControllerMap, ControllerMapError, Kind, Rule,
                              load_controller_map)
-from .instance import FmuError, end_instance
+from .instance import OUTPUT_LIMIT, FmuError, end_instance
 from .isolated import FmuTimeout, Hosted, HostEnded, runs_in_process
-from .model import INTEGER_TYPES, REAL_TYPES, mapped_variable, read_description, si_conversion
+from .model import INTEGER_TYPES, REAL_TYPES, mapped_variable, one_reference, read_description, si_conversion
 from .vehicle_map import Channel, VehicleMapError
 
 
@@ -81,6 +81,10 @@ class ControllerModel:
                 self._fail(f"parameters.{name}", f"{value!r} does not fit {name!r}, a {variable.type} variable")
             if variable.type in INTEGER_TYPES and value != int(value):
                 self._fail(f"parameters.{name}", f"{value!r}: {name!r} is {variable.type} (a whole number)")
+        one_reference([*((port_key, self.variables[port.variable]) for port_key, port in
+                         zip((c.key for c in controller_map.inputs.values()), self.inputs)),
+                       *((f"parameters.{name}", self.variables[name]) for name in controller_map.parameters)],
+                      self._fail)
         self.parameters = dict(controller_map.parameters)
         self._unzipped: str | None = None
 
@@ -136,7 +140,7 @@ class ControllerModel:
     def summary(self) -> dict:
         """What summary.json records about the controller (docs/controllers.md)."""
         return {"name": self.name, "fmu": self.fmu_path.name, "fmi_version": self.fmi_version, "guid": self.guid,
-                "map": None if self.map_path is None else str(self.map_path), "period_s": self.period,
+                "map": None if self.map_path is None else Path(self.map_path).name, "period_s": self.period,
                 "can_roll_back": self.can_roll_back, "inputs": [port.name for port in self.inputs],
                 "outputs": [port.name for port in self.outputs], "arbitration": dict(self.rules)}
 
@@ -253,9 +257,15 @@ class ControllerInstance:
                     value = raw if accessor == "Boolean" else float(raw)
                     if port.kind != "boolean":
                         value = port.factor * value + port.offset
-                    if not math.isfinite(value):  # a Real `active` too: NaN is neither on nor off
+                    if not math.isfinite(raw):  # a Real `active` too: NaN is neither on nor off
                         raise ControllerError(f"its output {port.variable!r} ({port.name}) is {raw} at "
                                               f"t = {t:.6f} s: not a finite number")
+                    if port.kind != "boolean" and not -OUTPUT_LIMIT <= value <= OUTPUT_LIMIT:
+                        # the ego's outputs' bound (in SI, after the map's conversion, which may overflow): no
+                        # request beyond it means anything, and the results (ft, ft/s2) and the plot never
+                        # overflow below it (docs/controllers.md)
+                        raise ControllerError(f"its output {port.variable!r} ({port.name}) is {raw:g} at "
+                                              f"t = {t:.6f} s: beyond {OUTPUT_LIMIT:g} in SI units")
                     if port.kind == "boolean":
                         read[port.name] = bool(value) if accessor == "Boolean" else value > 0.5
                     else:

@@ -104,8 +104,8 @@ def parse_controller_map(data: dict, path: Path | None = None) -> ControllerMap:
         if "variable" not in entry:
             fail(f"{key}.variable", "missing")
         return Channel(key, text(f"{key}.variable", entry["variable"]),
-                       number(f"{key}.scale", entry.get("scale", 1.0)),
-                       number(f"{key}.offset", entry.get("offset", 0.0)),
+                       fields.scale(f"{key}.scale", entry.get("scale", 1.0)),
+                       fields.offset(f"{key}.offset", entry.get("offset", 0.0)),
                        None if entry.get("unit") is None else text(f"{key}.unit", entry["unit"]))
 
     name = None if data.get("name") is None else text("name", data["name"])
@@ -161,4 +161,6 @@ def parse_controller_map(data: dict, path: Path | None = None) -> ControllerMap:
     parameters = {}
     for key, value in table("parameters", False).items():
         parameters[str(key)] = value if isinstance(value, bool) else number(f"parameters.{key}", value)
+    fields.one_writer([*((c.key, c.variable) for c in inputs.values()),
+                       *((f"parameters.{name}", name) for name in parameters)], "controller variable")
     return ControllerMap(path, name, fmu, period, inputs, outputs, rules, parameters)

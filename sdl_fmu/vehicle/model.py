@@ -141,6 +141,21 @@ def mapped_variable(variables: dict, fmu_name: str, name: str, causalities: tupl
     return variable, None
 
 
+def one_reference(entries, fail: Callable[[str, str], NoReturn]) -> None:
+    """Each FMU variable a map writes has one writer also through aliases: two differently named variables with one
+    value reference and type (an FMI 2.0 alias) are one variable, so two keys on them (the map's one_writer check sees
+    two names) are one line naming both. entries: (key, FMU variable) in the map's order."""
+    first: dict[tuple[str, int], tuple[str, str]] = {}
+    for key, variable in entries:
+        slot = (variable.type, variable.valueReference)
+        if slot in first and first[slot][1] != variable.name:
+            other_key, other = first[slot]
+            fail(key, f"{variable.name!r} is an alias of {other!r}, {other_key}'s variable (value reference "
+                      f"{variable.valueReference}): one FMU variable cannot take two values (map each to a variable "
+                      "of its own)")
+        first.setdefault(slot, (key, variable.name))
+
+
 def parameter_defaults(description) -> dict[str, float]:
     """Start values of the FMU's scalar Real (Float) parameters, by name (FMI 3.0 arrays are left out)."""
     return {v.name: float(v.start) for v in description.modelVariables
@@ -174,6 +189,12 @@ class EgoModel:
             problem = declared_range_problem(self._variable(f"parameters.{name}", name, ("parameter", "input")), value)
             if problem:
                 self._fail(f"parameters.{name}", problem)
+        written = [*((c.key, c.variable) for c in (*vehicle_map.inputs.values(), *vehicle_map.start.values())),
+                   *(() if vehicle_map.friction is None else
+                     ((f"{vehicle_map.friction.key}.variables[{i}]", name)
+                      for i, name in enumerate(vehicle_map.friction.variables))),
+                   *((f"parameters.{name}", name) for name in vehicle_map.parameters)]
+        one_reference(((key, self.variables[name]) for key, name in written), self._fail)
         self.overrides = dict(overrides or {})
         self.parameters = {**parameter_defaults(description), **vehicle_map.parameters, **self.overrides}
         # the surface attribute numbers the run's Tire Attribute File gives (None: no tire file), and what reading
@@ -485,7 +506,7 @@ class EgoModel:
     def summary(self) -> dict:
         """What summary.json records about the vehicle."""
         return {"name": self.name, "fmu": str(self.fmu_path.name), "fmi_version": self.fmi_version,
-                "map": None if self.map_path is None else str(self.map_path), "can_roll_back": self.can_roll_back,
+                "map": None if self.map_path is None else self.map_path.name, "can_roll_back": self.can_roll_back,
                 "friction": self.surface_meaning, "brk_acts": self.brk_acts}
 
     def unzipped(self) -> str:

@@ -175,10 +175,34 @@ class MapFields:
             self.fail(key, f"{value!r} must be a finite number")
         return float(value)
 
+    def scale(self, key: str, value) -> float:
+        """A channel's scale: a finite number, SCALE_RANGE[0] <= |scale| <= SCALE_RANGE[1]."""
+        value = self.number(key, value)
+        if not SCALE_RANGE[0] <= abs(value) <= SCALE_RANGE[1]:
+            self.fail(key, f"{value!r} is outside its range: {SCALE_RANGE[0]:g} <= |scale| <= {SCALE_RANGE[1]:g}")
+        return value
+
+    def offset(self, key: str, value) -> float:
+        """A channel's offset: a finite number, |offset| <= MAX_OFFSET."""
+        value = self.number(key, value)
+        if abs(value) > MAX_OFFSET:
+            self.fail(key, f"{value!r} is outside its range: |offset| <= {MAX_OFFSET:g}")
+        return value
+
     def text(self, key: str, value) -> str:
         if not isinstance(value, str) or not value:
             self.fail(key, f"{value!r} must be a non-empty string")
         return value
+
+    def one_writer(self, writers, what: str) -> None:
+        """Each FMU variable the map writes (an input sent, a start value set) is written by one key: two keys on one
+        variable (a many-to-one wiring) is one line naming both. writers: (key, variable name) in the file's order."""
+        first: dict[str, str] = {}
+        for key, variable in writers:
+            if variable in first:
+                self.fail(key, f"{variable!r} is also {first[variable]}'s variable: one {what} cannot take two "
+                               "values (map each to a variable of its own)")
+            first[variable] = key
 
 
 def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = True) -> VehicleMap:
@@ -186,18 +210,7 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
     label = str(path) if path is not None else "<vehicle map>"
     fields = MapFields(data, label, VehicleMapError, "vehicle", TOP_LEVEL, "vehicle map")
     fail, table, number, text = fields.fail, fields.table, fields.number, fields.text
-
-    def scale(key: str, value) -> float:
-        value = number(key, value)
-        if not SCALE_RANGE[0] <= abs(value) <= SCALE_RANGE[1]:
-            fail(key, f"{value!r} is outside its range: {SCALE_RANGE[0]:g} <= |scale| <= {SCALE_RANGE[1]:g}")
-        return value
-
-    def offset(key: str, value) -> float:
-        value = number(key, value)
-        if abs(value) > MAX_OFFSET:
-            fail(key, f"{value!r} is outside its range: |offset| <= {MAX_OFFSET:g}")
-        return value
+    scale, offset = fields.scale, fields.offset
 
     def channel(section: str, name: str, entry, allowed=("variable", "scale", "offset", "unit")) -> Channel:
         key = f"{section}.{name}"
@@ -270,6 +283,11 @@ def parse_vehicle_map(data: dict, path: Path | None = None, complete: bool = Tru
         start[key] = channel("start", key, entry)
 
     parameters = {str(k): number(f"parameters.{k}", v) for k, v in table("parameters", False).items()}
+    fields.one_writer([*((c.key, c.variable) for c in inputs.values()),
+                       *(() if friction is None else ((f"{friction.key}.variables[{i}]", n)
+                                                     for i, n in enumerate(friction.variables))),
+                       *((c.key, c.variable) for c in start.values()),
+                       *((f"parameters.{name}", name) for name in parameters)], "FMU variable")
 
     vehicle, flags = {}, {}
     for key, value in table("vehicle", False).items():

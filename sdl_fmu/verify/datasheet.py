@@ -30,7 +30,7 @@ def fmu_identity(fmu_path: Path, description, map_path: Path | None, name: str) 
     """An FMU's identity: file, SHA-256, model name, GUID, FMI version, the tool that generated it, its map."""
     return {"name": name, "fmu": Path(fmu_path).name, "fmu_sha256": file_digest(Path(fmu_path)),
             "model_name": description.modelName, "guid": description.guid, "fmi_version": description.fmiVersion,
-            "generation_tool": description.generationTool, "map": None if map_path is None else str(map_path)}
+            "generation_tool": description.generationTool, "map": None if map_path is None else Path(map_path).name}
 
 
 def datasheet(model, params: dict[str, float] | None = None) -> dict:

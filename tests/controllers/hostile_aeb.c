@@ -7,7 +7,7 @@
  *   0 honest    1 hangs in fmi2DoStep (a busy loop)    2 crashes (SIGSEGV)    3 calls exit(0)
  *   4 requests NaN    5 requests +inf
  *   6 the capability lie: the XML declares canGetAndSetFMUstate, fmi2SetFMUstate returns OK and restores nothing
- *     (otherwise honest)
+ *     (otherwise honest)    7 requests 1e308 (finite, beyond any request)
  * For the tests to act when it happens, not after a guessed time: on entering the hang it creates the file named by
  * $HOSTILE_HANG_FILE; and each call of fmi2GetFMUstate, fmi2SetFMUstate or fmi2FreeFMUstate appends a line to the
  * file $HOSTILE_STATE_FILE (the test reads whether sdl-fmu ever saved or restored the controller's state).
@@ -182,6 +182,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_se
     r[BRAKE] = aeb->now.latched ? 1.0 : 0.0;
     if (misbehaving(aeb, 4)) r[BRAKE] = NAN;
     if (misbehaving(aeb, 5)) r[BRAKE] = INFINITY;
+    if (misbehaving(aeb, 7)) r[BRAKE] = 1e308; /* finite, but no request: a double's largest decade */
     aeb->now.time = t + h;
     return fmi2OK;
 }

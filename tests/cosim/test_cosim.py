@@ -226,6 +226,31 @@ def test_head_on_collision_counted_once(fmu, defaults_simple):
     collision, = events(result, "A", "collision")
     assert collision["time_s"] == pytest.approx(expected, abs=TIME_TOLERANCE)
     assert len(result.collision_points) == 1
+    # the relative impact speed: 88 + 40 ft/s head-on (IMPACT_TOLERANCE, below)
+    assert collision["relative_speed"] == pytest.approx(128.0, abs=IMPACT_TOLERANCE)
+
+
+# ft/s: without resistances the lane driver holds its start speed to round-off (its feed-forward is exact), and the
+# contact is located to 1e-6 s, over which neither speed changes: the relative impact speed is the closed form's to
+# far below this
+IMPACT_TOLERANCE = 1e-6
+
+
+@pytest.mark.parametrize("vehicle_speed, relative", [(0.0, 88.0), (-60.0, 28.0), (30.0, 118.0)])
+def test_a_collisions_relative_impact_speed_is_the_speed_difference(fmu, vehicle_speed, relative):
+    """A compact car (model 1) 400 ft ahead in the ego's lane: stopped, going the ego's way at 60 ft/s (an A event's
+    negative speed), or oncoming at 30 ft/s. The ego holds 88 ft/s and never brakes (the lane driver ignores traffic),
+    so it hits the car at 88 ft/s and the relative impact speed is |88 - (-vehicle_speed)|: 88, 28 and 118 ft/s, in
+    the scenario's units (summary.json's `relative_speed`); the ego's own `speed` stays 88."""
+    result = run(f"0,A,{vehicle_speed:g},400,*0,1\n3000,ES", speed_ft=88.0, fmu=fmu, until_time=30.0)
+    collision, = events(result, "A", "collision")
+    assert collision["speed"] == pytest.approx(88.0, abs=IMPACT_TOLERANCE)
+    assert collision["relative_speed"] == pytest.approx(relative, abs=IMPACT_TOLERANCE)
+    assert not any("relative_speed" in event for event in result.events if event["action"] != "collision")
+    metric = run(f"Metric\n0,A,{vehicle_speed * FOOT:g},{400 * FOOT!r},*0,1\n1000,ES", speed_ft=88.0 * FOOT,
+                 fmu=fmu, until_time=30.0)
+    collision, = events(metric, "A", "collision")
+    assert collision["relative_speed"] == pytest.approx(relative * FOOT, abs=IMPACT_TOLERANCE)
 
 
 def test_random_models_reproducible_and_cover_the_range(fmu):

@@ -227,7 +227,9 @@ def test_non_finite_inputs_are_refused_with_a_message(demo_fmus, version, tmp_pa
     instance = ScenarioInstance(demo_fmus[version].path, tmp_path)
     instance.initialize({}, {"ego_v": 26.8, "ego_y": -1.8288})
     for name, value in (("ego_x", float("nan")), ("ego_v", float("inf")), ("ego_ax", float("-inf")),
-                        ("request_brake", float("nan")), ("request_deceleration", float("inf"))):
+                        ("request_brake", float("nan")), ("request_deceleration", float("inf")),
+                        # beyond +-1e9, sdl-fmu run's bound of a controller's requests (SI): refused as run refuses it
+                        ("request_brake", 1e308), ("request_deceleration", -2e9), ("request_steer", 1.0000001e9)):
         instance.messages.clear()
         assert instance.set(**{name: value}) == fmi_fuzz.ERROR
         assert any(status == fmi_fuzz.ERROR and name in text for status, _, text in instance.messages), name
@@ -238,6 +240,8 @@ def test_non_finite_inputs_are_refused_with_a_message(demo_fmus, version, tmp_pa
     assert instance.set(request_active=True, request_brake=1.5, request_throttle=-0.1, request_steer=-4.0,
                         request_deceleration=-3.0) == fmi_fuzz.OK
     assert (instance.get("throttle"), instance.get("brake")) == (0.0, 1.0)  # the defaults: override, max
+    assert instance.set(request_brake=1e9, request_deceleration=-1e9) == fmi_fuzz.OK  # the bound itself is taken
+    assert instance.get("brake") == 1.0
     assert instance.set(speed=10.0) == fmi_fuzz.ERROR  # a fixed parameter after initialization
     instance.free()
 
@@ -531,7 +535,7 @@ def test_the_controller_requests_are_arbitrated_as_the_run_arbitrates(demo_fmus,
     """arbitration.arbitrate (the run's) and the FMU's outputs, bit for bit, for every rule of every channel and 40
     random requests each (pedals inside and outside 0..1, steer beyond the driver's limit and beyond +-pi/2,
     decelerations negative and beyond brake_decel_max, inactive requests), against the driver's commands of the
-    moment: the FMU takes every finite request, as the run does, and limits it as arbitrate does."""
+    moment: the FMU takes every request within +-1e9, as the run does, and limits it as arbitrate does."""
     import itertools
 
     from sdl_fmu.cosim.arbitration import arbitrate

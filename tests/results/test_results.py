@@ -136,7 +136,7 @@ def test_summary_json_keys_per_spec(tmp_path):
     assert data["key_units"]["lateral"].startswith("ft, positive to the driver's right")
     assert set(data["final"]) <= set(data["key_units"])
     assert data["units"] == "English" and data["dynamics"] == "simple" and data["seed"] == 42
-    assert data["collisions"] == 0 and data["scenario"] == "scenarios/example.sdl"
+    assert data["collisions"] == 0 and data["scenario"] == "example.sdl"  # its name: no machine path in results
     assert set(data["final"]) == {"time_s", "distance", "speed", "lateral"}
     # the record's SI values in feet (by hand: m / 0.3048), rounded to 6 decimals
     assert data["final"] == {"time_s": 0.4, "distance": 20.0, "speed": 50.0, "lateral": 6.0}

@@ -66,7 +66,22 @@ SHAPE_MISTAKES = [
     (lambda t: t.replace('throttle = "driver"', 'throttle = "override"'), "arbitration.throttle",
      "has no throttle"),
     (lambda t: t.replace("cycle_time = 0.01", 'cycle_time = "fast"'), "parameters.cycle_time", "finite number"),
+    # the vehicle map's ranges (an output offset of 1e308 once ran, its column empty, numpy's RuntimeWarning)
+    (lambda t: t.replace('{ variable = "brake_cmd_pct", scale = 0.01 }',
+                         '{ variable = "brake_cmd_pct", offset = 1e308 }'),
+     "outputs.brake.offset", "1e+308 is outside its range: |offset| <= 1e+06"),
+    (lambda t: t.replace('{ variable = "v_host", unit = "km/h" }', '{ variable = "v_host", scale = 1e308 }'),
+     "inputs.ego_v.scale", "1e+308 is outside its range: 1e-06 <= |scale| <= 1e+06"),
+    (lambda t: t.replace('{ variable = "v_host", unit = "km/h" }', '{ variable = "v_host", scale = 0.0 }'),
+     "inputs.ego_v.scale", "0.0 is outside its range"),
     (lambda t: "arbitration = 3\n" + t.split("[arbitration]")[0], "arbitration", "must be a table"),
+    # many-to-one: two signals (or a signal and a start value) on one controller variable; the key read second is named
+    # with the first (lead_ttc and lead_relative_speed both on ttc once left the AEB blind, exit 0)
+    (lambda t: t.replace('{ variable = "v_rel", unit = "km/h" }', '{ variable = "ttc_ms" }'),
+     "inputs.lead_ttc", "'ttc_ms' is also inputs.lead_relative_speed's variable: one controller variable cannot take "
+                        "two values"),
+    (lambda t: t.replace("cycle_time = 0.01", "v_host = 3.0"), "parameters.v_host",
+     "'v_host' is also inputs.ego_v's variable"),
 ]
 
 
@@ -113,7 +128,8 @@ FMU_MISTAKES = [
      "is an output of the FMU; this entry needs input"),
     (lambda t: t.replace('variable = "brake_cmd_pct"', 'variable = "v_rel"'), "outputs.brake",
      "is an input of the FMU; this entry needs output"),
-    (lambda t: t.replace('{ variable = "v_host", unit = "km/h" }', '{ variable = "obj_valid" }'), "inputs.ego_v",
+    (lambda t: t.replace('lead_present        = { variable = "obj_valid" }\n', '')  # obj_valid on ego_v alone
+     .replace('{ variable = "v_host", unit = "km/h" }', '{ variable = "obj_valid" }'), "inputs.ego_v",
      "is Boolean; this entry needs a Real variable"),
     (lambda t: t.replace('{ variable = "v_host", unit = "km/h" }', '{ variable = "v_host", unit = "furlong" }'),
      "inputs.ego_v.unit", "unknown unit"),
@@ -135,6 +151,33 @@ def test_a_map_that_does_not_fit_its_fmu_is_one_line_naming_the_key(tmp_path, co
     message = str(caught.value)
     assert caught.value.option == "controller_map"
     assert "\n" not in message and message.startswith(f"{path}: {key}: ") and reason in message, message
+
+
+def test_a_signal_on_an_fmi2_alias_of_a_mapped_input_is_refused(tmp_path, controllers):
+    """`closing_speed`, a second name (an FMI 2.0 alias: the same value reference) for the PythonFMU build's v_rel,
+    is v_rel itself: a second signal on it is the many-to-one wiring of two names on one variable, one line naming
+    both keys."""
+    import re
+
+    from helpers import rewritten_fmu
+
+    def alias(text: str) -> str:
+        reference = re.search(r'name="v_rel" valueReference="(\d+)"', text)[1]
+        return text.replace("</ModelVariables>", f'<ScalarVariable name="closing_speed" valueReference="{reference}" '
+                            'causality="input" variability="continuous"><Real start="0.0"/></ScalarVariable>\n'
+                            "</ModelVariables>")
+
+    fmu = rewritten_fmu(controllers[2], tmp_path / "Alias.fmu", alias)
+    line = 'collisions          = { variable = "crash_count" }\n'
+    path = write_map(tmp_path, GOOD.replace(line, line + 'ego_ax = { variable = "closing_speed" }\n'))
+    with pytest.raises(api.InputError) as caught:
+        api.controller_model(fmu, path)
+    message = str(caught.value)
+    assert caught.value.option == "controller_map" and "\n" not in message
+    assert re.fullmatch(rf"{re.escape(str(path))}: inputs\.ego_ax: 'closing_speed' is an alias of 'v_rel', "
+                        r"inputs\.lead_relative_speed's variable \(value reference \d+\): one FMU variable cannot "
+                        r"take two values \(map each to a variable of its own\)", message), message
+    assert api.controller_model(fmu, FOREIGN_AEB_MAP).inputs  # the alias alone changes nothing
 
 
 def test_a_declared_unit_the_map_contradicts_is_refused(tmp_path, controllers):
@@ -160,6 +203,29 @@ def test_the_conversions_take_si_to_the_controllers_units(controllers, version):
     assert ports["active"].type == "Boolean" and ports["lead_id"].type in ("Integer", "Int32")
     assert model.period == 0.01 and not model.can_roll_back
     assert model.summary()["arbitration"] == {"throttle": "driver", "brake": "max", "steer": "driver"}
+
+
+def test_two_signals_on_one_controller_input_are_refused_before_the_run(tmp_path):
+    """The example AEB's map with lead_ttc and lead_relative_speed both on its input ttc was once run
+    (the AEB never activated; the ego hit the stopped car at 88 ft/s; exit 0). Now `run` refuses it in one line naming
+    both keys (exit 2), before anything runs and with nothing written; the shipped map itself still runs."""
+    from helpers import sdl_fmu
+
+    fmu, cmap = api.example_controller()
+    text = cmap.read_text()
+    assert 'lead_relative_speed = { variable = "relative_speed" }' in text
+    both = write_map(tmp_path, text.replace('lead_relative_speed = { variable = "relative_speed" }',
+                                            'lead_relative_speed = { variable = "ttc" }'))
+    scenario = tmp_path / "stopped.sdl"
+    scenario.write_text("English\n0,A,0,400,*0,1\n1000,ES\n")  # a stopped car 400 ft ahead of the ego's centre
+    failed = sdl_fmu("run", scenario, "--controller", fmu, "--controller-map", both, "--out", tmp_path / "never")
+    assert failed.returncode == 2 and failed.stdout == ""
+    assert failed.stderr == (f"sdl-fmu: {both}: inputs.lead_relative_speed: 'ttc' is also inputs.lead_ttc's variable: "
+                             "one controller variable cannot take two values (map each to a variable of its own)\n")
+    assert not (tmp_path / "never").exists()
+    with pytest.raises(api.InputError, match="is also inputs.lead_ttc's variable"):
+        api.run(scenario, controller=fmu, controller_map=both)
+    assert api.controller_model(fmu, cmap).map.inputs["lead_relative_speed"].variable == "relative_speed"
 
 
 def test_a_controller_needs_a_map_and_an_fmu(tmp_path, controllers):

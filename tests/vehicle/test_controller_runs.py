@@ -6,6 +6,7 @@ identity in summary.json; --on-collision stop; the command line and the sweep (d
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -90,12 +91,34 @@ def test_a_ttc_latched_brake_hits_at_the_hand_computed_speed(tmp_path, ccrs, con
     # the Simple model integrates the locked slide to ~1e-9 relative (docs/verification.md)
     assert collision["speed"] == pytest.approx(expected, abs=1e-5)
     assert expected == pytest.approx(4.0976, abs=1e-4)  # the worked number: 14.75 km/h
+    # the target stands still and the ego brakes straight: the relative impact speed is the ego's
+    assert collision["relative_speed"] == pytest.approx(expected, abs=1e-5)
     assert collision["distance"] == pytest.approx(SPAWN - (EGO_LENGTH + TARGET_LENGTH) / 2, abs=1e-6)
     assert "time_uncertainty_s" not in collision
     summary = result.summary
     assert summary["controller"]["fmi_version"] == f"{version}.0" and summary["controller"]["period_s"] == 0.01
     assert summary["controller"]["can_roll_back"] is False
     assert summary["controller"]["outputs"] == ["active", "brake"]
+
+
+def test_a_request_that_overflows_in_si_is_the_runs_one_line(tmp_path, ccrs, controllers):
+    """A controller output of 1e308 once ran to exit 0 with numpy's RuntimeWarning and the column empty. Here the
+    foreign AEB requests decel_g = 1e308 g once it latches (at the sample k of the 1.5 s trigger, by hand as above): a
+    finite output whose SI value (x 9.80665) overflows a double. The run ends at that sample in one line naming the
+    output, exit 2, no warning and nothing written; the API raises the same line."""
+    g0 = SPAWN - (EGO_LENGTH + TARGET_LENGTH) / 2  # the bumper gap at t = 0; the lane driver holds V0 until the latch
+    k = next(k for k in range(100_000) if (g0 - V0 * k * 0.01) / V0 <= 1.5)  # k = 251: t = 2.51 s
+    cmap = aeb_map(tmp_path, 1.5, replace=('brake  = { variable = "brake_cmd_pct", scale = 0.01 }',
+                                           'deceleration = { variable = "decel_cmd", unit = "standard_gravity" }'))
+    cmap.write_text(cmap.read_text().replace("cycle_time = 0.01", "cycle_time = 0.01\ndecel_g = 1e308"))
+    output = f"its output 'decel_cmd' (deceleration) is 1e+308 at t = {k * 0.01:.6f} s: beyond 1e+09 in SI units"
+    line = f"the controller ForeignAeb.fmu failed: {output}"
+    failed = sdl_fmu("run", ccrs, "--speed", V0, "--controller", controllers[(3, False)], "--controller-map", cmap,
+                     "--out", tmp_path / "never")
+    assert (failed.returncode, failed.stdout, failed.stderr) == (2, "", f"sdl-fmu: {line}\n")
+    assert not (tmp_path / "never").exists()
+    with pytest.raises(api.InputError, match=re.escape(output)):  # the FMI 2.0 build (PythonFMU) alike
+        api.run(ccrs, speed=V0, controller=controllers[(2, False)], controller_map=cmap, until_time=10.0)
 
 
 def test_a_controller_that_cannot_roll_back_keeps_every_instant_exact(tmp_path, ccrs, controllers):

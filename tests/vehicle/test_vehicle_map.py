@@ -69,6 +69,16 @@ MAP_MISTAKES = [
     ("a friction meaning sdl-fmu does not know", ('meaning = "mu"', 'meaning = "grip"'),
      r"car\.toml: inputs\.friction\.meaning: 'grip'"),
     ("a misspelt key", ("[start]", "[starts]"), r"car\.toml: starts: unknown key"),
+    # many-to-one wiring: two values written to one FMU variable, one line naming both keys
+    ("two inputs on one variable", ('brake    = { variable = "brake" }', 'brake    = { variable = "throttle" }'),
+     r"car\.toml: inputs\.brake: 'throttle' is also inputs\.throttle's variable: one FMU variable cannot take two "
+     r"values \(map each to a variable of its own\)$"),
+    ("two wheels on one friction variable", ('"mu_fl", "mu_fr"', '"mu_fl", "mu_fl"'),
+     r"car\.toml: inputs\.friction\.variables\[1\]: 'mu_fl' is also inputs\.friction\.variables\[0\]'s variable"),
+    ("a start value on an input", ('y     = { variable = "y0" }', 'y     = { variable = "steer" }'),
+     r"car\.toml: start\.y: 'steer' is also inputs\.steer's variable"),
+    ("a parameter on a start value", ("track = 1.6\n", "track = 1.6\n[parameters]\nv0 = 20.0\n"),
+     r"car\.toml: parameters\.v0: 'v0' is also start\.speed's variable"),
 ]
 
 
@@ -81,6 +91,30 @@ def test_map_mistakes_are_one_line_naming_file_and_key(simple_fmu, tmp_path, edi
     message = str(caught.value)
     assert re.search(pattern, message) and "\n" not in message and caught.value.option == "vehicle"
     assert not (tmp_path / "out").exists()
+
+
+def test_two_keys_on_one_variable_through_an_fmi2_alias_are_one_line(simple_fmu, tmp_path):
+    """FMI 2.0 aliases: `gas`, a second name for the Simple FMU's throttle (its value reference, appended to its
+    variables), is the throttle itself, so a map sending the brake to `gas` writes two pedals to one variable: one line
+    naming both keys, before anything runs; `gas` alone as the throttle is the throttle's value reference."""
+    def alias(text: str) -> str:
+        reference = re.search(r'name="throttle" valueReference="(\d+)"', text)[1]
+        return text.replace("</ModelVariables>", f'<ScalarVariable name="gas" valueReference="{reference}" '
+                            'causality="input" variability="continuous"><Real start="0"/></ScalarVariable>\n'
+                            "</ModelVariables>")
+
+    fmu = rewritten_fmu(simple_fmu, tmp_path / "Alias.fmu", alias)
+    both = write(tmp_path, BARE_MAP.replace('brake    = { variable = "brake" }', 'brake    = { variable = "gas" }'))
+    with pytest.raises(api.InputError) as caught:
+        api.run("head_on", fmu=fmu, vehicle=both, out=tmp_path / "out")
+    assert str(caught.value) == (f"{both}: inputs.brake: 'gas' is an alias of 'throttle', inputs.throttle's variable "
+                                 "(value reference 1): one FMU variable cannot take two values (map each to a "
+                                 "variable of its own)")
+    assert caught.value.option == "vehicle" and not (tmp_path / "out").exists()
+    alone = write(tmp_path, BARE_MAP.replace('throttle = { variable = "throttle" }', 'throttle = { variable = "gas" }'),
+                  "alone.toml")
+    throttle = EgoModel.open(fmu, alone).inputs["throttle"]
+    assert (throttle.variable, throttle.reference) == ("gas", 1)
 
 
 FMU_MISTAKES = [

@@ -109,8 +109,24 @@ def _mark_events(ax, events: list[dict]) -> None:
     for collision, lw, alpha, ls in ((False, 0.9, 0.35 * fade, "--"), (True, 1.6, 0.8, "-")):
         chosen = [event for event in events if (event.get("action") == "collision") == collision]
         if chosen:
-            ax.vlines([event["time_s"] for event in chosen], 0, 1, transform=transform, lw=lw, alpha=alpha,
-                      linestyles=ls, colors=[_event_color(event) for event in chosen], zorder=1)
+            times, colors = _marker_lines([event["time_s"] for event in chosen],
+                                          [_event_color(event) for event in chosen])
+            ax.vlines(times, 0, 1, transform=transform, lw=lw, alpha=alpha, linestyles=ls, colors=colors, zorder=1)
+
+
+MAX_EVENT_MARKERS = 2000  # more event lines than this are merged where they fall on one of MAX_LINE_POINTS slots
+
+
+def _marker_lines(times: list[float], colors: list[str]) -> tuple[list[float], list[str]]:
+    """The event lines to draw: all of them, or beyond MAX_EVENT_MARKERS one per colour and slot of the run's span
+    (MAX_LINE_POINTS slots, finer than the panel's pixels), so that the lines follow the picture, not the events."""
+    if len(times) <= MAX_EVENT_MARKERS:
+        return times, colors
+    low, span = min(times), (max(times) - min(times)) or 1.0
+    kept = {}
+    for time, color in zip(times, colors):
+        kept.setdefault((round((time - low) / span * MAX_LINE_POINTS), color), time)
+    return list(kept.values()), [color for _, color in kept]
 
 
 def _label_rows(spans: list[tuple[float, float]], right: float) -> list[tuple[int | None, str]]:

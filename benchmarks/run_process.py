@@ -23,7 +23,7 @@ from pathlib import Path
 from provenance import stamp
 
 ROOT = Path(__file__).resolve().parents[1]
-TARGET = 4.0  # issue 34: the whole run, plot included, at most 4x the API's import
+TARGET = 4.0  # the whole run, plot included, at most 4x the API's import
 
 PARTS = r"""
 import json, sys, time

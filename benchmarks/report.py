@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
 from pathlib import Path
 
@@ -428,8 +429,45 @@ def _both(hosted: dict) -> float:
     return hosted["sample_cpu_us"] + hosted["sample_host_cpu_us"]
 
 
+def run_process(results: Path) -> list[str]:
+    data = _load("run_process", results)
+    pairs = data["pairs"]
+
+    def median(key: str) -> float:
+        return statistics.median(row[key] for row in pairs)
+
+    rows = [["`python -c \"import sdl_fmu.api\"`", f"{median('import_api_s'):.2f}", "1×"],
+            ["`sdl-fmu run demo`", f"{median('run_s'):.2f}", f"**{data['ratio_run']:.1f}×**"],
+            ["`sdl-fmu run demo --no-plot`", f"{median('run_no_plot_s'):.2f}", f"{data['ratio_run_no_plot']:.1f}×"]]
+    if "reference_run_s" in pairs[0]:
+        rows.append([f"`sdl-fmu run demo` of the reference ({data['reference'].split()[0]})",
+                     f"{median('reference_run_s'):.2f}",
+                     f"{data['ratio_reference_run']:.1f}× (its own import)"])
+    names = {"import_api_s": "import sdl_fmu.api", "simulation_s": "the simulation (api.run, no plot)",
+             "files_s": "timeseries.csv, summary.json", "import_matplotlib_s": "import the plot module (matplotlib)",
+             "plot_s": "plot.png"}
+    parts = data["parts"]
+    part_rows = [[names[key]] + [f"{parts[name][key]:.2f}" for name in parts] for key in names]
+    lines = [
+        "## 12. `sdl-fmu run demo` as a whole process", "", "Script: `benchmarks/run_process.py`.", "",
+        "CPU time (user + system) of whole processes, pairwise: each repetition runs the API's import, the run with "
+        f"its plot and the run with `--no-plot` one after the other ({data['repeat']} repetitions, interleaved; "
+        "medians, ratios the median of each repetition's ratio). The FMU is in the cache. The reference is "
+        f"`{data.get('reference', '')}`, before the plot's fixed layout, run beside in each repetition with its own "
+        "import.", "",
+        *_table(["process", "CPU s", "against the import"], rows), "",
+        "One run split into its parts (process time in one child, medians):", "",
+        *_table(["part"] + [f"{name} s" for name in parts], part_rows), "",
+        _measured(data["measured"]), "",
+        f"- `sdl-fmu run demo`, plot included, at most {data['target_ratio']:g}× the API's import: "
+        f"{data['ratio_run']:.1f}×, {_met(data['ratio_run'] <= data['target_ratio'])}"]
+    if "run_against_reference" in data:
+        lines.append(f"- against the reference: the whole run takes {data['run_against_reference']:.2f}× its CPU time")
+    return lines + [""]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, scenario_step, export_speed, isolation, hosted_controller)
+            aeb_ccr, scenario_step, export_speed, isolation, hosted_controller, run_process)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -457,6 +495,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/export_speed.py --json benchmarks/results/export_speed.json",
         "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json  # --part vehicles|controller",
         "python benchmarks/hosted_controller.py --reference CHECKOUT --json benchmarks/results/hosted_controller.json",
+        "python benchmarks/run_process.py --repeat 7 --reference CHECKOUT --json benchmarks/results/run_process.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

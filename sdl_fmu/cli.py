@@ -143,8 +143,9 @@ def _run(args) -> int:
                      seed=args.seed, step=args.step, driver_period=args.driver_period,
                      until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,
-                     progress=None, out=out, controller=args.controller, controller_map=args.controller_map,
-                     driver=args.driver, on_collision=args.on_collision, set=_parse_settings(args.set))
+                     progress=None, out=out, plot=not args.no_plot, controller=args.controller,
+                     controller_map=args.controller_map, driver=args.driver, on_collision=args.on_collision,
+                     set=_parse_settings(args.set))
     scenario = result.scenario
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
@@ -153,7 +154,8 @@ def _run(args) -> int:
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"results: {out / 'timeseries.csv'}, {out / 'summary.json'}")
-    print(f"plot: {out / 'plot.png'}")
+    if not args.no_plot:
+        print(f"plot: {out / 'plot.png'}")
     return 0
 
 
@@ -382,6 +384,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")
     _loop_arguments(run)
+    run.add_argument("--no-plot", action="store_true", help="write no plot.png (the run and its files only)")
     run.add_argument("--out", help="results folder: new, empty, or an earlier run's results folder "
                                    "(default: runs/<scenario name>)")
     run.set_defaults(handler=_run)

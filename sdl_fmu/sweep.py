@@ -411,6 +411,36 @@ def _series(rows: list[dict], name: str, others: list[str]) -> list[tuple[str, l
     return []
 
 
+def heat_map_axes(rows: list[dict], varied: list[str]) -> tuple[str, str] | None:
+    """(x, y) quantities of a 2-D grid the plot draws as heat maps: exactly two quantities take more than one value
+    and one of them takes more than MAX_PLOT_SERIES (one line per value of the other would not do); else None."""
+    quantities = plotted_quantities(rows, varied)
+    if len(quantities) != 2:
+        return None
+    counts = [len({row.get(name) for row in rows}) for name in quantities]
+    return (quantities[0], quantities[1]) if max(counts) > MAX_PLOT_SERIES else None
+
+
+def heat_map_cells(rows: list[dict], x: str, y: str, value: Callable[[dict], float | None]):
+    """(x values, y values, cells) of a 2-D grid: the sorted values of each quantity and an array (y by x) of the
+    mean of `value` over each cell's ok runs (NaN where none has one; a cell holds one run unless values repeat)."""
+    numeric = [r for r in rows if isinstance(r.get(x), (int, float)) and isinstance(r.get(y), (int, float))]
+    xs, ys = sorted({r[x] for r in numeric}), sorted({r[y] for r in numeric})
+    column, line = {v: k for k, v in enumerate(xs)}, {v: k for k, v in enumerate(ys)}
+    total, count = np.zeros((len(ys), len(xs))), np.zeros((len(ys), len(xs)))
+    for r in numeric:
+        v = value(r) if r.get("status") == "ok" else None
+        if isinstance(v, (int, float)) and math.isfinite(v):
+            total[line[r[y]], column[r[x]]] += v
+            count[line[r[y]], column[r[x]]] += 1
+    with np.errstate(invalid="ignore"):
+        return xs, ys, np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+MAX_CELL_TEXTS = 144  # a heat map of at most this many cells writes each cell's value in it
+MAX_TICK_LABELS = 12  # value labels per heat-map axis (every k-th beyond)
+
+
 def plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -> None:
     """One row of panels per varied quantity that takes more than one value: collisions, the first BRK's
     distance and the smallest footprint distance to any vehicle against that quantity, one series (line and
@@ -432,13 +462,17 @@ def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -
 
     length = length_label(units)
     quantities = plotted_quantities(rows, varied)
-    figure = Figure(figsize=(12, 0.8 + 3.0 * len(quantities)), dpi=100, layout="constrained")
+    grid = heat_map_axes(rows, varied)
+    figure = Figure(figsize=(12, 0.8 + 3.0 * (1.3 if grid else len(quantities))), dpi=100, layout="constrained")
     FigureCanvasAgg(figure)
     panels = [("collisions", "collisions", lambda r: r.get("collisions")),
               ("first BRK: distance while on", f"distance ({length})", lambda r: r.get(f"brk1_distance_{length}")),
               ("smallest footprint distance to a vehicle", f"distance ({length})",
                lambda r: r.get(f"min_distance_{length}"))]
     colours = {"failed": "tab:red", "timeout": "tab:orange"}
+    if grid:
+        _plot_heat_maps(figure, rows, grid, panels, colours, MaxNLocator)
+        quantities = []
     for row_index, name in enumerate(quantities):
         others = [other for other in plotted_quantities(rows, varied) if other != name]
         series = _series(rows, name, others)
@@ -448,7 +482,11 @@ def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -
                 points = [(r[name], value(r)) for r in members if value(r) is not None]
                 if points:
                     xs, ys = zip(*points)
-                    ax.plot(xs, ys, marker="o", ms=4, lw=1.0, color=f"C{number % 10}", label=label or None)
+                    # a series that holds some other quantity at more than one value has several runs per x: its
+                    # points are drawn as markers alone (a line through them would zig-zag between the runs)
+                    joined = len(set(xs)) == len(xs)
+                    ax.plot(xs, ys, marker="o", ms=4, lw=1.0 if joined else 0.0, color=f"C{number % 10}",
+                            label=label or None)
             for status, colour in colours.items():
                 xs = [r[name] for r in rows if r.get("status") == status and isinstance(r.get(name), (int, float))]
                 if xs:
@@ -462,8 +500,47 @@ def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -
             ax.grid(True, alpha=0.3)
             if k == 0 and (len(series) > 1 or any(r.get("status") != "ok" for r in rows)):
                 ax.legend(fontsize=8)
-    figure.suptitle(f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok", fontsize=11)
+    title = f"sweep: {len(rows)} runs, {sum(r.get('status') == 'ok' for r in rows)} ok"
+    if grid:
+        title += ("; each cell: the mean over its ok runs (empty: none ok); crosses: failed (red) and timed-out "
+                  "(orange) runs")
+    figure.suptitle(title, fontsize=11)
     figure.savefig(path, format="png")
+
+
+def _plot_heat_maps(figure, rows: list[dict], grid: tuple[str, str], panels: list, colours: dict,
+                    integer_ticks) -> None:
+    """A 2-D grid: one heat map per panel's measure, the first quantity across, the second up, each cell the mean
+    over its ok runs (written in the cell when there are few cells), empty where no run is ok; failed and
+    timed-out runs marked by a cross in their cell."""
+    x, y = grid
+    for k, (title, label, value) in enumerate(panels):
+        ax = figure.add_subplot(1, 3, k + 1)
+        xs, ys, cells = heat_map_cells(rows, x, y, value)
+        image = ax.imshow(cells, origin="lower", aspect="auto", interpolation="nearest",
+                          cmap="Reds" if k == 0 else "viridis")
+        figure.colorbar(image, ax=ax, label=label, shrink=0.9)
+        if cells.size <= MAX_CELL_TEXTS:
+            for (row, column), cell in np.ndenumerate(cells):
+                if math.isfinite(cell):
+                    red, green, blue, _ = image.cmap(image.norm(cell))
+                    dark = 0.299 * red + 0.587 * green + 0.114 * blue < 0.5
+                    ax.text(column, row, f"{cell:.3g}", ha="center", va="center", fontsize=7,
+                            color="white" if dark else "black")
+        for values, axis, name in ((xs, ax.xaxis, x), (ys, ax.yaxis, y)):
+            every = max(1, math.ceil(len(values) / MAX_TICK_LABELS))
+            axis.set_ticks(range(0, len(values), every), [f"{v:g}" for v in values[::every]])
+            axis.set_label_text(_axis_label(name))
+        if len(xs[::max(1, math.ceil(len(xs) / MAX_TICK_LABELS))]) > 6:
+            ax.tick_params(axis="x", labelrotation=45)
+        if k == 0:
+            image.colorbar.ax.yaxis.set_major_locator(integer_ticks(integer=True))
+        for status, colour in colours.items():
+            marked = [(xs.index(r[x]), ys.index(r[y])) for r in rows
+                      if r.get("status") == status and r.get(x) in xs and r.get(y) in ys]
+            if marked:
+                ax.scatter(*zip(*marked), s=30, color=colour, marker="x", label=status, zorder=3)
+        ax.set_title(title, fontsize=10, loc="left")
 
 
 # ---- the sweep ------------------------------------------------------------------------------------

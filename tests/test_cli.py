@@ -156,3 +156,31 @@ def test_result_repr_is_one_short_line(simple_fmu):
     assert text == (f"<Result head_on: simple dynamics, {samples} samples to {result.final['time_s']:.2f} s, "
                     f"{result.collisions} collision(s), {len(result.warnings)} warning(s)>")
     assert len(text) < 120 and "\n" not in text
+
+
+NO_MATPLOTLIB = """
+import sys
+from sdl_fmu.cli import main
+code = main(sys.argv[1:])
+print("matplotlib imported" if "matplotlib" in sys.modules else "matplotlib not imported")
+sys.exit(code)
+"""
+
+
+def test_run_no_plot_writes_the_files_but_the_plot_and_never_imports_matplotlib(tmp_path, simple_fmu):
+    out = tmp_path / "results"
+    completed = subprocess.run([sys.executable, "-c", NO_MATPLOTLIB, "run", "head_on", "--fmu", str(simple_fmu),
+                                "--until-time", "1", "--no-plot", "--out", str(out)], capture_output=True, text=True,
+                               cwd=tmp_path, timeout=300)
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    assert completed.stdout.splitlines()[-1] == "matplotlib not imported"
+    assert "plot:" not in completed.stdout
+    assert {path.name for path in out.iterdir()} == {"timeseries.csv", "summary.json", ".sdl-fmu-results.json"}
+    # the same folder run again with the plot: plot.png is added, and a --no-plot run after it removes it again
+    # (the folder is replaced as a whole: no stale plot of another run is left beside the new files)
+    assert sdl_fmu("run", "head_on", "--fmu", simple_fmu, "--until-time", "1", "--out", out,
+                   cwd=tmp_path).returncode == 0
+    assert (out / "plot.png").is_file()
+    assert sdl_fmu("run", "head_on", "--fmu", simple_fmu, "--until-time", "1", "--no-plot", "--out", out,
+                   cwd=tmp_path).returncode == 0
+    assert not (out / "plot.png").exists()

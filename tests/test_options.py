@@ -55,3 +55,18 @@ def local_imports(path: Path) -> list[str]:
 def test_the_api_and_the_command_line_import_at_their_top_but_the_heavy_parts():
     for module in (api, cli):
         assert [name for name in local_imports(Path(module.__file__)) if not heavy(name)] == [], module.__name__
+
+
+def test_importing_the_api_and_the_command_line_loads_none_of_the_heavy_packages():
+    # what a run with plot=False or `sdl-fmu check` needs is imported at the top; matplotlib (the plots), CasADi
+    # (builds), Dask (sweeps), pandas, tqdm and pyarrow only when a command uses them (a fresh interpreter: this
+    # test's own process has imported some of them already)
+    import subprocess
+    import sys
+
+    heavy_packages = ["matplotlib", "casadi", "distributed", "dask", "pandas", "tqdm", "pyarrow"]
+    code = ("import sys, sdl_fmu.api, sdl_fmu.cli; "
+            f"print(sorted(name for name in {heavy_packages!r} if name in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                          cwd=Path(sdl_fmu.__file__).parents[1])
+    assert done.stdout.strip() == "[]"

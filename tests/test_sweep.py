@@ -9,6 +9,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from helpers import local_cluster
@@ -508,3 +509,56 @@ def test_names_and_values_that_set_nothing_are_refused_before_any_cluster_is_con
     assert needle in completed.stderr and completed.stdout == ""  # a scenario's error names its absolute path
     assert listener.connections == 0  # the scheduler was never even probed
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.sdl"]
+
+def _figures_saved(monkeypatch) -> list:
+    from matplotlib.figure import Figure
+
+    figures = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figures.append(self), original(self, *a, **k)))
+    return figures
+
+
+def test_a_2d_grid_too_large_for_lines_is_drawn_as_heat_maps(tmp_path, monkeypatch):
+    # speed (10 values) x mass (9 values): one line per value of the other would be 9 or 10 lines, beyond
+    # MAX_PLOT_SERIES, and once fell back to one series of every run, zig-zagging between the masses. Now one row of
+    # heat maps: speed across, mass up, each cell the run's value (read back from the image), the failed run's cell
+    # empty and marked with a cross.
+    figures = _figures_saved(monkeypatch)
+    speeds, masses = [60.0 + 10 * k for k in range(10)], [1000.0 + 200 * k for k in range(9)]
+    rows = [{"run": k, "speed_ft/s": speed, "mass_kg": mass, "status": "ok", "collisions": int(speed > 100),
+             "min_distance_ft": 200.0 - speed + mass / 100, "brk1_distance_ft": speed * mass / 1000}
+            for k, (speed, mass) in enumerate((s, m) for s in speeds for m in masses)]
+    rows[-1] = {**rows[-1], "status": "failed", "error": "x", "collisions": None}
+    assert sweeping.heat_map_axes(rows, ["speed_ft/s", "mass_kg"]) == ("speed_ft/s", "mass_kg")
+    sweeping.plot_sweep(rows, ["speed_ft/s", "mass_kg"], "English", tmp_path / "sweep.png")
+    panels = [ax for ax in figures[0].axes if ax.images]
+    assert len(panels) == 3 and all(not ax.lines for ax in panels)  # no line through the runs
+    cells = np.ma.filled(panels[2].images[0].get_array(), np.nan)
+    assert cells.shape == (len(masses), len(speeds))
+    expected = np.array([[200.0 - s + m / 100 for s in speeds] for m in masses])
+    expected[-1, -1] = np.nan  # the failed run: no value
+    np.testing.assert_array_equal(cells, expected)
+    collisions = np.ma.filled(panels[0].images[0].get_array(), np.nan)
+    assert np.nanmax(collisions[:, :5]) == 0 and np.nanmin(collisions[:-1, 5:]) == 1
+    assert [t.get_text() for t in panels[0].get_xticklabels()] == [f"{s:g}" for s in speeds]
+    assert panels[0].get_xlabel() == "speed (ft/s)" and panels[0].get_ylabel() == "mass (kg)"
+    assert [list(c.get_offsets()[0]) for c in panels[0].collections if len(c.get_offsets())] == [[9.0, 8.0]]
+
+
+def test_a_small_2d_grid_keeps_one_line_per_value_and_mixed_series_are_not_joined(tmp_path, monkeypatch):
+    # 3 x 2 stays lines (test above); with three quantities and more combinations than MAX_PLOT_SERIES, a series
+    # holds several runs per x value: drawn as markers alone, never as a line zig-zagging between them
+    figures = _figures_saved(monkeypatch)
+    rows = [{"run": k, "speed_ft/s": s, "seed": d, "mass_kg": m, "status": "ok", "collisions": (s > 70) + d,
+             "min_distance_ft": s + d + m} for k, (s, d, m) in enumerate(
+                 (s, d, m) for s in (60.0, 70.0, 80.0) for d in (1, 2, 3) for m in (1000.0, 1100.0, 1200.0, 1300.0))]
+    varied = ["speed_ft/s", "seed", "mass_kg"]
+    assert sweeping.heat_map_axes(rows, varied) is None
+    sweeping.plot_sweep(rows, varied, "English", tmp_path / "sweep.png")
+    drawn = [line for ax in figures[0].axes for line in ax.lines]
+    assert drawn and not [ax for ax in figures[0].axes if ax.images]
+    for line in drawn:
+        if line.get_linewidth() > 0:  # a joined line varies its quantity alone: each x once, in order
+            assert list(line.get_xdata()) == sorted(set(line.get_xdata()))
+    assert any(line.get_linewidth() == 0 for line in drawn)  # the 12 combinations against speed: markers only

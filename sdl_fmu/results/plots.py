@@ -34,6 +34,7 @@ LABEL_ROW = 0.075  # axis fraction per row of event labels
 MAX_LABEL_ROWS = 6
 MAX_LABELLED_VEHICLES = 12  # vehicles named in the legend and on the road; the rest summarised
 MAX_LINE_POINTS = 4000  # lines are decimated to this many points: the figure is ~1800 px wide anyway
+MAX_TRAFFIC_POINTS = 60_000  # points of all traffic paths together, when more than MAX_LABELLED_VEHICLES are drawn
 NOMINAL_MU = 0.8
 WHEEL_STYLES = {"fl": "-", "fr": "--", "rl": "-.", "rr": ":"}
 TRAFFIC_COLORS = ("tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan",
@@ -47,6 +48,15 @@ BRK_COLOR = "tab:red"
 LANE_FILL = "#f7f7f7"
 SHOULDER_FILL = "#d9d9d9"
 GROUND_FILL = "#edf4e8"
+
+
+# The figure's layout, fixed (figure fractions): measured once against matplotlib's constrained layout of the
+# shipped examples, it leaves room for the titles, the axis labels and the twin axes' labels; the road panels
+# are narrowed at run time to fit their legend. A layout engine would cost more than the rest of the plot.
+FIGURE_SIZE = (16, 13.5)  # inches
+FIGURE_DPI = 110
+LAYOUT = dict(left=0.055, right=0.955, top=0.92, bottom=0.04, hspace=0.4, wspace=0.22)
+COLORBAR_LEFT = 0.935  # figure fraction: the RSA colorbar beside the road panels
 
 
 def _stride(samples: int) -> int:
@@ -99,8 +109,24 @@ def _mark_events(ax, events: list[dict]) -> None:
     for collision, lw, alpha, ls in ((False, 0.9, 0.35 * fade, "--"), (True, 1.6, 0.8, "-")):
         chosen = [event for event in events if (event.get("action") == "collision") == collision]
         if chosen:
-            ax.vlines([event["time_s"] for event in chosen], 0, 1, transform=transform, lw=lw, alpha=alpha,
-                      linestyles=ls, colors=[_event_color(event) for event in chosen], zorder=1)
+            times, colors = _marker_lines([event["time_s"] for event in chosen],
+                                          [_event_color(event) for event in chosen])
+            ax.vlines(times, 0, 1, transform=transform, lw=lw, alpha=alpha, linestyles=ls, colors=colors, zorder=1)
+
+
+MAX_EVENT_MARKERS = 2000  # more event lines than this are merged where they fall on one of MAX_LINE_POINTS slots
+
+
+def _marker_lines(times: list[float], colors: list[str]) -> tuple[list[float], list[str]]:
+    """The event lines to draw: all of them, or beyond MAX_EVENT_MARKERS one per colour and slot of the run's span
+    (MAX_LINE_POINTS slots, finer than the panel's pixels), so that the lines follow the picture, not the events."""
+    if len(times) <= MAX_EVENT_MARKERS:
+        return times, colors
+    low, span = min(times), (max(times) - min(times)) or 1.0
+    kept = {}
+    for time, color in zip(times, colors):
+        kept.setdefault((round((time - low) / span * MAX_LINE_POINTS), color), time)
+    return list(kept.values()), [color for _, color in kept]
 
 
 def _label_rows(spans: list[tuple[float, float]], right: float) -> list[tuple[int | None, str]]:
@@ -144,12 +170,11 @@ def _label_events(ax, events: list[dict]) -> list:
 
 
 def _pack_labels(figure, ax, labels: list, top: float) -> None:
-    """Places the event labels in rows by their drawn widths (the layout settled by one draw), so that none
+    """Places the event labels in rows by their drawn widths (measured on the fixed layout, without a draw), so that none
     overlaps another (a label no row has room for is left out), and leaves the panel's curve (up to `top`) below
     the rows."""
     if labels:
-        figure.draw_without_rendering()
-        renderer = figure.canvas.get_renderer()
+        renderer = figure.canvas.get_renderer()  # the layout is fixed: widths are measured without drawing
         box = ax.get_window_extent(renderer)
         spans = [(ax.transData.transform((label.get_position()[0], 0.0))[0],
                   label.get_window_extent(renderer).width) for label in labels]
@@ -216,7 +241,7 @@ def _plot_time_panels(result: RunRecord, axes: dict, time: np.ndarray, brk_runs,
     _mark_events(ax, events)
     labels = _label_events(ax, events)
     ax.set_ylabel(f"speed [{speed_label(units)}]")
-    ax.set_title("speed (BRK spans shaded, events marked)", fontsize=10, loc="left")
+    ax.set_title("speed (BRK spans shaded, events marked)", fontsize=10, loc="left", y=1.0)
     ax.legend(loc="lower left", fontsize=8)
 
     ax = axes["distance"]
@@ -229,7 +254,7 @@ def _plot_time_panels(result: RunRecord, axes: dict, time: np.ndarray, brk_runs,
         ax.scatter([event["time_s"] for event in dots], [event["distance"] for event in dots], s=16, zorder=3,
                    color=[_event_color(event) for event in dots])
     ax.set_ylabel(f"distance travelled [{length_label(units)}]")
-    ax.set_title("distance travelled (dots: events)", fontsize=10, loc="left")
+    ax.set_title("distance travelled (dots: events)", fontsize=10, loc="left", y=1.0)
 
     ax = axes["pedals"]
     _shade_brk(ax, time, brk_runs, label=False)
@@ -248,7 +273,7 @@ def _plot_time_panels(result: RunRecord, axes: dict, time: np.ndarray, brk_runs,
     steer_ax.tick_params(axis="y", colors="tab:purple")
     handles = ax.get_legend_handles_labels()[0] + steer_ax.get_legend_handles_labels()[0]
     ax.legend(handles=handles, loc="upper right", fontsize=8, ncols=3)
-    ax.set_title("driver inputs", fontsize=10, loc="left")
+    ax.set_title("driver inputs", fontsize=10, loc="left", y=1.0)
 
     ax = axes["friction"]
     _mark_events(ax, events)
@@ -264,12 +289,12 @@ def _plot_time_panels(result: RunRecord, axes: dict, time: np.ndarray, brk_runs,
     if simple:
         ax.set_ylim(0, max(1.0, top) * 1.1)
         ax.set_ylabel("mu [1]")
-        ax.set_title("friction coefficient under each wheel", fontsize=10, loc="left")
+        ax.set_title("friction coefficient under each wheel", fontsize=10, loc="left", y=1.0)
     else:
         ax.set_ylim(-0.5, top + 0.5)
         ax.yaxis.get_major_locator().set_params(integer=True)
         ax.set_ylabel("surface attribute")
-        ax.set_title("road surface attribute under each wheel", fontsize=10, loc="left")
+        ax.set_title("road surface attribute under each wheel", fontsize=10, loc="left", y=1.0)
     if values:
         ax.legend(loc="lower right", fontsize=8, ncols=4)
     ax.set_xlabel("time [s]")
@@ -304,7 +329,7 @@ def _plot_yaw_panel(result: RunRecord, ax, time: np.ndarray, brk_runs, narrow: b
     handles = ax.get_legend_handles_labels()[0] + rate_ax.get_legend_handles_labels()[0]
     ax.legend(handles=handles, loc="upper right", fontsize=8, ncols=4)
     ax.set_title("heading, side slip, steering and yaw rate" + ("" if narrow else " (a skid: heading and yaw rate "
-                 "away from 0, counter-steer opposite)"), fontsize=10, loc="left")
+                 "away from 0, counter-steer opposite)"), fontsize=10, loc="left", y=1.0)
     ax.set_xlabel("time [s]")
 
 
@@ -334,7 +359,7 @@ def _plot_lead_panel(result: RunRecord, ax, time: np.ndarray, lead: dict) -> Non
     rate_ax.tick_params(axis="y", colors="tab:gray")
     handles = ax.get_legend_handles_labels()[0] + rate_ax.get_legend_handles_labels()[0]
     ax.legend(handles=handles, loc="upper right", fontsize=8)
-    ax.set_title("lead vehicle (ahead in the ego's path): gap and relative speed", fontsize=10, loc="left")
+    ax.set_title("lead vehicle (ahead in the ego's path): gap and relative speed", fontsize=10, loc="left", y=1.0)
     ax.set_xlabel("time [s]")
 
 
@@ -455,6 +480,9 @@ def _draw_paths(ax, result: RunRecord, brk_runs, x_min: float, x_max: float, ann
     # Traffic: one line collection and one marker call however many vehicles; legend entries and labels
     # for the first few only (MAX_LABELLED_VEHICLES), the rest summarised in one legend entry.
     many = len(result.vehicles) > MAX_LABELLED_VEHICLES
+    # many vehicles share MAX_TRAFFIC_POINTS (each at least its first, middle and last point): the collection's
+    # size follows the picture, not the samples
+    per_vehicle = max(2, min(200, MAX_TRAFFIC_POINTS // max(len(result.vehicles), 1)))
     paths, path_colors, spawns, spawn_colors = [], [], [], []
     for number, track in enumerate(result.vehicles):
         color = TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)]
@@ -463,7 +491,7 @@ def _draw_paths(ax, result: RunRecord, brk_runs, x_min: float, x_max: float, ann
         present = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
         if not len(present) or x[present].max() < x_min or x[present].min() > x_max:
             continue
-        stride = max(1, math.ceil(len(present) / 200)) if many else step
+        stride = max(1, math.ceil(len(present) / per_vehicle)) if many else step
         keep = present[::stride]
         if keep[-1] != present[-1]:
             keep = np.append(keep, present[-1])
@@ -531,9 +559,11 @@ def _focus(result: RunRecord, time: np.ndarray) -> tuple[int, str] | None:
     return None
 
 
-def _draw_footprints(ax, result: RunRecord, index: int) -> None:
-    """Traffic vehicles' footprints and the ego's position at one sample (zoom panel)."""
+def _draw_footprints(ax, result: RunRecord, index: int, x_min: float, x_max: float) -> None:
+    """Traffic vehicles' footprints (those between stations x_min..x_max) and the ego's position at one sample
+    (zoom panel)."""
     units = result.units
+    boxes, colors = [], []  # one collection: only the footprints within the view, however many vehicles
     for number, track in enumerate(result.vehicles):
         if not track.first <= index < track.first + len(track.station):
             continue
@@ -541,9 +571,15 @@ def _draw_footprints(ax, result: RunRecord, index: int) -> None:
         if not (math.isfinite(x) and math.isfinite(y)):
             continue
         length, width = from_si(track.length, units), from_si(track.width, units)
-        ax.add_patch(Rectangle((from_si(x, units) - length / 2, from_si(y, units) - width / 2), length, width,
-                               facecolor=TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)], edgecolor="black",
-                               alpha=0.8, lw=0.8, zorder=6))
+        x, y = from_si(x, units), from_si(y, units)
+        if x + length / 2 < x_min or x - length / 2 > x_max:
+            continue
+        boxes.append(((x - length / 2, y - width / 2), (x - length / 2, y + width / 2), (x + length / 2, y + width / 2),
+                      (x + length / 2, y - width / 2)))
+        colors.append(TRAFFIC_COLORS[number % len(TRAFFIC_COLORS)])
+    if boxes:
+        ax.add_collection(PolyCollection(boxes, facecolors=colors, edgecolors="black", alpha=0.8, lw=0.8, zorder=6),
+                          autolim=False)
     ego_x = from_si(float(result.columns["station"][index]), units)
     ego_y = from_si(float(result.columns["lateral"][index]), units)
     ax.plot(ego_x, ego_y, "D", color=EGO_COLOR, mec="black", ms=8, zorder=6)
@@ -585,12 +621,12 @@ def _plot_run(result: RunRecord, path: Path) -> None:
     brk_runs = _runs(np.asarray(result.columns["brk"], dtype=float) > 0.5) if len(time) else []
     focus = _focus(result, time)
 
-    figure = Figure(figsize=(16, 13.5), dpi=110, layout="constrained")
+    figure = Figure(figsize=FIGURE_SIZE, dpi=FIGURE_DPI)  # a fixed layout (LAYOUT): no layout engine's passes
     FigureCanvasAgg(figure)
     lead = result.lead_series() if result.lead_series is not None and len(time) else None
     if lead is not None and not lead["present"].any():
         lead = None  # no vehicle was ever ahead in the ego's path
-    grid = figure.add_gridspec(5, 2, height_ratios=[1.15, 1.0, 0.95, 1.05, 1.05])
+    grid = figure.add_gridspec(5, 2, height_ratios=[1.15, 1.0, 0.95, 1.05, 1.05], **LAYOUT)
     axes = {"speed": figure.add_subplot(grid[0, 0])}
     axes["distance"] = figure.add_subplot(grid[0, 1], sharex=axes["speed"])
     axes["pedals"] = figure.add_subplot(grid[1, 0], sharex=axes["speed"])
@@ -612,10 +648,12 @@ def _plot_run(result: RunRecord, path: Path) -> None:
         axes["speed"].set_xlim(time[0], time[-1] if time[-1] > time[0] else time[0] + 1)
 
     # bird's-eye view of the whole run
-    station = from_si(np.asarray(result.columns["station"], dtype=float), units)
-    xs = [station] + [from_si(np.asarray(track.station, dtype=float), units) for track in result.vehicles]
-    finite = np.concatenate([x[np.isfinite(x)] for x in xs] + [np.zeros(1)])
-    x_min, x_max = float(finite.min()), float(finite.max())
+    x_min, x_max = 0.0, 0.0  # the stations of every path (one vehicle at a time: nothing grows with the traffic)
+    for series in [result.columns["station"]] + [track.station for track in result.vehicles]:
+        x = from_si(np.asarray(series, dtype=float), units)
+        x = x[np.isfinite(x)]
+        if len(x):
+            x_min, x_max = min(x_min, float(x.min())), max(x_max, float(x.max()))
     low, high = _lateral_limits(result)
     road_width = high - low
     pad = max(0.01 * (x_max - x_min), 2.0 * road_width - 0.5 * (x_max - x_min))  # short runs: show some road
@@ -628,9 +666,9 @@ def _plot_run(result: RunRecord, path: Path) -> None:
     road_ax.set_ylabel(f"lateral [{length}]\n(+ right, drawn down)")
     road_ax.set_xlabel(f"station along the road [{length}]")
     road_ax.set_title("the road from above (stretched across; shoulders grey, RSA sections coloured per lane)",
-                      fontsize=10, loc="left")
-    road_ax.legend(handles=handles + surface_handles, loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8,
-                   borderaxespad=0)
+                      fontsize=10, loc="left", y=1.0)
+    legend = road_ax.legend(handles=handles + surface_handles, loc="upper left", bbox_to_anchor=(1.005, 1.0),
+                            fontsize=8, borderaxespad=0)
 
     if focus:
         index, what = focus
@@ -640,18 +678,26 @@ def _plot_run(result: RunRecord, path: Path) -> None:
         z_min, z_max = centre - half, centre + half
         _draw_road(zoom_ax, result, z_min, z_max, (low, high))
         _draw_paths(zoom_ax, result, brk_runs, z_min, z_max, annotate=True)
-        _draw_footprints(zoom_ax, result, index)
+        _draw_footprints(zoom_ax, result, index, z_min, z_max)
         zoom_ax.set_xlim(z_min, z_max)
         zoom_ax.set_ylim(high, low)
         zoom_ax.set_ylabel(f"lateral [{length}]\n(+ right, drawn down)")
         zoom_ax.set_xlabel(f"station along the road [{length}]")
-        zoom_ax.set_title(f"zoom: {what} (footprints and ego \u25c6 at that instant)", fontsize=10, loc="left")
+        zoom_ax.set_title(f"zoom: {what} (footprints and ego \u25c6 at that instant)", fontsize=10, loc="left", y=1.0)
         road_ax.add_patch(Rectangle((z_min, low), z_max - z_min, high - low, fill=False, edgecolor="black",
                                     lw=1.0, ls="--", zorder=8))
 
-    if mappable is not None and result.surfaces:
-        colorbar_axes = [road_ax, zoom_ax] if zoom_ax is not None else [road_ax]
-        colorbar = figure.colorbar(mappable, ax=colorbar_axes, location="right", fraction=0.02, pad=0.01)
+    # the road panels end where their legend (measured, without a draw) and the colorbar leave room
+    colorbar = mappable is not None and bool(result.surfaces)
+    legend_width = legend.get_window_extent(figure.canvas.get_renderer()).width / figure.bbox.width
+    right = (COLORBAR_LEFT - 0.012 if colorbar else 0.99) - legend_width - 0.012
+    road_axes = [road_ax, zoom_ax] if zoom_ax is not None else [road_ax]
+    for ax in road_axes:
+        box = ax.get_position()
+        ax.set_position([box.x0, box.y0, max(right - box.x0, 0.3), box.height])
+    if colorbar:
+        low_end, high_end = road_axes[-1].get_position().y0, road_ax.get_position().y1
+        colorbar = figure.colorbar(mappable, cax=figure.add_axes([COLORBAR_LEFT, low_end, 0.01, high_end - low_end]))
         colorbar.set_label("mu (RSA value / 10)")
 
     name = Path(str(result.scenario_path)).stem or "scenario"
@@ -663,4 +709,4 @@ def _plot_run(result: RunRecord, path: Path) -> None:
         subtitle += f"  |  {len(result.warnings)} warning(s): {first}"
     figure.suptitle(f"{title}\n{subtitle}", fontsize=13)
     _pack_labels(figure, axes["speed"], labels, top)
-    figure.savefig(Path(path), format="png")
+    figure.savefig(Path(path), format="png", pil_kwargs={"compress_level": 1})  # 0.2 s less than 6, 11 % larger

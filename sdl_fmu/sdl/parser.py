@@ -421,9 +421,17 @@ def _lane_warnings(event: SurfaceAttribute, road: Road) -> list[str]:
 
 MAX_PARAMETERS = 2 * (MAX_LANES + 2)  # per event line: an RSA may set every lane and both shoulders
 MAX_ERRORS = 100  # problems reported per file; reading stops after that many
+# A events (traffic vehicles) per scenario: every one may be on the road at once, and a run's memory, its
+# traffic.csv and its plot grow with the vehicles on the road (docs/scenarios.md, limits). 20 000 all at once run
+# and plot in about 0.3 GB; the scaling benchmark's longest scenario (200 000 lines) has exactly this many.
+MAX_VEHICLES = 20_000
 
 
 class _TooManyErrors(Exception):
+    pass
+
+
+class _TooManyVehicles(Exception):
     pass
 
 
@@ -477,6 +485,7 @@ def _parse(text: str, path: str, skip_unsupported: bool, values: dict[str, float
     end: EndOfScenario | None = None
     end_line: int | None = None
     supported = ", ".join(SUPPORTED_CODES)
+    vehicles = 0  # A lines read
 
     def skip(key: str, what: str, line: int) -> None:
         skipped.setdefault(key, (what, []))[1].append(line)
@@ -550,6 +559,13 @@ def _parse(text: str, path: str, skip_unsupported: bool, values: dict[str, float
                            "--skip-unsupported runs the file without it")
                 continue
 
+            if code == "A":
+                vehicles += 1
+                if vehicles > MAX_VEHICLES:  # before the line's event exists: nothing grows beyond the limit
+                    errors.append(SdlError(path, number, "A", f"more than {MAX_VEHICLES} A events (traffic vehicles) "
+                                           f"in one scenario; the format allows at most {MAX_VEHICLES}: reading "
+                                           "stopped"))
+                    raise _TooManyVehicles
             if rest is not None and rest.count(",") >= MAX_PARAMETERS:
                 report(f"{code} parameters", f"{rest.count(',') + 1} parameters; the format allows at most "
                        f"{MAX_PARAMETERS} on one line")
@@ -600,8 +616,11 @@ def _parse(text: str, path: str, skip_unsupported: bool, values: dict[str, float
                 placed.append((event, distance_text))
     except _TooManyErrors:
         errors.append(SdlError(path, errors[-1].line, "file", f"stopped reading after {MAX_ERRORS} problems"))
-    errors += [SdlError(path, *problem) for problem in substitution.unapplied()]
-    warnings += substitution.unused()
+    except _TooManyVehicles:
+        pass  # its error is the last one
+    else:
+        errors += [SdlError(path, *problem) for problem in substitution.unapplied()]
+        warnings += substitution.unused()
 
     # The run ends at ES: an event beyond it (or at its distance but after it in the file) would never fire.
     if end is not None:

@@ -386,3 +386,61 @@ def test_the_plot_draws_the_same_road_however_many_lanes_nothing_uses(simple_fmu
         drawn.append((len(ax.lines), len(ax.patches), len(ax.collections), segments))
     assert drawn[0] == drawn[1] == drawn[2]
     assert drawn[0][3] <= 2 * plots.NEAR_LANES + 2  # the lane lines within NEAR_LANES of the path, no more
+
+
+# --- the number of traffic vehicles --------------------------------------------------------------------------
+
+REPRODUCER_CAP = 1_500_000_000  # bytes of address space: the reproducer once reached 1.07 GB and failed in the plot
+
+
+def _vehicle_lines(count: int, distance: str = "{k}") -> str:
+    """`count` A lines of 22 bytes or so (oncoming, 2000 ft ahead, the eight vehicle models in turn)."""
+    return "English\n" + "".join(f"{distance.format(k=k + 1)},A,50,2000,-6,{1 + k % 8}\n" for k in range(count))
+
+
+def _reproducer_cap():
+    resource.setrlimit(resource.RLIMIT_AS, (REPRODUCER_CAP, REPRODUCER_CAP))
+
+
+def test_a_10_mib_scenario_of_a_lines_is_refused_up_front_in_one_line(tmp_path, simple_fmu):
+    # The reproducer: 459 811 A lines, just under the 10 MiB file limit, passed `check`; `run --until-time 2`
+    # took minutes, reached 1.07 GB and ended in a traceback in the plot. Now the A line beyond MAX_VEHICLES is an
+    # error naming the file, its line and the limit, before any FMU is loaded: under a 1.5 GB address-space cap the
+    # run exits 1 with that one line and writes nothing; `check` gives the same line.
+    from sdl_fmu.sdl.parser import MAX_FILE_SIZE, MAX_VEHICLES
+
+    text = _vehicle_lines(459_811)
+    assert MAX_FILE_SIZE - 2**20 < len(text.encode()) <= MAX_FILE_SIZE  # within the size limit
+    path, out = tmp_path / "vehicles.sdl", tmp_path / "out"
+    path.write_text(text)
+    limit = f"{path}:{MAX_VEHICLES + 2}: A: more than {MAX_VEHICLES} A events (traffic vehicles) in one scenario"
+    for command in (["run", path, "--until-time", "2", "--out", out, "--fmu", simple_fmu], ["check", path]):
+        result = helpers.sdl_fmu(*command, cwd=tmp_path, timeout=HANG_LIMIT, preexec_fn=_reproducer_cap)
+        assert assert_refused(result, path, out, MAX_VEHICLES + 2, "A").startswith(limit)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["vehicles.sdl"]
+
+
+def test_the_vehicle_limit_counts_a_lines_only():
+    from sdl_fmu.sdl import ScenarioError, parse_text
+    from sdl_fmu.sdl.parser import MAX_VEHICLES
+
+    at_limit = _vehicle_lines(MAX_VEHICLES) + "".join(f"{k},BRK,5,0,0.1\n" for k in range(1, 100))
+    assert sum(event.code == "A" for event in parse_text(at_limit).events) == MAX_VEHICLES
+    with pytest.raises(ScenarioError) as caught:
+        parse_text(_vehicle_lines(MAX_VEHICLES + 1), "x.sdl")
+    assert [str(error) for error in caught.value.errors] == [
+        f"x.sdl:{MAX_VEHICLES + 2}: A: more than {MAX_VEHICLES} A events (traffic vehicles) in one scenario; the "
+        f"format allows at most {MAX_VEHICLES}: reading stopped"]
+
+
+@pytest.mark.slow  # one run of 20 000 vehicles with its plot: about 15 s of CPU time
+def test_the_most_vehicles_all_at_once_run_and_plot_within_the_memory_cap(tmp_path, simple_fmu):
+    # The worst placement of the most vehicles the format allows: every one spawns at the start, so all are on the
+    # road for the whole run (the traffic samples, traffic.csv and the plot's paths all at their largest per
+    # second). Under the 1 GiB cap of this file's runs it runs and plots (measured: about 0.15 GB of RSS).
+    from sdl_fmu.sdl.parser import MAX_VEHICLES
+
+    result, _, out = run_case(tmp_path, simple_fmu, _vehicle_lines(MAX_VEHICLES, distance="0"),
+                              extra=["--until-time", "0.5"])
+    summary = assert_correct_run(result, out)
+    assert sum(event["action"] == "spawn" for event in summary["events"]) == MAX_VEHICLES

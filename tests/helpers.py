@@ -149,6 +149,19 @@ def build_foreign_car(folder: Path, fmi_version: int = 3) -> Path:
     return folder / f"{name}.fmu"
 
 
+COMMONROAD_ST_MAP = VEHICLES / "commonroad_st.toml"
+
+
+def build_commonroad_st(folder: Path) -> Path:
+    """Packages CommonRoad's single-track BMW 320i (tests/vehicles/commonroad_st.py) into folder with PythonFMU, in a
+    subprocess through its command line. Returns the FMU's path."""
+    built = subprocess.run([sys.executable, "-m", "pythonfmu", "build", "-f", str(VEHICLES / "commonroad_st.py"),
+                            "-d", str(folder)], capture_output=True, text=True)
+    if built.returncode != 0:
+        pytest.fail(f"pythonfmu could not build commonroad_st.py:\n{built.stdout}{built.stderr}")
+    return folder / "CommonRoadSt.fmu"
+
+
 def foreign_vehicle_map(folder: Path, weak: bool = False) -> Path:
     """The foreign car's vehicle map; weak: a copy in folder whose [parameters] (the map's last table) cap the
     drive power (WEAK_PARAMETERS)."""

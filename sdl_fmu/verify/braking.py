@@ -20,7 +20,9 @@ its rate at a light pedal) and brakes just past it (LOCK_MARGIN), turning steadi
 from before the application). Then only the axle that locks first is locked, and the car shows which: the front
 (or both together), and it loses its turn and runs straight on; the rear, and the still-steered front turns it in,
 a spin. The yaw rate must not grow beyond LOCK_YAW_RATE_GROWTH x its value at the application. A vehicle without a
-friction input is braked on its own surface only.
+friction input is braked on its own surface only. On a surface where the deceleration grows with the pedal all the
+way (no wheel locks: brakes weaker than the tires, ABS, or a model without wheels, as CommonRoad's single-track car)
+there is no lock sequence; where no surface locks, the criterion is n/a with that reason, never a FAIL.
 """
 
 from __future__ import annotations
@@ -121,13 +123,18 @@ def run(model) -> Outcome:
         surfaces = (None,)
     else:
         surfaces = LOCK_SURFACES["mu" if model.friction.meaning == "mu" else "attribute"]
-    growths, lock_pedals = {}, {}
+    growths, lock_pedals, unlocked = {}, {}, []
     for surface in surfaces:
         friction = None if surface is None else (surface,) * 4
         name = "own surface" if surface is None else f"{'mu' if model.friction.meaning == 'mu' else 'attribute'} {surface}"
         probes = Probes(model, v0, friction)
         rate = (probes(LIGHT_PEDAL) - probes(0.0)) / LIGHT_PEDAL
-        pedal = min(locking_limit(probes, LOCK_GROWTH * rate) + LOCK_MARGIN, 1.0)
+        limit_pedal = locking_limit(probes, LOCK_GROWTH * rate)
+        if limit_pedal >= 1.0:  # the deceleration grows all the way: no wheel locks on this surface
+            unlocked.append(name)
+            growths[name] = lock_pedals[name] = None
+            continue
+        pedal = min(limit_pedal + LOCK_MARGIN, 1.0)
         turning = drive(model, v0, lambda t, state, pedal=pedal: (0.0, pedal if t >= 0 else 0.0, 0.0), TIME_LIMIT,
                         stop=stopped, friction=friction, steer_function=lambda t: PERTURBATION,
                         settle_steer=lambda state: PERTURBATION)
@@ -136,23 +143,30 @@ def run(model) -> Outcome:
         r0 = abs(turning.at("yaw_rate_radps", 0.0))
         growths[name] = float(np.max(np.abs(turning["yaw_rate_radps"][after])) / max(r0, 1e-9))
         lock_pedals[name] = pedal
-    worst_growth = max(growths.values())
+    locked = [g for g in growths.values() if g is not None]
+    worst_growth = max(locked) if locked else None
 
     outcome.metrics = {"entry_speed_kmh": round(entry / KILOMETRE_PER_HOUR, 3), "stopping_distance_m": stop,
                        "stopping_time_s": float(time[-1]), "mfdd_mps2": deceleration,
                        "stopping_distance_limit_m": limit, "mfdd_limit_mps2": MFDD_MIN,
                        "perturbed_lane_offset_m": lane_offset, "perturbed_lane_offsets_m": offsets,
                        "lock_sequence_yaw_rate_growth": worst_growth, "lock_sequence_yaw_rate_growths": growths,
-                       "lock_sequence_brake": lock_pedals}
-    distance_ok, mfdd_ok = stop <= limit, deceleration >= MFDD_MIN
-    stable_ok, sequence_ok = lane_offset <= LANE_WIDTH / 2, worst_growth <= LOCK_YAW_RATE_GROWTH
-    outcome.criteria = [f"stopping distance {stop:.2f} m <= {limit:.1f} m: {'pass' if distance_ok else 'FAIL'}",
-                        f"MFDD {deceleration:.2f} m/s2 >= {MFDD_MIN} m/s2: {'pass' if mfdd_ok else 'FAIL'}",
-                        f"steer perturbation of {PERTURBATION} rad: footprint within {lane_offset:.2f} m of the lane's "
-                        f"centre <= {LANE_WIDTH / 2} m: {'pass' if stable_ok else 'FAIL'}",
-                        f"lock sequence (front before rear): yaw rate just past the first lock at most "
-                        f"{worst_growth:.2f} x its value before <= {LOCK_YAW_RATE_GROWTH:g}: "
-                        f"{'pass' if sequence_ok else 'FAIL'}"]
+                       "lock_sequence_brake": lock_pedals, "lock_sequence_no_lock": unlocked}
+    distance_ok = outcome.judge(f"stopping distance {stop:.2f} m <= {limit:.1f} m", stop <= limit)
+    mfdd_ok = outcome.judge(f"MFDD {deceleration:.2f} m/s2 >= {MFDD_MIN} m/s2", deceleration >= MFDD_MIN)
+    stable_ok = outcome.judge(f"steer perturbation of {PERTURBATION} rad: footprint within {lane_offset:.2f} m of the "
+                              f"lane's centre <= {LANE_WIDTH / 2} m", lane_offset <= LANE_WIDTH / 2)
+    no_lock = (f"no wheel locks up to full pedal on {', '.join(unlocked)}: the deceleration grows with the pedal "
+               f"all the way (at >= {LOCK_GROWTH:g} x its rate at a light pedal), so there is no lock sequence")
+    if worst_growth is None:  # R13-H Annex 5's lock sequence concerns wheels that lock: here none does
+        outcome.judge("lock sequence (front before rear)", None, no_lock)
+        sequence_ok = True
+    else:
+        sequence_ok = outcome.judge(
+            f"lock sequence (front before rear): yaw rate just past the first lock at most {worst_growth:.2f} x its "
+            f"value before <= {LOCK_YAW_RATE_GROWTH:g}"
+            + (f" (on the surfaces where a wheel locks; none does on {', '.join(unlocked)})" if unlocked else ""),
+            worst_growth <= LOCK_YAW_RATE_GROWTH)
     outcome.passed = distance_ok and mfdd_ok and stable_ok and sequence_ok
     outcome.plot = {"limit_m": limit, "v0": entry}
     return outcome

@@ -18,7 +18,7 @@ from matplotlib.patches import Polygon
 
 from ..results.folder import write_results_folder
 from .drive import COLUMNS
-from .outcome import Outcome
+from .outcome import VERDICTS, Outcome
 from .quantities import label, shown
 
 JSON_NAME, HTML_NAME = "verify.json", "report.html"
@@ -58,9 +58,23 @@ def passed(outcomes: list[Outcome]) -> bool:
     return all(o.passed is not False for o in outcomes)
 
 
+def totals(outcomes: list[Outcome]) -> dict:
+    """How many manoeuvres and how many criteria have each verdict (pass, FAIL, n/a, report): n/a is never counted
+    as failed."""
+    manoeuvres = [verdict(o.passed, o.reason) for o in outcomes]
+    criteria = [entry["verdict"] for o in outcomes for entry in o.criterion_verdicts()]
+    return {"manoeuvres": {v: manoeuvres.count(v) for v in VERDICTS},
+            "criteria": {v: criteria.count(v) for v in VERDICTS}}
+
+
+def totals_line(outcomes: list[Outcome]) -> str:
+    counted = totals(outcomes)["criteria"]
+    return "criteria: " + ", ".join(f"{counted[v]} {v}" for v in VERDICTS)
+
+
 def document(vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None, tool: dict | None = None) -> dict:
     return _json_ready({"format": FORMAT, "pack": "vehicle", "tool": tool, "vehicle": vehicle, "datasheet": sheet,
-                        "passed": passed(outcomes), "manoeuvres": {o.name: o.to_json() for o in outcomes}})
+                        "passed": passed(outcomes), "totals": totals(outcomes), "manoeuvres": {o.name: o.to_json() for o in outcomes}})
 
 
 def table(outcomes: list[Outcome]) -> str:
@@ -75,6 +89,9 @@ def table(outcomes: list[Outcome]) -> str:
         if o.reason:
             text = o.reason if not text else f"{text}; {o.reason}"
         lines.append(f"{o.name:<22} {verdict(o.passed, o.reason):<7} {text}")
+        lines.extend(f"{'':<22} {'n/a':<7} {entry['criterion']}: {entry['reason']}"
+                     for entry in o.criterion_verdicts() if entry["verdict"] == "n/a" and entry["reason"] != o.reason)
+    lines.append(totals_line(outcomes))
     return "\n".join(lines)
 
 
@@ -212,7 +229,7 @@ def png(outcome: Outcome) -> bytes | None:
 
 STYLE = """body{font-family:sans-serif;max-width:1000px;margin:auto} td,th{border:1px solid #ccc;padding:3px 6px;
 text-align:left;vertical-align:top} table{border-collapse:collapse;margin-bottom:8px} td.n{text-align:right}
-.pass{color:#070} .FAIL{color:#b00;font-weight:bold} .reason{color:#b00} img{max-width:100%} .small{color:#555;
+.pass{color:#070} .FAIL{color:#b00;font-weight:bold} .na{color:#555} .reason{color:#b00} img{max-width:100%} .small{color:#555;
 font-size:90%}"""
 SHEET_TITLES = {"identity": "FMU", "mass_and_geometry": "Mass and geometry", "drive_and_brakes": "Drive and brakes",
                 "tires": "Tires", "parameters_set": "Parameters set for this report (--param, SI)"}
@@ -251,11 +268,21 @@ def provenance_html(tool: dict | None) -> str:
             f"{html.escape(tool['date'])} (UTC).</p>")
 
 
+def css(verdict_: str) -> str:
+    return "na" if verdict_ == "n/a" else verdict_
+
+
+def criteria_html(o: Outcome) -> str:
+    """Each criterion of a manoeuvre on its line, its verdict coloured (n/a with its reason)."""
+    e = html.escape
+    return "<br>".join(f"<span class='{css(entry['verdict'])}'>{e(text)}</span>"
+                       for entry, text in zip(o.criterion_verdicts(), o.criteria))
+
+
 def report_html(vehicle: dict, outcomes: list[Outcome], sheet: dict | None = None, tool: dict | None = None) -> str:
     e = html.escape
-    rows = "".join(f"<tr><td>{e(o.name)}</td><td>{e(o.standard)}</td><td class='{verdict(o.passed, o.reason)}'>"
-                   f"{verdict(o.passed, o.reason)}</td><td>{'<br>'.join(e(c) for c in o.criteria)}</td></tr>"
-                   for o in outcomes)
+    rows = "".join(f"<tr><td>{e(o.name)}</td><td>{e(o.standard)}</td><td class='{css(verdict(o.passed, o.reason))}'>"
+                   f"{verdict(o.passed, o.reason)}</td><td>{criteria_html(o)}</td></tr>" for o in outcomes)
     identity = "".join(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in vehicle.items())
     sections = []
     for o in outcomes:
@@ -270,6 +297,7 @@ def report_html(vehicle: dict, outcomes: list[Outcome], sheet: dict | None = Non
 <style>{STYLE}</style>
 </head><body><h1>Vehicle test pack</h1>{provenance_html(tool)}<table>{identity}</table>
 <h2>Results</h2><table><tr><th>manoeuvre</th><th>source</th><th>result</th><th>criteria</th></tr>{rows}</table>
+<p>{e(totals_line(outcomes))} (n/a: the criterion does not apply to this vehicle, with its reason; never a failure)</p>
 {datasheet_html(sheet)}
 {''.join(sections)}</body></html>
 """

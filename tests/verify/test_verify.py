@@ -4,6 +4,7 @@ test suite, and on a vehicle that cannot reach the entry speed."""
 import base64
 import csv
 import json
+import os
 import re
 from functools import partial
 from pathlib import Path
@@ -166,6 +167,58 @@ def test_vehicle_without_friction_input_skips_split_mu(tmp_path, foreign_vehicle
     result = api.verify(fmu=fmu, vehicle=stripped, only=["split_mu_braking"])
     outcome = result.outcomes[0]
     assert outcome.passed is None and outcome.reason == "not applicable: the vehicle has no friction input"
+
+
+def no_friction_map(folder: Path, vehicle_map) -> Path:
+    """The vehicle map without its friction input (the car is braked on its own surface)."""
+    stripped = folder / "no_friction.toml"
+    stripped.write_text("\n".join(line for line in Path(vehicle_map).read_text().splitlines()
+                                   if not line.startswith("friction")))
+    return stripped
+
+
+def test_a_foreign_car_without_wheel_lock_passes_braking(tmp_path, foreign_vehicle):
+    """The foreign car (a kinematic bicycle: no wheels) on its own surface, road_grip 0.8: grip 0.8 x 1450 kg x g =
+    11376 N. With brake_gain 90 N/bar its full pedal, 120 bar, gives 10800 N < grip: the deceleration grows with the
+    pedal all the way (10800 / 1450 = 7.45 m/s2 plus rolling resistance and drag), nothing saturates, so no wheel
+    locks and R13-H Annex 5's lock sequence is n/a with its reason; the stop itself passes (about 27.8^2 / (2 x 7.6)
+    = 51 m <= 70 m, MFDD >= 7.45 > 6.43 m/s2, and a kinematic car turns only while steered: 0.4 m of drift). n/a is
+    no failure: braking passes, the totals count it as n/a, --strict exits 0. With its shipped brake_gain (100:
+    12000 N > grip) the brakes saturate on the grip at pedal 11376 / 12000 = 0.948 (a lock, as the pack sees it) and
+    the criterion is judged: pass (a kinematic car's yaw rate only falls as it slows). (PYTHONPATH: the command
+    runs this checkout's sdl_fmu.)"""
+    fmu, vehicle_map = foreign_vehicle(2)
+    stripped = no_friction_map(tmp_path, vehicle_map)
+    out = tmp_path / "weak-brakes"
+    completed = sdl_fmu("verify", "--fmu", fmu, "--vehicle", stripped, "--only", "braking", "--param",
+                        "brake_gain=90", "--strict", "--out", out, cwd=tmp_path,
+                        env={**os.environ, "PYTHONPATH": str(Path(api.__file__).parents[1])})
+    assert completed.returncode == 0, completed.stderr  # --strict: n/a is not a failed criterion
+    document = json.loads((out / "verify.json").read_text())
+    entry = document["manoeuvres"]["braking"]
+    assert entry["passed"] is True and document["passed"] is True
+    assert [v["verdict"] for v in entry["verdicts"]] == ["pass", "pass", "pass", "n/a"]
+    lock = entry["verdicts"][3]
+    assert lock["criterion"] == "lock sequence (front before rear)"
+    assert lock["reason"].startswith("no wheel locks up to full pedal on own surface")
+    assert entry["lock_sequence_yaw_rate_growth"] is None and entry["lock_sequence_no_lock"] == ["own surface"]
+    assert document["totals"]["criteria"] == {"pass": 3, "FAIL": 0, "n/a": 1, "report": 0}
+    assert document["totals"]["manoeuvres"]["pass"] == 1
+    assert 6.43 < entry["mfdd_mps2"] and entry["stopping_distance_m"] <= 70.0
+    assert re.search(r"^ +n/a +lock sequence \(front before rear\): no wheel locks", completed.stdout, re.M)
+    page = (out / "report.html").read_text()
+    assert "<span class='na'>lock sequence (front before rear): n/a (no wheel locks up to full pedal" in page
+    assert "1 n/a" in page
+    # the same car whose brakes can saturate its grip: the lock is found and the criterion judged
+    judged = api.verify(fmu=fmu, vehicle=stripped, only=["braking"]).outcomes[0]
+    assert [v["verdict"] for v in judged.criterion_verdicts()] == ["pass"] * 4 and judged.passed is True
+    # the pack brakes at the found limit + 2 RESOLUTION; the limit is the bisection's last pedal m whose growth over
+    # [m, m + RESOLUTION] is >= LOCK_GROWTH of the full one: past the saturation at p_lock nothing grows, so
+    # m <= p_lock - 0.8 RESOLUTION, and the bisection ends within one RESOLUTION below that (1e-3: drag's share of
+    # the light-pedal rate, 0.6 %, moves the threshold by less)
+    lock, resolution = 11375.7 / 12000, 0.005
+    pedal = judged.metrics["lock_sequence_brake"]["own surface"] - 2 * resolution
+    assert lock - 1.8 * resolution - 1e-3 <= pedal <= lock - 0.8 * resolution + 1e-3
 
 
 @pytest.mark.slow

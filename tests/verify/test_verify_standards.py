@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from sdl_fmu import api
 from sdl_fmu.units import KILOMETRE_PER_HOUR
 from sdl_fmu.shipped import shipped_model
 from sdl_fmu.verify import braking, effort, lane_change, sine_with_dwell as swd
@@ -15,6 +16,8 @@ from sdl_fmu.verify.drive import SAMPLE_PERIOD, Trace
 
 pytest.importorskip("vehiclemodels", reason="commonroad-vehicle-models is in the test extra")
 from vehicles.commonroad_bmw import advanced_start_values  # noqa: E402
+
+import helpers  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -108,6 +111,29 @@ def test_r13h_fails_a_car_whose_rear_wheels_lock_first(advanced):
     shipped = braking.run(advanced)
     assert shipped.passed is True
     assert max(shipped.metrics["lock_sequence_yaw_rate_growths"].values()) <= 1.0 + 1e-9
+
+
+@pytest.mark.slow
+def test_r13h_lock_sequence_is_na_for_commonroads_single_track_car(tmp_path):
+    """CommonRoad's single-track BMW 320i (tests/vehicles/commonroad_st.py: vehicle_dynamics_st in an FMU) has no
+    wheels: the brake pedal asks for a deceleration, g x pedal, that nothing saturates, so the deceleration grows with
+    the pedal all the way, no wheel locks and R13-H Annex 5's lock sequence is n/a with its reason (it used to be
+    judged at full pedal and FAILed at 6.9 x, a lock-sequence proxy for a car that never locks).
+    The Type-0 stop at a constant g: MFDD = g (exact for a constant deceleration; the distances s_b, s_e are linear
+    interpolations between 10 ms samples of a quadratic, each within a h^2 / 8 = 1.2e-4 m, over s_e - s_b = 37.5 m:
+    6.5e-6 relative). The verdict stays FAIL, for a reason that does apply: CommonRoad's tires are linear in slip angle
+    with stiffness C_S x load, the same C_S front and rear, and braking at d moves load forward (front g lr + d h, rear
+    g lf - d h, over L), so lr C_r - lf C_f = -(lr + lf) d h C_S mu m / L < 0 for every d > 0: it oversteers under any
+    braking, and the 0.005 rad steer perturbation turns it out of the lane."""
+    fmu = helpers.build_commonroad_st(tmp_path)
+    outcome = api.verify(fmu=fmu, vehicle=helpers.COMMONROAD_ST_MAP, only=["braking"]).outcomes[0]
+    verdicts = outcome.criterion_verdicts()
+    assert [v["verdict"] for v in verdicts] == ["pass", "pass", "FAIL", "n/a"]
+    assert verdicts[3]["reason"].startswith("no wheel locks up to full pedal on own surface")
+    assert outcome.metrics["lock_sequence_yaw_rate_growth"] is None
+    assert outcome.metrics["mfdd_mps2"] == pytest.approx(9.80665, rel=1e-5)
+    assert outcome.metrics["perturbed_lane_offset_m"] > braking.LANE_WIDTH / 2
+    assert outcome.passed is False  # directional stability, not the lock sequence
 
 
 # --- ISO 3888-2: a family of drivers -----------------------------------------------------------------------------

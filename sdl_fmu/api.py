@@ -24,7 +24,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Literal, Mapping, Sequence
 
 import numpy as np
 from fmpy import read_model_description
@@ -41,6 +41,8 @@ from .results import RunRecord, scenario_units, summary, timeseries_table, write
 from .results.folder import ResultsFolderError, check_results_folder
 from .sdl import Scenario, ScenarioError, SdlError, default_vehicle_table_path, load_scenario, load_vehicle_table
 from .sdl.checks import check_scenario, vehicle_warnings
+from .sdl.parameters import ParameterError, address, parameter_name
+from .sdl.parser import resolve_text, with_values
 from .shipped import shipped_controller, shipped_fmu
 from .shipping import ClusterError
 from .ssp.folder import check_export_folder, write_export
@@ -54,7 +56,8 @@ from .vehicle.isolated import FmuTimeout, deadline
 
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
            "export", "Export", "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model",
-           "LIMITS", "RUN_OPTIONS", "DRIVERS", "ON_COLLISION"]
+           "set_parameters", "resolve", "write_resolved", "value_target", "apply_values", "check_value_names",
+           "LIMITS", "RUN_OPTIONS", "VALUE_OPTIONS", "DRIVERS", "ON_COLLISION"]
 
 
 class RunTimeout(RuntimeError):
@@ -125,23 +128,160 @@ def _read(scenario: str | os.PathLike, skip_unsupported: bool) -> Scenario:
     return load_scenario(path, skip_unsupported=skip_unsupported)
 
 
-def _checked(scenario: str | os.PathLike | Scenario, vehicle_map: VehicleMap, skip_unsupported: bool) -> Scenario:
-    """The one scenario check: a file read (or a Scenario as given) and checked against the vehicle table and the
-    map's friction meaning. Costs a parse; nothing is built or loaded. ScenarioError listing every problem."""
+def _checked(scenario: str | os.PathLike | Scenario, vehicle_map: VehicleMap, skip_unsupported: bool,
+             values: dict[str, float] | None = None) -> Scenario:
+    """The one scenario check: a file read (or a Scenario as given), its parameters set to `values`, and checked
+    against the vehicle table and the map's friction meaning. Costs a parse; nothing is built or loaded. ScenarioError
+    listing every problem."""
     if not isinstance(scenario, Scenario):
         scenario = _read(scenario, skip_unsupported)
+    if values:
+        scenario = set_parameters(scenario, values)
     friction = vehicle_map.friction
     check_scenario(scenario, _vehicle_table(), None if friction is None else friction.meaning)
     return scenario
 
 
 def load(scenario: str | os.PathLike, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None,
-         vehicle: str | os.PathLike | None = None) -> Scenario:
+         vehicle: str | os.PathLike | None = None, set: Mapping[str, float] | None = None) -> Scenario:
     """Reads and checks a scenario file (or a shipped example by name) for the vehicle `run` would drive (the map
     `vehicle`, else the shipped map of `dynamics`, default simple: for advanced, RSA values are whole attribute
     numbers); raises ScenarioError listing every problem. skip_unsupported: lines sdl-fmu does not simulate become
-    warnings (one per code)."""
-    return _checked(scenario, _vehicle_map(dynamics, vehicle), skip_unsupported)
+    warnings (one per code). set: scenario parameters' values (see set_parameters)."""
+    return _checked(scenario, _vehicle_map(dynamics, vehicle), skip_unsupported, set)
+
+
+# --- scenario parameters (docs/scenarios.md, Parameters) ---------------------------------------------------------
+
+
+def set_parameters(scenario: str | os.PathLike | Scenario, values: Mapping[str, float] | None, *,
+                   skip_unsupported: bool = False) -> Scenario:
+    """The scenario (a path, a shipped example's name, or a Scenario read from a file) with its parameters set: each
+    key of `values` a declared parameter (`NAME` or `$NAME`, a `// @param` line of the file) or an address (`LINE.N`:
+    parameter N of the event on line LINE, 0 its distance; `rsa.LINE`, `rsa.LINE.LANE`), each value in the file's
+    units. Values set earlier on the same Scenario stay unless set again. The values go into the text before it is
+    read, so each is checked as the field it reaches says (ScenarioError naming file, line, field and parameter), and
+    against its declared range and unit; a key that names nothing is an InputError of option `set`. Not checked
+    against a vehicle (load and run do that)."""
+    if not isinstance(scenario, Scenario):
+        scenario = _read(scenario, skip_unsupported)
+    if not values:
+        return scenario
+    try:
+        return with_values(scenario, dict(values))
+    except ParameterError as error:
+        raise InputError("set", "", subject=str(error)) from None
+
+
+def resolve(scenario: str | os.PathLike | Scenario, values: Mapping[str, float] | None = None, *,
+            skip_unsupported: bool = False) -> str:
+    """The scenario's SDL text with every parameter's value (declared, set on the Scenario, then `values`) written
+    into the fields that use it and each `// @param` line made a plain comment recording the value: plain SDL that any
+    reader runs to the same results, line for line (lines keep their numbers). The checks of set_parameters."""
+    if not isinstance(scenario, Scenario):
+        scenario = _read(scenario, skip_unsupported)
+    try:
+        return resolve_text(scenario, dict(values or {}))
+    except ParameterError as error:
+        raise InputError("set", "", subject=str(error)) from None
+
+
+def write_resolved(scenario: str | os.PathLike | Scenario, out: str | os.PathLike,
+                   values: Mapping[str, float] | None = None, *, skip_unsupported: bool = False) -> Path:
+    """resolve() written to the new file `out` (UTF-8): written whole under a temporary name, then linked into place,
+    so an existing file is never replaced (InputError naming `out`) and an interruption leaves nothing."""
+    text = resolve(scenario, values, skip_unsupported=skip_unsupported)
+    target = Path(out)
+    if os.path.lexists(target):
+        raise option_error("out", out, "exists; resolve writes a new file and never replaces one")
+    try:
+        descriptor, partial = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial",
+                                               dir=target.parent if str(target.parent) else ".")
+    except OSError as error:
+        raise option_error("out", out, f"cannot be written: {error.strerror or error}") from None
+    try:
+        with os.fdopen(descriptor, "w", encoding="utf-8", newline="\n") as file:
+            file.write(text)
+        os.link(partial, target)  # fails if `out` appeared meanwhile: never replaced
+    except FileExistsError:
+        raise option_error("out", out, "exists; resolve writes a new file and never replaces one") from None
+    except OSError as error:
+        raise option_error("out", out, f"cannot be written: {error.strerror or error}") from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(partial)
+    return target
+
+
+VALUE_OPTIONS = ("speed", "seed", "until_distance", "until_time")  # run options a {name: value} mapping may set
+
+ValueTarget = Literal["option", "scenario", "fmu"]
+
+
+def value_target(name: str, scenario: Scenario) -> ValueTarget:
+    """What a name of a {name: value} mapping (sweep --vary's names) sets: a run option (VALUE_OPTIONS), a scenario
+    parameter (`$NAME`, a NAME the scenario declares, an address `LINE.N`, `rsa.LINE[.LANE]`), or an FMU parameter
+    (`param.NAME`, or any other NAME). Whether that FMU parameter exists is check_value_names's question."""
+    if name in VALUE_OPTIONS:
+        return "option"
+    if name.startswith("param."):
+        return "fmu"
+    if address(name) is not None or name.startswith("$"):
+        return "scenario"
+    if parameter_name(name) in {parameter.name for parameter in scenario.parameters}:
+        return "scenario"
+    return "fmu"
+
+
+def check_value_names(scenario: Scenario, names: Sequence[str], model: EgoModel | None = None,
+                      option: str = "vary") -> None:
+    """InputError (of `option`) for the first name that sets nothing: not a run option, not a parameter the scenario
+    declares or an address, not a parameter of the FMU (`model`; None: FMU names not checked), or a bare NAME that is
+    both a declared scenario parameter and an FMU parameter (write $NAME or param.NAME). Reads no value: the values
+    are checked where they go (set_parameters, run)."""
+    declared = [parameter.name for parameter in scenario.parameters]
+    for name in names:
+        target = value_target(name, scenario)
+        fmu_name = name.removeprefix("param.")
+        has_fmu = model is not None and fmu_name in model.variables and \
+            model.variables[fmu_name].causality == "parameter"
+        if target == "scenario" and name.startswith("$") and parameter_name(name) not in declared:
+            raise option_error(option, name, f"{Path(scenario.path).name} declares no parameter "
+                                             f"{name[1:]!r} (declared: {', '.join(declared) or 'none'})")
+        if target == "scenario" and not name.startswith("$") and address(name) is None and has_fmu:
+            raise option_error(option, name, f"is both a parameter of {Path(scenario.path).name} and an FMU "
+                                             f"parameter of {model.name}: write ${name} or param.{name}")
+        if target == "fmu" and model is not None and not has_fmu:
+            raise option_error(option, name, "is no run option (" + ", ".join(VALUE_OPTIONS) + "), no parameter "
+                               f"of {Path(scenario.path).name} (declared: {', '.join(declared) or 'none'}; or an "
+                               f"address LINE.N, rsa.LINE[.LANE]) and no parameter of the FMU {model.name} "
+                               f"({', '.join(model.parameter_names())})")
+
+
+def apply_values(scenario: str | os.PathLike | Scenario, values: Mapping[str, float],
+                 options: Mapping | None = None) -> tuple[Scenario, dict]:
+    """One run's {name: value} mapping (as sweep --vary names them: value_target) applied: the scenario with its
+    scenario parameters set (set_parameters: each value checked by its field), and run's keyword options `options`
+    with the run options and the FMU parameters (into `params`) added. `run(scenario, **options)` with what it
+    returns is the run of that mapping; a sweep's row is run so (sweep.run_one)."""
+    options = dict(options or {})
+    if not isinstance(scenario, Scenario):
+        scenario = _read(scenario, options.get("skip_unsupported", False))
+    params = dict(options.pop("params", None) or {})
+    settings = {}
+    for name, value in values.items():
+        target = value_target(name, scenario)
+        if target == "option":
+            options[name] = value
+        elif target == "fmu":
+            params[name.removeprefix("param.")] = value
+        else:
+            settings[name] = value
+    if settings:
+        scenario = set_parameters(scenario, settings)
+    if params:
+        options["params"] = params
+    return scenario, options
 
 
 @dataclass
@@ -155,11 +295,12 @@ class Check:
 
 
 def check(scenario: str | os.PathLike | Scenario, *, skip_unsupported: bool = False, dynamics: Dynamics | None = None,
-          vehicle: str | os.PathLike | None = None, tires: str | os.PathLike | None = None) -> Check:
+          vehicle: str | os.PathLike | None = None, tires: str | os.PathLike | None = None,
+          set: Mapping[str, float] | None = None) -> Check:
     """load() and the warnings a run of the whole scenario would print for this vehicle and Tire Attribute File,
-    without building or loading its FMU (`sdl-fmu check`)."""
+    without building or loading its FMU (`sdl-fmu check`); `set`: scenario parameters' values (set_parameters)."""
     vehicle_map = _vehicle_map(dynamics, vehicle)
-    loaded = _checked(scenario, vehicle_map, skip_unsupported)
+    loaded = _checked(scenario, vehicle_map, skip_unsupported, set)
     friction = vehicle_map.friction
     known, tire_warnings = None, []
     if friction is not None and friction.tire_slots is not None:
@@ -394,7 +535,8 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
         tires: str | os.PathLike | None = None, skip_unsupported: bool = False, progress: bool | None = False,
         out: str | os.PathLike | None = None, plot: bool = True, timeout: float | None = None,
         controller: str | os.PathLike | None = None, controller_map: str | os.PathLike | None = None,
-        driver: str = "lane", on_collision: str = "continue", until_not_closing: int | None = None) -> Result:
+        driver: str = "lane", on_collision: str = "continue", until_not_closing: int | None = None,
+        set: Mapping[str, float] | None = None) -> Result:
     """Co-simulates a scenario (a path, a shipped example's name, or a loaded Scenario) and returns the Result.
 
     speed and until_distance are in the scenario's units (ft, ft/s or m, m/s), until_time and step in s,
@@ -413,10 +555,11 @@ def run(scenario: str | os.PathLike | Scenario, *, dynamics: Dynamics | None = N
     until_not_closing: a vehicle id: the run ends (ES reason not_closing) once the ego, having closed on that vehicle,
     no longer does (its speed along the road has fallen to the vehicle's or below: a stop behind a stopped one), as a
     test of the AEB car-to-car pack ends.
+    set: scenario parameters' values, in the file's units (set_parameters: declared names and addresses LINE.N).
     Raises InputError or ScenarioError for user mistakes, each before anything is built or loaded where it can be
     told without the FMU (the options, the scenario, the map, the tire file, the results folder)."""
     vehicle_map = _vehicle_map(dynamics, vehicle)
-    scenario = _checked(scenario, vehicle_map, skip_unsupported)
+    scenario = _checked(scenario, vehicle_map, skip_unsupported, set)
     options = run_options(scenario, speed=speed, seed=seed, step=step, driver_period=driver_period,
                           until_distance=until_distance, until_time=until_time, driver=driver,
                           on_collision=on_collision)

@@ -1,5 +1,5 @@
-"""The `sdl-fmu` command line: build, check, run, sweep, search, verify, export. It only parses arguments, calls sdl_fmu.api
-and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
+"""The `sdl-fmu` command line: build, check, resolve, run, sweep, search, verify, export. It only parses arguments,
+calls sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
 line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
@@ -93,7 +93,7 @@ def _made_by_mkdir(folder: Path) -> list[Path]:
 
 def _check(args) -> int:
     checked = api.check(args.scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics,
-                        vehicle=args.vehicle, tires=args.tires)
+                        vehicle=args.vehicle, tires=args.tires, set=_parse_settings(args.set))
     print(describe(checked.scenario))
     for warning in checked.warnings:
         print(f"warning: {warning}", file=sys.stderr)
@@ -114,6 +114,30 @@ def _parse_parameters(assignments: list[str]) -> dict[str, float]:
     return parameters
 
 
+def _parse_settings(assignments: list[str]) -> dict[str, float]:
+    """--set NAME=VALUE ...: scenario parameters (a declared name or an address), in the file's units."""
+    settings = {}
+    for assignment in assignments:
+        name, separator, value = assignment.partition("=")
+        try:
+            if not separator or not name.strip():
+                raise ValueError
+            settings[name.strip()] = float(value)
+        except ValueError:
+            raise InputError("set", "", subject=f"{assignment}: expected NAME=VALUE with a number (a scenario "
+                                                "parameter or an address LINE.N, in the file's units)") from None
+    return settings
+
+
+def _resolve(args) -> int:
+    settings = _parse_settings(args.set)
+    if args.out is None:
+        sys.stdout.write(api.resolve(args.scenario, settings, skip_unsupported=args.skip_unsupported))
+        return 0
+    print(api.write_resolved(args.scenario, args.out, settings, skip_unsupported=args.skip_unsupported))
+    return 0
+
+
 def _run(args) -> int:
     out = Path(args.out) if args.out is not None else Path("runs") / api.resolve_scenario(args.scenario).stem
     result = api.run(args.scenario, dynamics=args.dynamics, fmu=args.fmu, vehicle=args.vehicle, speed=args.speed,
@@ -121,7 +145,7 @@ def _run(args) -> int:
                      until_distance=args.until_distance, until_time=args.until_time,
                      params=_parse_parameters(args.param), tires=args.tires, skip_unsupported=args.skip_unsupported,
                      progress=None, out=out, controller=args.controller, controller_map=args.controller_map,
-                     driver=args.driver, on_collision=args.on_collision)
+                     driver=args.driver, on_collision=args.on_collision, set=_parse_settings(args.set))
     scenario = result.scenario
     units, final = scenario.units, result.final
     print(f"{Path(scenario.path).name}: {result.raw.dynamics} dynamics, {result.collisions} collision(s), "
@@ -287,6 +311,13 @@ exit codes: 0 done, 1 the scenario file is wrong (verify --strict: a criterion f
             3 a sweep with failed runs, 130 Ctrl-C, 141 the output pipe was closed early (e.g. by head), 143 SIGTERM"""
 
 
+def _set_argument(command) -> None:
+    command.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                         help="a scenario parameter: a NAME the file declares (// @param NAME = VALUE) or an address "
+                              "LINE.N (parameter N of the event on line LINE, 0 its distance), in the file's units "
+                              "(repeatable)")
+
+
 def _loop_arguments(command, every: str = "") -> None:
     """run's and sweep's options of what drives the ego: a controller in the loop, the built-in driver, collisions."""
     command.add_argument("--controller", metavar="FMU", help=f"controller FMU in the loop{every} (AEB, ACC, ...; "
@@ -324,7 +355,16 @@ def parser() -> argparse.ArgumentParser:
     check.add_argument("--tires", help="Tire Attribute File, as run --tires (advanced dynamics)")
     check.add_argument("--skip-unsupported", action="store_true",
                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _set_argument(check)
     check.set_defaults(handler=_check)
+
+    resolve = commands.add_parser("resolve", help="the plain SDL with the scenario's parameters in place")
+    resolve.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    _set_argument(resolve)
+    resolve.add_argument("--skip-unsupported", action="store_true",
+                         help="read a file with lines sdl-fmu does not simulate (they are kept as they are)")
+    resolve.add_argument("--out", metavar="FILE", help="a new file to write (never replaced; default: stdout)")
+    resolve.set_defaults(handler=_resolve)
 
     run = commands.add_parser("run", help="co-simulate a scenario against the ego FMU")
     run.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
@@ -343,6 +383,7 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--until-time", type=_float_argument, help="end at this time, s")
     run.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                      help="FMU start value, SI, within its declared min/max (repeatable)")
+    _set_argument(run)
     run.add_argument("--tires", help="Tire Attribute File (advanced dynamics)")
     run.add_argument("--skip-unsupported", action="store_true",
                      help="skip lines sdl-fmu does not simulate (one warning per code)")

@@ -94,13 +94,19 @@ class Range:
 
 
 def parse_ranges(assignments: list[str]) -> dict[str, Range]:
-    """NAME=LOW..HIGH, each name once; finite LOW <= HIGH (seed: whole numbers in 0 .. 2^63 - 1)."""
+    """NAME=LOW..HIGH, each name once; finite LOW <= HIGH (seed: whole numbers in 0 .. 2^63 - 1). NAME alone: a
+    scenario parameter's declared range (`// @param NAME = VALUE in LOW..HIGH`), read with the scenario (declared)."""
     from .options import LIMITS
 
     ranges: dict[str, Range] = {}
     for assignment in assignments:
         name, separator, text = assignment.partition("=")
         name, text = name.strip(), text.strip()
+        if not separator and re.fullmatch(r"\$?[A-Za-z_]\w*", name, flags=re.ASCII):
+            if name in ranges:
+                raise SearchError(f"--vary {name} is given twice")
+            ranges[name] = Range(name, math.nan, math.nan)  # the declared range, filled in by declared()
+            continue
         low, dots, high = text.partition("..")
         try:
             if not separator or not name or not dots:
@@ -123,6 +129,27 @@ def parse_ranges(assignments: list[str]) -> dict[str, Range]:
     if not ranges:
         raise SearchError("give at least one --vary NAME=LOW..HIGH")
     return ranges
+
+
+def declared(ranges: dict[str, Range], scenario) -> dict[str, Range]:
+    """The ranges with each NAME given alone taken from the scenario's declaration (whole numbers where every field
+    using it takes one); SearchError for a name the scenario declares without a range, or does not declare."""
+    parameters = {parameter.name: parameter for parameter in scenario.parameters}
+    filled = {}
+    for name, r in ranges.items():
+        if math.isnan(r.low):
+            parameter = parameters.get(name.removeprefix("$"))
+            if parameter is None or parameter.low is None or parameter.high is None:
+                what = "declares no range for it" if parameter is not None else "declares no parameter of that name"
+                raise SearchError(f"--vary {name}: {Path(scenario.path).name} {what} (// @param {name.removeprefix('$')}"
+                                  " = VALUE in LOW..HIGH); give NAME=LOW..HIGH")
+            r = Range(name, float(parameter.low), float(parameter.high), parameter.whole)
+        elif not r.integer and name not in ("seed",):
+            parameter = parameters.get(name.removeprefix("$"))
+            if parameter is not None and parameter.whole:
+                r = Range(name, r.low, r.high, True)
+        filled[name] = r
+    return filled
 
 
 @dataclasses.dataclass(frozen=True)
@@ -460,6 +487,7 @@ def search(scenario: str, ranges: dict[str, Range], out: str | os.PathLike, *, o
     sweeping.check_scheduler(scheduler)
     given = _given(fixed)
     scenario_path, loaded, model, fixed, bundles = sweeping.prepare(scenario, fixed)
+    ranges = declared(ranges, loaded)
     _check_names(ranges, loaded, model, fixed)
     columns = sweeping.column_names(list(ranges), loaded.units, model)
     out = Path(out).absolute()
@@ -509,32 +537,28 @@ def _given(fixed: dict) -> dict:
 
 
 def _check_names(ranges: dict[str, Range], loaded, model, fixed: dict) -> None:
-    """Every varied name is one a run takes, and an FMU parameter's range within its declared min/max: refused now,
-    before any cluster starts."""
+    """Every varied name sets something (api.check_value_names: a run option, a scenario parameter or address, an FMU
+    parameter) and both ends of its range are values it takes (an option's limits, the field's and the declared range,
+    the FMU parameter's declared min/max): refused now, before any cluster starts."""
     from . import api
 
+    try:
+        api.check_value_names(loaded, list(ranges), model, option="vary")
+    except api.InputError as error:
+        raise SearchError(error.command_line()) from None
     for name, r in ranges.items():
-        if name.startswith("rsa."):
+        target = api.value_target(name, loaded)
+        for value in (r.low, r.high):
             try:
-                sweeping._with_rsa(loaded, name, r.low)
-            except sweeping.SweepError as error:
-                raise SearchError(str(error)) from None
-            continue
-        if name in sweeping.RUN_OPTIONS:
-            if name != "seed":
-                for value in (r.low, r.high):
-                    try:
-                        api.run_options(loaded, **{name: value})
-                    except api.InputError as error:
-                        raise SearchError(f"--vary {name}={r.low:g}..{r.high:g}: {error}") from None
-            continue
-        parameter = name.removeprefix("param.")
-        try:
-            model.with_parameters({**(fixed.get("params") or {}), parameter: r.low})
-            model.with_parameters({**(fixed.get("params") or {}), parameter: r.high})
-        except api.InputError as error:
-            raise SearchError(f"--vary {name}={r.low:g}..{r.high:g}: not an option, RSA value or FMU parameter "
-                              f"within its declared range ({error})") from None
+                if target == "option" and name != "seed":
+                    api.run_options(loaded, **{name: value})
+                elif target == "scenario":
+                    api.set_parameters(loaded, {name: value})
+                elif target == "fmu":
+                    model.with_parameters({**(fixed.get("params") or {}), name.removeprefix("param."): value})
+            except (api.InputError, api.ScenarioError) as error:
+                text = error.command_line() if isinstance(error, api.InputError) else str(error)
+                raise SearchError(f"--vary {name}={r.low:g}..{r.high:g}: {text.strip().splitlines()[0]}") from None
 
 
 def _batch_size(client, batch: int | None) -> int:
@@ -620,7 +644,7 @@ def _search_into(out, spec, bundles, ranges, columns, objective, budget, method,
         bar.close()
         for thing in owned:
             thing.close()
-    return _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given)
+    return _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given, loaded)
 
 
 def _values(params: dict) -> dict:
@@ -789,36 +813,21 @@ def worst_row(rows: list[dict], objective: Objective) -> dict | None:
     return best
 
 
-def resolved_text(scenario_path: str, values: dict) -> str:
-    """The scenario's text with the trial's scenario values written in (rsa.LINE[.LANE]: the RSA line's values);
-    other varied names are options of the run (search.json's command)."""
-    lines = Path(scenario_path).read_bytes().decode("utf-8", errors="surrogateescape").split("\n")
-    for name, value in values.items():
-        if not name.startswith("rsa."):
-            continue
-        parts = name.split(".")
-        number, lane = int(parts[1]), (int(parts[2]) if len(parts) == 3 else None)
-        text = lines[number - 1]
-        comment = text.find("//")
-        body, tail = (text, "") if comment < 0 else (text[:comment], text[comment:])
-        fields = body.split(",")
-        for k in range(2, len(fields) - 1, 2):
-            if lane is None or float(fields[k]) == lane:
-                fields[k + 1] = repr(float(value))
-        lines[number - 1] = ",".join(fields) + tail
-    return "\n".join(lines)
+def split_values(values: dict, scenario) -> tuple[dict, dict]:
+    """A trial's values: (those the scenario takes, written into worst.sdl; the run's options and FMU parameters)."""
+    from . import api
+
+    inside = {name: value for name, value in values.items() if api.value_target(name, scenario) == "scenario"}
+    return inside, {name: value for name, value in values.items() if name not in inside}
 
 
 def command_line(worst_sdl: Path, values: dict, fixed: dict, out: Path) -> list[str]:
-    """`sdl-fmu run worst.sdl ...`: the worst trial's run from the command line (values written exactly)."""
+    """`sdl-fmu run worst.sdl ...`: the worst trial's run from the command line (values written exactly); `values`:
+    the trial's options and FMU parameters (its scenario values are in worst.sdl)."""
     command = ["sdl-fmu", "run", str(worst_sdl)]
-    options = {key: value for key, value in fixed.items() if key not in ("params", "skip_unsupported")}
-    params = dict(fixed.get("params") or {})
-    for name, value in values.items():
-        if name in sweeping.RUN_OPTIONS:
-            options[name] = value
-        elif not name.startswith("rsa."):
-            params[name.removeprefix("param.")] = value
+    options, params = _run_arguments(values, fixed)
+    options.pop("skip_unsupported", None)
+    params = options.pop("params", {})
     for key, value in options.items():
         if value is not None:
             command += [f"--{key.replace('_', '-')}", repr(value) if isinstance(value, float) else str(value)]
@@ -829,7 +838,7 @@ def command_line(worst_sdl: Path, values: dict, fixed: dict, out: Path) -> list[
     return command + ["--out", str(out)]
 
 
-def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given):
+def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given, loaded):
     import pyarrow as pa
     import pyarrow.csv as pa_csv
     import pyarrow.parquet as pq
@@ -853,18 +862,19 @@ def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given
         description = dict(spec)
         if worst is not None:
             values = finished[worst["trial"]]["params"]
-            text = resolved_text(spec["scenario"], values)
-            partials[WORST_SDL].write_text(text, encoding="utf-8", errors="surrogateescape")
+            inside, outside = split_values(values, loaded)
+            text = api.resolve(loaded, inside)
+            partials[WORST_SDL].write_text(text, encoding="utf-8", newline="\n")
             # the worst case run again here from worst.sdl, as the command line below runs it
             worst_sdl = out / WORST_SDL
             os.replace(partials[WORST_SDL], worst_sdl)
             _write_manifest(out)
-            command = command_line(worst_sdl, values, given, out / WORST_FOLDER)
-            run_options, params = _run_arguments(values, fixed)
+            command = command_line(worst_sdl, outside, given, out / WORST_FOLDER)
+            run_options, _ = _run_arguments(outside, fixed)
             from .results.folder import check_results_folder
 
             check_results_folder(out / WORST_FOLDER, "run")
-            result = api.run(str(worst_sdl), params=params, **run_options)
+            result = api.run(str(worst_sdl), **run_options)
             result.plot(partials[WORST_PLOT])
             again = objective(result, sweeping._summarise(result))["objective"]
             reproduced = again == worst["objective"]
@@ -890,13 +900,18 @@ def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given
 
 
 def _run_arguments(values: dict, fixed: dict) -> tuple[dict, dict]:
+    """api.run's keyword options of a trial's options and FMU parameters (`values`) over the fixed ones."""
+    from . import api
+
     options = {key: value for key, value in fixed.items() if key != "params"}
     params = dict(fixed.get("params") or {})
     for name, value in values.items():
-        if name in sweeping.RUN_OPTIONS:
+        if name in api.VALUE_OPTIONS:
             options[name] = value
-        elif not name.startswith("rsa."):
+        else:
             params[name.removeprefix("param.")] = value
+    if params:
+        options["params"] = params
     return options, params
 
 

@@ -26,7 +26,6 @@ own deadline, and the sweep stops waiting for it after twice that, so the sweep 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import itertools
 import json
 import math
@@ -185,31 +184,6 @@ def combinations(varied: dict[str, list]) -> list[dict]:
     return [dict(zip(names, values)) for values in itertools.product(*(varied[n] for n in names))]
 
 
-def _with_rsa(scenario, name: str, value: float):
-    """The scenario with the RSA event on line LINE (every lane, or lane LANE) set to `value`."""
-    from .sdl import SurfaceAttribute
-
-    parts = name.split(".")
-    try:
-        line = int(parts[1])
-        lane = int(parts[2]) if len(parts) == 3 else None
-        if len(parts) > 3:
-            raise ValueError
-    except (IndexError, ValueError):
-        raise SweepError(f"--vary {name}: expected rsa.LINE or rsa.LINE.LANE") from None
-    events, found = [], False
-    for event in scenario.events:
-        if isinstance(event, SurfaceAttribute) and event.line == line:
-            settings = tuple((l, value if lane is None or l == lane else v) for l, v in event.settings)
-            if lane is not None and all(l != lane for l, _ in event.settings):
-                raise SweepError(f"--vary {name}: the RSA event on line {line} does not set lane {lane}")
-            event, found = dataclasses.replace(event, settings=settings), True
-        events.append(event)
-    if not found:
-        raise SweepError(f"--vary {name}: line {line} of {scenario.path} is not an RSA event")
-    return dataclasses.replace(scenario, events=tuple(events))
-
-
 # ---- the files a run reads, shipped to the workers as bytes -------------------------------------
 
 def _tire_files(path: Path) -> Bundle:
@@ -256,18 +230,12 @@ def run_one(bundles: dict[str, Bundle], values: dict, fixed: dict, timeout: floa
     row = {"status": "ok", "error": None}
     try:
         paths = {option: str(materialize(bundle)) for option, bundle in bundles.items()}
-        scenario = api.load(paths.pop("scenario"), skip_unsupported=fixed.get("skip_unsupported", False))
         options = {key: value for key, value in fixed.items() if key != "skip_unsupported"}
+        scenario = api.set_parameters(paths.pop("scenario"), None,
+                                      skip_unsupported=fixed.get("skip_unsupported", False))
         options.update(paths)
-        params = dict(options.pop("params", {}))
-        for name, value in values.items():
-            if name.startswith("rsa."):
-                scenario = _with_rsa(scenario, name, value)
-            elif name in RUN_OPTIONS:
-                options[name] = value
-            else:
-                params[name.removeprefix("param.")] = value
-        result = api.run(scenario, params=params, timeout=timeout, **options)
+        scenario, options = api.apply_values(scenario, values, options)  # the row's values, where each goes
+        result = api.run(scenario, timeout=timeout, **options)
         row.update(_summarise(result))
         if measure is not None:
             row.update(measure(result, row))

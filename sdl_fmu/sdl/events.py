@@ -169,6 +169,37 @@ class EndOfScenario:
 
 Event = Union[ApproachingVehicle, Brake, SurfaceAttribute, EndOfScenario]
 
+
+@dataclass(frozen=True, slots=True)
+class Parameter:
+    """A scenario parameter declared by a comment line `// @param NAME = VALUE [UNIT] [in LOW..HIGH]`
+    (docs/scenarios.md, Parameters): its value in this scenario (the declared one unless set), as written in the file's
+    units; the declared unit (None: unchecked) and range (None: the fields' own limits only); the line of its
+    declaration; `uses`: (line, field) of every field that reads it; `whole`: every such field takes a whole number
+    (a model, a lane, a BRK threshold type, ROAD's lane counts)."""
+
+    name: str
+    value: float
+    default: float
+    unit: str | None
+    low: float | None
+    high: float | None
+    line: int
+    uses: tuple[tuple[int, str], ...] = ()
+    whole: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Source:
+    """What a Scenario was read from, so that parameters can be set again (sdl/parameters.py): the text, the
+    skip_unsupported it was read with, the values set ((name or address, value) in the order given) and the warnings
+    of the reading itself (an encoding fallback), which come before the parser's."""
+
+    text: str
+    skip_unsupported: bool = False
+    values: tuple[tuple[str, float], ...] = ()
+    read_warnings: tuple[str, ...] = ()
+
 DEFAULT_ROAD = Road(line=0, distance=0.0, lane_width=to_si(12.0, ENGLISH), lanes=2, lanes_right=1)
 """Without a ROAD event: one 12 ft lane each way, dividing line between them."""
 
@@ -184,3 +215,5 @@ class Scenario:
     events: tuple[Event, ...]
     end_distance: float | None
     warnings: tuple[str, ...] = ()  # what was read but will not act (skipped codes, lanes the road lacks)
+    parameters: tuple[Parameter, ...] = ()  # the declared parameters (`// @param`), in the order declared
+    source: Source | None = None  # the text it was parsed from (None: made in code, e.g. by a test pack)

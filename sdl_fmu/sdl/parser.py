@@ -28,8 +28,10 @@ from .events import (
     Relative,
     Road,
     Scenario,
+    Source,
     SurfaceAttribute,
 )
+from .parameters import ParameterError, Substitution, address, declaration_lines, parameter_name, resolved_text
 
 
 @dataclass(frozen=True)
@@ -425,14 +427,46 @@ class _TooManyErrors(Exception):
     pass
 
 
-def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) -> Scenario:
+def _field_of(code: str, index: int, texts: list[str], units: Units) -> tuple[str, str | None, bool]:
+    """(label as the event's parser names it, unit in the file's units or None, whole) of field `index` of an event
+    line (0: its distance, then the parameters from 1); the unit is "?" where it cannot be told (a BRK magnitude whose
+    threshold type is not 0..3)."""
+    length, speed = length_label(units), speed_label(units)
+    if index == 0:
+        return "distance", length, False
+    if code == "A" and index <= 24:
+        if index <= 4:
+            return _a_field(index), (speed, length, length, None)[index - 1], index == 4
+        return _a_field(index), ("s", length, speed, "s")[(index - 5) % 4], False
+    if code == "BRK" and index <= 3:
+        threshold = texts[2].strip() if len(texts) > 2 else ""
+        unit = ("%", None, {"0": "s", "1": length, "2": speed, "3": speed}.get(threshold, "?"))[index - 1]
+        return f"BRK parameter {index} ({_BRK_FIELDS[index - 1]})", unit, index == 2
+    if code == "RSA":
+        return f"RSA parameter {index} ({'lane' if index % 2 else 'value'})", None, index % 2 == 1
+    if code == "ROAD" and index <= 3:
+        return f"ROAD parameter {index} ({_ROAD_FIELDS[index - 1]})", (length, None, None)[index - 1], index > 1
+    return f"{code} parameter {index}", "?", False
+
+
+def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False,
+               values: dict[str, float] | None = None) -> Scenario:
     """Parse a whole SDL file's text; raises ScenarioError listing every problem (up to MAX_ERRORS).
 
     Events may appear in any order: they are returned in the order they take effect, by distance, file
     order breaking ties. skip_unsupported: every line sdl-fmu does not simulate (codes outside the supported
     set, long-form names such as 'Crash Settings', labelled events such as 'Pedestrian#5', events triggered
-    by '@', 'Config_... = ...' settings) is skipped with one warning per code instead of being an error."""
-    errors: list[SdlError] = []
+    by '@', 'Config_... = ...' settings) is skipped with one warning per code instead of being an error.
+    values: scenario parameters set (sdl/parameters.py: declared names, `$NAME`, addresses `LINE.N`,
+    `rsa.LINE[.LANE]`), in the file's units, each checked by the field it reaches; ParameterError for a name that is
+    no parameter or a value that is no finite number."""
+    return _parse(text, path, skip_unsupported, values)[0]
+
+
+def _parse(text: str, path: str, skip_unsupported: bool, values: dict[str, float] | None
+           ) -> tuple[Scenario, Substitution]:
+    substitution = Substitution(declaration_lines(text), values, path)
+    errors: list[SdlError] = [SdlError(path, *problem) for problem in substitution.problems]
     warnings: list[str] = []
     skipped: dict[str, tuple[str, list[int]]] = {}  # key -> (what is skipped, its lines)
     units, seen_content = ENGLISH, False
@@ -451,8 +485,13 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
         for number, content in _content_lines(text):
             first, seen_content = not seen_content, True
 
+            decorated: dict[str, str | None] = {}  # a substituted field's label -> the label naming its parameter
+
             def report(field: str, reason: str) -> None:
-                errors.append(SdlError(path, number, field, reason))
+                shown = decorated.get(field, field)
+                if shown is None:  # a field already reported for an undeclared $NAME
+                    return
+                errors.append(SdlError(path, number, shown, reason))
                 if len(errors) >= MAX_ERRORS:
                     raise _TooManyErrors
 
@@ -516,6 +555,25 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
                        f"{MAX_PARAMETERS} on one line")
                 continue
             params = [field.strip() for field in rest.split(",")] if rest is not None else []
+            if "$" in content or number in substitution.address_lines:
+                texts, notes, problems = substitution.line(number, content, code, [distance_text, *params])
+                for field, reason in problems:
+                    report(field, reason)
+                for index, note in notes.items():
+                    label, unit, whole = _field_of(code, index, texts, units)
+                    for name in note.names:
+                        substitution.used(name, number, label, whole)
+                        problem = None if unit == "?" else substitution.unit_problem(name, unit)
+                        if problem is not None:
+                            report(label, problem)
+                    for name in note.undeclared:
+                        report(label, f"${name} is not declared (declare it on a comment line: "
+                                      f"// @param {name} = VALUE [UNIT] [in LOW..HIGH])")
+                    described = f"{label}, from {note.describe(substitution.values)}"
+                    decorated[label] = None if note.undeclared else described
+                distance_text, params = texts[0], texts[1:]
+                if notes:
+                    substitution.resolved[number] = ",".join([distance_text, code_text, *params])
 
             distance = _checked(report, "distance", _quantity, distance_text, units, "length")
             distance = _at_least(distance, 0, report, "distance", distance_text)
@@ -542,6 +600,8 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
                 placed.append((event, distance_text))
     except _TooManyErrors:
         errors.append(SdlError(path, errors[-1].line, "file", f"stopped reading after {MAX_ERRORS} problems"))
+    errors += [SdlError(path, *problem) for problem in substitution.unapplied()]
+    warnings += substitution.unused()
 
     # The run ends at ES: an event beyond it (or at its distance but after it in the file) would never fire.
     if end is not None:
@@ -566,7 +626,42 @@ def parse_text(text: str, path: str = "<text>", skip_unsupported: bool = False) 
     return Scenario(
         path=path, units=units, road=road, events=events,
         end_distance=end.distance if end is not None else None, warnings=tuple(warnings),
-    )
+        parameters=substitution.parameters(),
+        source=Source(text, skip_unsupported, tuple((values or {}).items())),
+    ), substitution
+
+
+def _merged(scenario: Scenario, values: dict[str, float] | None) -> tuple[Source, dict[str, float]]:
+    """The scenario's source and the values set on it with `values` set too (a later value for the same parameter
+    wins: `$gap` and `gap` are one)."""
+    source = scenario.source
+    if source is None:
+        raise ParameterError("", f"{scenario.path}: made in code, not read from a file: its parameters cannot be set")
+    merged: dict[str, float] = {}
+    for name, value in [*source.values, *(values or {}).items()]:
+        key = name if address(name) is not None else (parameter_name(name) or name)
+        merged.pop(key, None)
+        merged[key] = value
+    return source, merged
+
+
+def with_values(scenario: Scenario, values: dict[str, float] | None) -> Scenario:
+    """The scenario read again from its text with these parameter values set as well (see parse_text): ScenarioError
+    for a value a field or a declared range refuses, ParameterError for a name that is no parameter."""
+    source, merged = _merged(scenario, values)
+    parsed = parse_text(source.text, scenario.path, source.skip_unsupported, merged)
+    return dataclasses.replace(parsed, warnings=(*source.read_warnings, *parsed.warnings),
+                               source=dataclasses.replace(parsed.source, read_warnings=source.read_warnings))
+
+
+def resolve_text(scenario: Scenario, values: dict[str, float] | None = None) -> str:
+    """The scenario's text with every parameter value (declared, set before, and `values`) written into its fields and
+    every declaration made a plain comment: SDL that any reader runs, line for line the same file (so lines keep their
+    numbers). The same checks as with_values."""
+    source, merged = _merged(scenario, values)
+    _, substitution = _parse(source.text, scenario.path, source.skip_unsupported, merged)
+    return resolved_text(source.text.removeprefix("\ufeff").replace("\r\n", "\n").replace("\r", "\n"),
+                         substitution)
 
 
 MAX_FILE_SIZE = 10 * 2**20  # bytes; far beyond any scenario, and it keeps /dev/zero-like inputs out
@@ -639,7 +734,8 @@ def load_scenario(path: str | os.PathLike, skip_unsupported: bool = False) -> Sc
     scenario = parse_text(text, name, skip_unsupported)
     if fallback is not None:
         warning = (f"line {fallback}: file: is not UTF-8 (first such line); the file was read as Windows-1252")
-        scenario = dataclasses.replace(scenario, warnings=(warning, *scenario.warnings))
+        scenario = dataclasses.replace(scenario, warnings=(warning, *scenario.warnings),
+                                       source=dataclasses.replace(scenario.source, read_warnings=(warning,)))
     return scenario
 
 
@@ -702,6 +798,17 @@ def _event_text(event: Event, units: Units) -> list[str]:
     return ["ES end of scenario"]
 
 
+def _parameter_text(parameter) -> str:
+    """`$gap = 250 ft in 100..500 (declared on line 3, default 300); used on line 12 (A parameter 2 (gap))`."""
+    unit = f" {parameter.unit}" if parameter.unit else ""
+    span = "" if parameter.low is None else f" in {_number_text(parameter.low)}..{_number_text(parameter.high)}"
+    default = "" if parameter.value == parameter.default else f", default {_number_text(parameter.default)}"
+    uses = "; ".join(f"line {line} ({label})" for line, label in parameter.uses[:5])
+    more = f" and {len(parameter.uses) - 5} more" if len(parameter.uses) > 5 else ""
+    return (f"${parameter.name} = {_number_text(parameter.value)}{unit}{span} (line {parameter.line}{default}"
+            f"{', whole' if parameter.whole else ''}); used on {uses or 'no line'}{more}")
+
+
 def describe(scenario: Scenario) -> str:
     """A human-readable report of a parsed scenario, in the file's units, for `sdl-fmu check`."""
     units, road = scenario.units, scenario.road
@@ -715,6 +822,9 @@ def describe(scenario: Scenario) -> str:
         else "  end: none (no ES event)",
         f"  events: {len(scenario.events)}",
     ]
+    if scenario.parameters:
+        lines.append(f"  parameters: {len(scenario.parameters)}")
+        lines.extend(f"    {_parameter_text(parameter)}" for parameter in scenario.parameters)
     heads = [(f"line {event.line}", _length_text(event.distance, units)) for event in scenario.events]
     line_width = max((len(line) for line, _ in heads), default=0)
     distance_width = max((len(distance) for _, distance in heads), default=0)

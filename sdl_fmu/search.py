@@ -4,19 +4,19 @@
                    --budget N [--method tpe|cmaes|random] [--seed S] [--workers N | --scheduler ADDRESS] --out DIR
 
 NAME is any name a sweep varies (sweep.py: speed, until_time, until_distance, seed, an FMU parameter, rsa.LINE), each
-over a range: a trial draws it from LOW..HIGH (seed: whole numbers). Every round the optimiser proposes a batch of
-trials, one per worker thread of the cluster, the sweep runs them (sweep.run_rows: the same shipped files, the same
-one run per trial through sdl_fmu.api) and the optimiser is told their objectives: optuna's TPE (multivariate, with the
-constant liar for the trials of one round) or its random sampler, or CMA-ES (the `cma` package, one generation over as
-many rounds as it takes). The objective is a measure of the run (summary.json's and the sweep table's numeric keys,
+over a range: a trial draws it from LOW..HIGH (seed: whole numbers). Two trials per worker thread of the cluster are
+kept running (sweep.run_rows: the same shipped files, the same one run per trial through sdl_fmu.api); as each comes
+back the optimiser is told its objective and proposes the next: optuna's TPE (multivariate, the constant liar for
+the trials still running) or its random sampler, or CMA-ES (the `cma` package, a generation proposed once the last is
+back). The objective is a measure of the run (summary.json's and the sweep table's numeric keys,
 computed on the worker) or the robustness of a signal temporal logic formula over timeseries.csv's columns (rtamt,
 dense time), which the search minimises (negative: the formula is violated).
 
-Every finished trial is appended at once to DIR/search-trials.jsonl, each round's proposals before its runs start, so
+Every finished trial is appended at once to DIR/search-trials.jsonl, each proposal before its run starts, so
 an interrupted search resumes: the finished trials are told to a new optimiser again (TPE and random take them as
 they are; CMA-ES replays its generations from the seed, each proposal checked equal to the one recorded) and are
-never run again; the proposals of the round that was cut short are run with the values they had. A round's sampler is
-seeded from --seed and the round's number, so nothing of an optimiser's state is stored but the trials.
+never run again; the proposals that were not finished are run with the values they had. A proposal's sampler is
+seeded from --seed and the proposal's number, so nothing of an optimiser's state is stored but the trials.
 
 DIR then holds search.parquet and search.csv (every trial: its values, status, objective, the best so far, the run's
 table row), worst.sdl (the scenario of the worst trial with its scenario values written in), worst/ (that trial run
@@ -465,10 +465,12 @@ class SearchResult:
 def search(scenario: str, ranges: dict[str, Range], out: str | os.PathLike, *, objective: Objective, budget: int,
            method: Method = "tpe", seed: int = 0, workers: int | None = None, scheduler: str | None = None,
            client=None, timeout: float = DEFAULT_TIMEOUT, progress: bool | None = None, batch: int | None = None,
-           **fixed) -> SearchResult:
+           report: bool = True, **fixed) -> SearchResult:
     """Searches `ranges` for the trial with the worst `objective` in `budget` trials (module docstring).
     `client`: an existing distributed.Client (tests); else `scheduler` or a LocalCluster of `workers` processes.
-    `batch`: trials per round (default: the cluster's worker threads). `fixed`: api.run's options for every run."""
+    `batch`: trials per round (default: the cluster's worker threads). `report=False`: only the table and the
+    journal (no worst.sdl, worst/, search.png, report.html: a benchmark's many searches). `fixed`: api.run's options
+    for every run."""
     from . import ownership
 
     if method not in METHODS:
@@ -507,7 +509,8 @@ def search(scenario: str, ranges: dict[str, Range], out: str | os.PathLike, *, o
         with ownership.locked(out):
             held = True
             found, result = _search_into(out, spec, bundles, ranges, columns, objective, budget, method, seed, fixed,
-                                         loaded, workers, scheduler, client, timeout, progress, batch, given)
+                                         loaded, workers, scheduler, client, timeout, progress, batch, given,
+                                         report)
         if result is not None:  # a results folder is put in place under its parent's lock: once the search's is let go
             result.write(out / WORST_FOLDER)
         return found
@@ -562,17 +565,19 @@ def _check_names(ranges: dict[str, Range], loaded, model, fixed: dict) -> None:
 
 
 def _batch_size(client, batch: int | None) -> int:
+    """The trials kept running at once: `batch`, else two per worker thread of the cluster (one running, one queued
+    behind it, so that no worker waits for the optimiser)."""
     if batch is not None:
         return batch
     try:
         threads = sum(worker.get("nthreads", 1) for worker in client.scheduler_info()["workers"].values())
     except Exception:  # noqa: BLE001 - an old scheduler's answer
         threads = 0
-    return max(1, threads)
+    return max(1, 2 * threads)
 
 
 def _search_into(out, spec, bundles, ranges, columns, objective, budget, method, seed, fixed, loaded, workers,
-                 scheduler, client, timeout, progress, batch, given):
+                 scheduler, client, timeout, progress, batch, given, report=True):
     """The search proper, with `out`'s lock held: (SearchResult, the worst case's api.Result or None)."""
     from tqdm import tqdm
 
@@ -600,51 +605,59 @@ def _search_into(out, spec, bundles, ranges, columns, objective, budget, method,
             ownership.write_json(out / SPEC_NAME, spec)
         _keep_only(out / JOURNAL_NAME, finished, proposed)
         if len(finished) < budget:
-            size = _batch_size(client, batch)
+            in_flight = _batch_size(client, batch)
             shipped = sweeping.ship(client, bundles)
             try:
                 with open(out / JOURNAL_NAME, "a", encoding="utf-8") as journal:
-                    while len(finished) < budget:
-                        if not todo:
-                            count = min(size, budget - next_number)
-                            if isinstance(chooser, _CmaEs):
-                                count = min(count, chooser.capacity(next_number))
-                            if count <= 0:
-                                break
-                            numbers = list(range(next_number, next_number + count))
-                            asked = chooser.ask(numbers, round_number)
-                            for number in numbers:
-                                proposed[number] = {"kind": "proposed", "trial": number, "round": round_number,
-                                                    "params": asked[number]}
-                                _append(journal, proposed[number])
-                            next_number += count
-                            round_number += 1
-                            todo = numbers
-                        runs = [(number, _values(proposed[number]["params"])) for number in todo]
-                        todo = []
-                        failure: list[str] = []
+                    outstanding = set(todo)
+                    failure: list[str] = []
+                    state = {"next": next_number, "round": round_number}
 
-                        def arrived(row, number, values):
-                            if str(row.get("error") or "").startswith("ObjectiveError: "):
-                                failure.append(row["error"].removeprefix("ObjectiveError: "))
-                                return
-                            record = {"kind": "trial", "trial": number, "round": proposed[number]["round"],
-                                      "params": proposed[number]["params"], "row": row}
-                            _append(journal, record)
-                            finished[number] = record
-                            chooser.tell(number, record["params"], _told(record))
-                            bar.update()
+                    def more():
+                        """The next trials, to keep `in_flight` running: proposed, journaled, then run."""
+                        count = min(in_flight - len(outstanding), budget - state["next"])
+                        if isinstance(chooser, _CmaEs):
+                            count = min(count, chooser.capacity(state["next"]))
+                        if count <= 0 or failure:
+                            return []
+                        numbers = list(range(state["next"], state["next"] + count))
+                        asked = chooser.ask(numbers, state["round"])
+                        for number in numbers:
+                            proposed[number] = {"kind": "proposed", "trial": number, "round": state["round"],
+                                                "params": asked[number]}
+                            _append(journal, proposed[number])
+                        state["next"] += count
+                        state["round"] += 1
+                        outstanding.update(numbers)
+                        return [(number, _values(proposed[number]["params"])) for number in numbers]
 
-                        sweeping.run_rows(client, shipped, runs, fixed, timeout, arrived, objective)
-                        if failure:
-                            raise SearchError(failure[0])
+                    def arrived(row, number, values):
+                        outstanding.discard(number)
+                        if str(row.get("error") or "").startswith("ObjectiveError: "):
+                            failure.append(row["error"].removeprefix("ObjectiveError: "))
+                            return
+                        record = {"kind": "trial", "trial": number, "round": proposed[number]["round"],
+                                  "params": proposed[number]["params"], "row": row}
+                        _append(journal, record)
+                        finished[number] = record
+                        chooser.tell(number, record["params"], _told(record))
+                        bar.update()
+
+                    runs = [(number, _values(proposed[number]["params"])) for number in todo]
+                    sweeping.run_rows(client, shipped, runs, fixed, timeout, arrived, objective, more)
+                    if failure:
+                        if not finished:  # a mistake in the objective: nothing is left of this search
+                            journal.close()
+                            for name in (JOURNAL_NAME, SPEC_NAME, MANIFEST_NAME):
+                                (out / name).unlink(missing_ok=True)
+                        raise SearchError(failure[0])
             finally:
                 sweeping.release(shipped)
     finally:
         bar.close()
         for thing in owned:
             thing.close()
-    return _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given, loaded)
+    return _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given, loaded, report)
 
 
 def _values(params: dict) -> dict:
@@ -838,7 +851,7 @@ def command_line(worst_sdl: Path, values: dict, fixed: dict, out: Path) -> list[
     return command + ["--out", str(out)]
 
 
-def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given, loaded):
+def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given, loaded, report=True):
     import pyarrow as pa
     import pyarrow.csv as pa_csv
     import pyarrow.parquet as pq
@@ -860,7 +873,7 @@ def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given
         pa_csv.write_csv(table, partials[CSV_NAME])
         worst_summary = None
         description = dict(spec)
-        if worst is not None:
+        if worst is not None and report:
             values = finished[worst["trial"]]["params"]
             inside, outside = split_values(values, loaded)
             text = api.resolve(loaded, inside)
@@ -882,12 +895,13 @@ def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given
             description["worst"] = {"trial": worst["trial"], "values": values, "objective": worst["objective"],
                                     "objective_again": again, "reproduced": reproduced, "command": command}
         description["trials"] = len(rows)
-        plot_search(rows, ranges, columns, objective, worst, partials[PLOT_NAME])
-        partials[REPORT_NAME].write_text(report_html(description, rows, ranges, columns, objective, worst,
-                                                     worst_summary, partials[PLOT_NAME], partials[WORST_PLOT]),
-                                         encoding="utf-8")
+        if report:
+            plot_search(rows, ranges, columns, objective, worst, partials[PLOT_NAME])
+            partials[REPORT_NAME].write_text(report_html(description, rows, ranges, columns, objective, worst,
+                                                         worst_summary, partials[PLOT_NAME], partials[WORST_PLOT]),
+                                             encoding="utf-8")
         ownership.write_json(partials[SPEC_NAME], description)
-        coming = {name: path for name, path in partials.items() if name not in (WORST_SDL, WORST_PLOT)}
+        coming = {name: path for name, path in partials.items() if name not in (WORST_SDL, WORST_PLOT) and path.exists()}
         _write_manifest(out, coming)
         for name, path in coming.items():
             os.replace(path, out / name)

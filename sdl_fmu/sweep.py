@@ -745,16 +745,26 @@ def release(shipped: dict) -> None:
 
 
 def run_rows(client, shipped: dict, todo: list[tuple[int, dict]], fixed: dict, timeout: float,
-             arrived: Callable[[dict, int, dict], None], measure: Callable | None = None) -> None:
+             arrived: Callable[[dict, int, dict], None], measure: Callable | None = None,
+             more: Callable[[], list[tuple[int, dict]]] | None = None) -> None:
     """Runs `todo` ((index, values) pairs) on Dask with the shipped files, calling `arrived(row, index, values)` in
-    this thread as each row comes back (a worker that died or a task that could not run: a failed row). Every run
-    stops itself at `timeout`; if no run at all comes back for GRACE x timeout (+ 10 s), the runs still processing
-    are given up (cancelled and given as timeout rows), so a stuck worker never hangs the caller. Interrupted, the
-    runs not yet back are cancelled."""
+    this thread as each row comes back (a worker that died or a task that could not run: a failed row), and then
+    `more()` for runs to add (a search's next trials). Every run stops itself at `timeout`; if no run at all comes
+    back for GRACE x timeout (+ 10 s), the runs still processing are given up (cancelled and given as timeout rows),
+    so a stuck worker never hangs the caller. Interrupted, the runs not yet back are cancelled."""
     patience = GRACE * timeout + 10.0
-    futures = {client.submit(run_one, shipped, values, fixed, timeout, measure, pure=False): (index, values)
-               for index, values in todo}
-    pending = set(futures)
+    futures: dict = {}
+    pending: set = set()
+
+    def submit(runs) -> None:
+        for index, values in runs:
+            future = client.submit(run_one, shipped, values, fixed, timeout, measure, pure=False)
+            futures[future] = (index, values)
+            pending.add(future)
+
+    submit(todo)
+    if more is not None:
+        submit(more())
     try:
         last_progress = time.monotonic()
         while pending:
@@ -766,8 +776,10 @@ def run_rows(client, shipped: dict, todo: list[tuple[int, dict]], fixed: dict, t
                     row = future.result()
                 except Exception as error:  # the worker died or the task could not run
                     row = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
-                arrived(row, *futures[future])
+                arrived(row, *futures.pop(future))
                 last_progress = now
+                if more is not None:
+                    submit(more())
             if finished or not pending:
                 continue
             if now - last_progress > patience:
@@ -777,7 +789,9 @@ def run_rows(client, shipped: dict, todo: list[tuple[int, dict]], fixed: dict, t
                     pending.discard(future)
                     future.cancel()
                     arrived({"status": "timeout", "error": f"no result within {patience:.0f} s: given up"},
-                            *futures[future])
+                            *futures.pop(future))
+                    if more is not None:
+                        submit(more())
                 last_progress = now
             time.sleep(0.05)
     finally:

@@ -43,7 +43,7 @@ def test_ranges_objectives_and_their_refusals():
     ranges = searching.parse_ranges(["speed=10..20", "seed=1..9", "mass = 1200..1800"])
     assert ranges["speed"] == searching.Range("speed", 10.0, 20.0) and ranges["seed"].integer
     assert ranges["mass"].value(0.5) == 1500.0 and ranges["seed"].value(1.0) == 9
-    for bad in ("speed=20..10", "speed=1,2", "speed=..3", "speed=nan..3", "seed=0.5..3", "speed"):
+    for bad in ("speed=20..10", "speed=1,2", "speed=..3", "speed=nan..3", "seed=0.5..3", "speed=", "9x"):
         with pytest.raises(searching.SearchError):
             searching.parse_ranges([bad])
     with pytest.raises(searching.SearchError, match="given twice"):
@@ -103,7 +103,9 @@ def test_a_search_finds_its_worst_case_and_worst_sdl_reproduces_it(stopped, tmp_
                              objective=objective, budget=6, seed=3, client=client, progress=False, **FIXED)
     rows = found.rows
     assert [row["trial"] for row in rows] == list(range(6)) and all(row["status"] == "ok" for row in rows)
-    assert [row["round"] for row in rows] == [0, 0, 1, 1, 2, 2]  # two workers: two trials a round
+    # two worker threads: four trials proposed at once (one running and one queued per thread), then one more as each
+    # comes back
+    assert [row["round"] for row in rows] == [0, 0, 0, 0, 1, 2]
     for row in rows:
         assert 8.0 <= row["speed_m/s"] <= 20.0 and 6.0 <= row["brake_decel_max_m/s2"] <= 10.0
         assert row["objective"] == round(row["impact_speed_m/s"], 6) and row["collisions"] == 1
@@ -142,7 +144,7 @@ def test_a_resumed_search_never_runs_a_finished_trial_again(stopped, tmp_path, c
 
     def go(budget):
         return searching.search(stopped, ranges, out, objective=objective, budget=budget, method=method, seed=1,
-                                client=client, progress=False, **FIXED).rows
+                                client=client, progress=False, report=False, **FIXED).rows
 
     first = go(4)
     lines = (out / searching.JOURNAL_NAME).read_text().splitlines()
@@ -198,3 +200,79 @@ def test_mistakes_are_one_line_before_anything_runs(stopped, tmp_path):
                   "--workers", "1", "--out", tmp_path / "mine", cwd=tmp_path)
     assert ran.returncode == 2 and "holds files a search did not write" in ran.stderr
     assert sorted(p.name for p in (tmp_path / "mine").iterdir()) == ["notes.txt"]
+
+
+def test_scenario_parameters_vary_by_name_with_their_declared_ranges(tmp_path, client):
+    # the stopped target's gap declared with a range and varied alone (`--vary gap`): each trial's gap is in the
+    # declared range, and worst.sdl is the plain text with the worst trial's gap written in, which api.run runs to
+    # the same objective
+    path = tmp_path / "gap.sdl"
+    path.write_text("Metric\n// @param gap = 60 m in 30..90\n0,A,0,$gap,*0,11\n400,ES\n")
+    out = tmp_path / "search"
+    found = searching.search(str(path), searching.parse_ranges(["gap", "speed=12..12"]), out,
+                             objective=searching.objective_of("final_time_s", None, None), budget=4, client=client,
+                             progress=False, **FIXED)
+    assert all(30.0 <= row["gap"] <= 90.0 for row in found.rows)
+    gap = found.values["gap"]
+    text = (out / "worst.sdl").read_text()
+    assert "$gap" not in text and f"0,A,0,{gap!r},*0,11" in text.replace(f"{gap:.17g}", repr(gap))
+    result = api.run(str(out / "worst.sdl"), speed=12.0, **FIXED)
+    assert round(result.final["time_s"], 6) == found.worst["objective"] == min(r["objective"] for r in found.rows)
+    with pytest.raises(searching.SearchError, match="declares no range"):
+        path.write_text("Metric\n// @param gap = 60 m\n0,A,0,$gap,*0,11\n400,ES\n")
+        searching.search(str(path), searching.parse_ranges(["gap"]), tmp_path / "other",
+                         objective=searching.objective_of("final_time_s", None, None), budget=1, client=client,
+                         progress=False, **FIXED)
+    with pytest.raises(searching.SearchError, match="--vary gap=10..90"):
+        path.write_text("Metric\n// @param gap = 60 m in 30..90\n0,A,0,$gap,*0,11\n400,ES\n")
+        searching.search(str(path), searching.parse_ranges(["gap=10..90"]), tmp_path / "other",
+                         objective=searching.objective_of("final_time_s", None, None), budget=1, client=client,
+                         progress=False, **FIXED)
+    assert not (tmp_path / "other").exists()
+
+
+@pytest.mark.slow  # a search started and interrupted, then resumed, as commands (a Dask cluster each)
+@pytest.mark.parametrize("how", ["ctrl-c", "sigterm"])
+def test_an_interrupted_search_resumes_without_running_a_finished_trial_again(tmp_path, how):
+    """One worker, held at its third run (the hold file's number: sdl_fmu/hold.py) and interrupted there once trials
+    0 and 1 are journaled; the same command then resumes, keeps them as they were (their wall times too) and runs
+    only trials 2 to 4."""
+    from hostile_fmus import assert_clean, capped, environment, held_work, interrupted
+
+    work = held_work(tmp_path)
+    (work / "hold").write_text("3")
+    (work / "work" / "stopped.sdl").write_text(STOPPED)
+    out = work / "work" / "search"
+    command = ["search", "stopped.sdl", "--vary", "speed=8..20", "--maximize", "impact_speed", "--budget", "5",
+               "--workers", "1", "--on-collision", "stop", "--out", out]
+    def two_finished():
+        path = out / searching.JOURNAL_NAME
+        return path.exists() and path.read_text().count('"kind": "trial"') == 2
+
+    code, stdout, stderr = interrupted(work, command, how, ready=two_finished)
+    what = {"ctrl-c": (130, "interrupted (Ctrl-C)"), "sigterm": (143, "terminated (SIGTERM)")}[how]
+    assert (code, stderr.splitlines()) == (what[0], [
+        f"sdl-fmu: search {what[1]}; the finished trials are in {out / 'search-trials.jsonl'}: the same command "
+        "resumes the search"]), stderr
+    assert_clean(work)
+    before = {r["trial"]: r for r in journal(out) if r["kind"] == "trial"}
+    assert sorted(before) == [0, 1]
+    resumed = capped(*command, cwd=work / "work", env=environment(work))
+    assert resumed.returncode == 0, resumed.stderr
+    assert "5 trials (5 ok)" in resumed.stdout
+    after = [r for r in journal(out) if r["kind"] == "trial"]
+    assert sorted(r["trial"] for r in after) == [0, 1, 2, 3, 4]  # each once: none run again
+    for record in after:
+        if record["trial"] in before:
+            assert record == before[record["trial"]]
+    assert_clean(work)
+
+
+def test_a_spec_naming_no_column_stops_the_search_and_leaves_nothing(stopped, tmp_path, client):
+    # the columns are known once a run has them: the first round's runs say so, and the search stops there
+    out = tmp_path / "search"
+    with pytest.raises(searching.SearchError, match="timeseries.csv has no column A2_gap_m"):
+        searching.search(stopped, searching.parse_ranges(["speed=10..20"]), out,
+                         objective=searching.objective_of(None, None, "always (A2_gap_m > 1)"), budget=4,
+                         client=client, progress=False, **FIXED)
+    assert not out.exists()

@@ -93,6 +93,18 @@ class Range:
         return int(round(value)) if self.integer else value
 
 
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError
+    return value
+
+
+def _shown(name: str, text: str) -> str:
+    assignment = f"{name}={text}"
+    return assignment if len(assignment) <= 60 else f"{assignment[:45]}...{assignment[-10:]}"
+
+
 def parse_ranges(assignments: list[str]) -> dict[str, Range]:
     """NAME=LOW..HIGH, each name once; finite LOW <= HIGH (seed: whole numbers in 0 .. 2^63 - 1). NAME alone: a
     scenario parameter's declared range (`// @param NAME = VALUE in LOW..HIGH`), read with the scenario (declared)."""
@@ -111,11 +123,11 @@ def parse_ranges(assignments: list[str]) -> dict[str, Range]:
         try:
             if not separator or not name or not dots:
                 raise ValueError
-            low_value, high_value = sweeping._finite(low), sweeping._finite(high)
+            low_value, high_value = _finite(low), _finite(high)
             if high_value < low_value:
                 raise ValueError
         except ValueError:
-            raise SearchError(f"--vary {sweeping._shown(name, text)}: expected NAME=LOW..HIGH (finite numbers, "
+            raise SearchError(f"--vary {_shown(name, text)}: expected NAME=LOW..HIGH (finite numbers, "
                               "LOW <= HIGH)") from None
         if name in ranges:
             raise SearchError(f"--vary {name} is given twice")

@@ -24,7 +24,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Literal, Mapping, Sequence
+from typing import Callable, Iterable, Literal, Mapping, Sequence
 
 import numpy as np
 from fmpy import read_model_description
@@ -57,6 +57,7 @@ from .vehicle.isolated import FmuTimeout, deadline
 __all__ = ["InputError", "RunTimeout", "ScenarioError", "Result", "load", "check", "run", "run_options", "verify",
            "export", "Export", "shipped_scenarios", "resolve_scenario", "ego_fmu", "ego_model", "controller_model",
            "set_parameters", "resolve", "write_resolved", "value_target", "apply_values", "check_value_names",
+           "check_settings",
            "LIMITS", "RUN_OPTIONS", "VALUE_OPTIONS", "DRIVERS", "ON_COLLISION"]
 
 
@@ -240,8 +241,14 @@ def check_value_names(scenario: Scenario, names: Sequence[str], model: EgoModel 
     both a declared scenario parameter and an FMU parameter (write $NAME or param.NAME). Reads no value: the values
     are checked where they go (set_parameters, run)."""
     declared = [parameter.name for parameter in scenario.parameters]
+    seen: dict[str, str] = {}
     for name in names:
         target = value_target(name, scenario)
+        same = parameter_name(name) if target == "scenario" and address(name) is None else None
+        if same is not None and same in seen:
+            raise option_error(option, name, f"is the parameter {seen[same]} names too; give it once")
+        if same is not None:
+            seen[same] = name
         fmu_name = name.removeprefix("param.")
         has_fmu = model is not None and fmu_name in model.variables and \
             model.variables[fmu_name].causality == "parameter"
@@ -251,11 +258,27 @@ def check_value_names(scenario: Scenario, names: Sequence[str], model: EgoModel 
         if target == "scenario" and not name.startswith("$") and address(name) is None and has_fmu:
             raise option_error(option, name, f"is both a parameter of {Path(scenario.path).name} and an FMU "
                                              f"parameter of {model.name}: write ${name} or param.{name}")
+        if target == "fmu" and model is not None and not has_fmu and name.startswith("param."):
+            raise option_error(option, name, f"the FMU {model.name} has no parameter {fmu_name!r} (parameters: "
+                                             f"{', '.join(model.parameter_names())})")
         if target == "fmu" and model is not None and not has_fmu:
             raise option_error(option, name, "is no run option (" + ", ".join(VALUE_OPTIONS) + "), no parameter "
                                f"of {Path(scenario.path).name} (declared: {', '.join(declared) or 'none'}; or an "
                                f"address LINE.N, rsa.LINE[.LANE]) and no parameter of the FMU {model.name} "
                                f"({', '.join(model.parameter_names())})")
+
+
+def check_settings(scenario: Scenario, settings: Iterable[Mapping[str, float]], *, dynamics: Dynamics | None = None,
+                   vehicle: str | os.PathLike | None = None) -> int:
+    """Each mapping of scenario values (set_parameters) applied to the scenario and checked as load() checks it for
+    the vehicle (its map read once): the first that a field, a declared range or the vehicle refuses raises, before
+    anything runs. Returns how many were checked."""
+    vehicle_map = _vehicle_map(dynamics, vehicle)
+    count = 0
+    for values in settings:
+        _checked(scenario, vehicle_map, False, values)
+        count += 1
+    return count
 
 
 def apply_values(scenario: str | os.PathLike | Scenario, values: Mapping[str, float],

@@ -185,15 +185,18 @@ def _fixed_options(args) -> dict:
 
 
 def _sweep(args) -> int:
-    varied = sweeping.parse_vary(args.vary, args.sample_seed)
     fixed = _fixed_options(args)
     scenario = api.resolve_scenario(args.scenario)
+    # the scenario's declared ranges and whole parameters shape the values (lhs(n), normal truncated to the range)
+    declared = api.load(scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics, vehicle=args.vehicle)
+    varied = sweeping.parse_vary(args.vary, args.sample_seed, declared)
+    joint = sweeping.lhs_names(args.vary)
+    if args.rerun is not None:
+        return _rerun(args, scenario, varied, joint, fixed)
     out = Path(args.out) if args.out is not None else Path("sweeps") / scenario.stem
-    sweeping.check_workers(args.workers)
-    sweeping.check_scheduler(args.scheduler)
     try:
         rows = sweeping.sweep(str(scenario), varied, out, workers=args.workers, scheduler=args.scheduler,
-                              timeout=args.timeout, progress=None, **fixed)
+                              timeout=args.timeout, progress=None, joint=joint, sort=args.sort, **fixed)
     except KeyboardInterrupt as stop:
         how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
         if (out / sweeping.JOURNAL_NAME).exists():
@@ -211,6 +214,14 @@ def _sweep(args) -> int:
     print(f"{scenario.name}: {len(rows)} runs: {counts['ok']} ok, {counts['failed']} failed, "
           f"{counts['timeout']} timed out")
     print(f"table: {out / sweeping.TABLE_NAME}, {table}")
+    if args.sort is not None:
+        column, descending = sweeping.sort_column(args.sort, declared, None, varied)
+        column = next((key for key in (rows[0] if rows else {}) if key == column or key.startswith(f"{column}_")),
+                      column)  # an FMU parameter's column carries the unit its FMU declares
+        first = ", ".join(f"run {row['run']} ({column} {row[column]:.6g})" for row in rows[:3]
+                          if isinstance(row.get(column), (int, float)))
+        print(f"ranked by {column} ({'descending' if descending else 'ascending'}): {first or 'no run has it'}; "
+              "the same command with --rerun RUN --out DIR runs one again")
     print(f"plot: {out / sweeping.PLOT_NAME}")
     if failures is not None:
         print(f"sdl-fmu: {failures}; the same command runs them again", file=sys.stderr)
@@ -253,6 +264,22 @@ def _search(args) -> int:
         print("warning: the worst case run again gave another objective (search.json: worst)", file=sys.stderr)
     print(f"table: {out / searching.TABLE_NAME}, {out / searching.CSV_NAME}")
     print(f"report: {out / searching.REPORT_NAME}, plot: {out / searching.PLOT_NAME}")
+    return 0
+
+
+def _rerun(args, scenario: Path, varied: dict, joint: list, fixed: dict) -> int:
+    """sweep ... --rerun K --out DIR: run K of that sweep alone, into a results folder (as `run` writes one)."""
+    out = Path(args.out) if args.out is not None else Path("runs") / f"{scenario.stem}-run{args.rerun}"
+    result, values = sweeping.rerun(str(scenario), varied, args.rerun, out, joint=joint, **fixed)
+    units, final = result.scenario.units, result.final
+    print(f"{scenario.name} run {args.rerun} ({', '.join(f'{k}={v:g}' for k, v in values.items())}): "
+          f"{result.raw.dynamics} dynamics, {result.collisions} collision(s), ended at {final['time_s']:.2f} s, "
+          f"distance {final['distance']:.1f} {length_label(units)}, speed {final['speed']:.1f} {speed_label(units)}")
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"results: {out / 'timeseries.csv'}, {out / 'summary.json'}")
+    resolve, rest = sweeping.row_commands(str(scenario), values, result.scenario)
+    print(f"its scenario as plain SDL: {resolve}" + (f" (then sdl-fmu run FILE {rest})" if rest else ""))
     return 0
 
 
@@ -395,8 +422,14 @@ def parser() -> argparse.ArgumentParser:
     sweep = commands.add_parser("sweep", help="many runs over varied values on Dask, one table of summaries")
     sweep.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
     sweep.add_argument("--vary", action="append", default=[], metavar="NAME=VALUES", required=True,
-                       help="speed, seed, until_distance, until_time, an FMU parameter (param.NAME) or rsa.LINE"
-                            "[.LANE]; VALUES: a,b,c | start:stop:step | uniform(lo,hi,n) | integers(lo,hi,n)")
+                       help="speed, seed, until_distance, until_time, a scenario parameter ($NAME, LINE.N, rsa.LINE"
+                            "[.LANE]) or an FMU parameter (param.NAME); VALUES: a,b,c | start:stop:step | "
+                            "uniform(lo,hi,n) | integers(lo,hi,n) | normal(mu,sigma,n) | choice(a,b,...,n) | "
+                            "lhs(lo,hi,n); with a declared range also uniform(n), lhs(n)")
+    sweep.add_argument("--sort", metavar="MEASURE[:desc]", help="rank the table by this column (min_ttc_s, "
+                       "collisions, ...), ascending, or descending with :desc; a rank column first")
+    sweep.add_argument("--rerun", type=int, metavar="K", help="run K of this sweep (the table's run) again, alone, "
+                       "into --out as a run's results folder (default runs/<scenario>-runK)")
     where = sweep.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
     where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
@@ -410,7 +443,8 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("--until-distance", type=_float_argument,
                        help="end every run at this distance, scenario units (or vary until_distance)")
     sweep.add_argument("--until-time", type=_float_argument, help="end every run at this time, s (or vary until_time)")
-    sweep.add_argument("--sample-seed", type=int, default=0, help="seed of uniform()/integers() samples (default 0)")
+    sweep.add_argument("--sample-seed", type=int, default=0, help="seed of the random values (uniform, integers, "
+                       "normal, choice, lhs; default 0)")
     sweep.add_argument("--timeout", type=_float_argument, default=600.0,
                        help="wall-clock limit per run, s (default 600)")
     sweep.add_argument("--skip-unsupported", action="store_true",

@@ -2,11 +2,13 @@
 
     sdl-fmu sweep SCENARIO --vary NAME=VALUES ... [--workers N | --scheduler ADDRESS] [--out DIR]
 
-NAME is `speed` (scenario units), `seed`, `until_distance` (scenario units), `until_time` (s), an FMU
-parameter (SI, e.g. `brake_decel_max`, or `param.NAME`), or an RSA value `rsa.LINE` (every lane of the
-RSA event on that line of the scenario) / `rsa.LINE.LANE` (one lane). VALUES is a list `a,b,c`, a range
-`start:stop:step` (stop included), or random samples `uniform(lo,hi,n)` / `integers(lo,hi,n)` drawn from
-`--sample-seed`. The runs are every combination of the varied values. Each run goes through sdl_fmu.api.
+NAME is `speed` (scenario units), `seed`, `until_distance` (scenario units), `until_time` (s), a scenario parameter
+(a declared `NAME` or `$NAME`, an address `LINE.N`, `rsa.LINE[.LANE]`: api.value_target) or an FMU parameter (SI,
+e.g. `brake_decel_max`, or `param.NAME`). VALUES is a grid or random values (distributions.py: `a,b,c`,
+`start:stop:step`, `uniform`, `integers`, `normal`, `choice`, `lhs`, drawn from `--sample-seed`). The runs are every
+combination of the varied values (a Latin hypercube's columns zipped). Each run goes through sdl_fmu.api
+(api.apply_values, then api.run); every name and scenario value is checked before any cluster is contacted
+(preflight). `--sort` ranks the table (rank()), `--rerun K` runs one row again alone (rerun()).
 
 Every file a run reads (the scenario, the FMU, the Tire Attribute File and the tire files it names: the
 options in SHIPPED) goes to the workers as bytes, through Dask (shipping.py): a future per file bundle, which Dask
@@ -35,10 +37,12 @@ import re
 import time
 import traceback
 from pathlib import Path
-from typing import Callable, Literal
+from typing import Callable, Literal, Sequence
 
 import numpy as np
 
+from .distributions import MAX_RUNS, MAX_VALUES_TEXT, SweepError, combinations, lhs_names, run_count  # noqa: F401
+from .distributions import parse_values, parse_vary, value_count  # noqa: F401 (the sweep's grammar, by these names)
 from .results.folder import SWEEP_MANIFEST_FORMAT, SWEEP_MANIFEST_NAME, folder_kind, other_kind_text
 from .shipping import SHIPPED_FOLDER, Bundle, ClusterError, client as _cluster_client, materialize  # noqa: F401
 from .shipping import one_file as _one_file, passed_on as _passed_on
@@ -58,111 +62,12 @@ DEFAULT_TIMEOUT = 600.0  # s of wall clock per run
 # Limits checked before anything is generated, allocated or started (docs/sweeps.md): the runs of one sweep (the
 # product of the varied values' counts), the worker processes of a local cluster per core (a run is CPU-bound: more
 # workers than cores only cost memory, some 100 MB each), the characters of one --vary
-MAX_RUNS = 100_000
 WORKERS_PER_CORE = 4
-MAX_VALUES_TEXT = 1_000_000
 SCHEDULER_PROBE = 10.0  # s for a Dask scheduler to answer a connection with its handshake
 GRACE = 2.0  # x timeout without any run coming back: the runs still processing are given up
 
 
-class SweepError(ClusterError):
-    """A mistake in the sweep's arguments or output folder, or a cluster it cannot use (one line)."""
-
-
-# ---- what varies ----------------------------------------------------------------------------------
-
-def value_count(name: str, text: str) -> int:
-    """How many values `text` gives, found without generating them (a,b,c: commas; a range: its arithmetic; samples:
-    n); SweepError for a form that cannot be read, a non-finite bound, or more than MAX_RUNS."""
-    shown = _shown(name, text)
-    if len(text) > MAX_VALUES_TEXT:
-        raise SweepError(f"--vary {shown}: longer than {MAX_VALUES_TEXT} characters")
-    sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
-    try:
-        if sample:
-            low, high = _finite(sample.group(2)), _finite(sample.group(3))
-            count = int(sample.group(4)) if re.fullmatch(r"\+?\d{1,20}", sample.group(4).strip()) else -1
-            if count < 1 or high < low:
-                raise ValueError
-        elif ":" in text:
-            start, stop, step = (_finite(part) for part in text.split(":"))
-            if step <= 0 or stop < start:
-                raise ValueError
-            count = math.floor((stop - start) / step + 1e-9) + 1  # finite operands: a finite float
-        else:
-            count = text.count(",") + 1
-    except (ValueError, OverflowError):
-        raise SweepError(f"--vary {shown}: expected a,b,c or start:stop:step (finite numbers, step > 0, stop >= start) "
-                         "or uniform(lo,hi,n) / integers(lo,hi,n) (finite lo <= hi, whole n >= 1)") from None
-    if count > MAX_RUNS:
-        raise SweepError(f"--vary {shown}: {count:.6g} values, more than the {MAX_RUNS} runs a sweep may have")
-    return int(count)
-
-
-def _finite(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError
-    return value
-
-
-def _shown(name: str, text: str) -> str:
-    assignment = f"{name}={text}"
-    return assignment if len(assignment) <= 60 else f"{assignment[:45]}...{assignment[-10:]}"
-
-
-def parse_values(name: str, text: str, rng: random.Random) -> list:
-    """`a,b,c`, `start:stop:step` (stop included) or `uniform(lo,hi,n)` / `integers(lo,hi,n)`: finite values, at most
-    MAX_RUNS (counted before any is made); seeds are whole numbers in 0 .. 2^63 - 1."""
-    text = text.strip()
-    shown = _shown(name, text)
-    count = value_count(name, text)
-    sample = re.fullmatch(r"(uniform|integers)\(([^,]+),([^,]+),([^,]+)\)", text.replace(" ", ""))
-    try:
-        if sample:
-            kind, low, high = sample.group(1), float(sample.group(2)), float(sample.group(3))
-            if kind == "integers":
-                if low != int(low) or high != int(high):
-                    raise SweepError(f"--vary {shown}: integers() takes whole bounds")
-                values = [rng.randint(int(low), int(high)) for _ in range(count)]
-            else:
-                values = [rng.uniform(low, high) for _ in range(count)]
-        elif ":" in text:
-            start, stop, step = (float(part) for part in text.split(":"))
-            values = [start + k * step for k in range(count)]
-        else:
-            values = [_finite(part) for part in text.split(",")]
-    except ValueError:
-        raise SweepError(f"--vary {shown}: every value must be a finite number") from None
-    if name == "seed":
-        from .options import LIMITS
-
-        low, high = LIMITS["seed"]
-        if any(v != int(v) or not low <= v <= high for v in values):
-            raise SweepError(f"--vary {shown}: seeds are whole numbers from {low} to {high}")
-        return [int(v) for v in values]
-    return values
-
-
-def parse_vary(assignments: list[str], sample_seed: int = 0) -> dict[str, list]:
-    rng = random.Random(sample_seed)
-    varied: dict[str, list] = {}
-    for assignment in assignments:
-        name, separator, text = assignment.partition("=")
-        name = name.strip()
-        if not separator or not name or not text.strip():
-            raise SweepError(f"--vary {assignment!r}: expected NAME=VALUES")
-        if name in varied:
-            raise SweepError(f"--vary {name} is given twice")
-        varied[name] = parse_values(name, text, rng)
-        runs = math.prod(len(values) for values in varied.values())
-        if runs > MAX_RUNS:  # checked before the next name's values are made, and before any combination
-            raise SweepError(f"--vary: {' x '.join(str(len(v)) for v in varied.values())} = {runs} runs, more than "
-                             f"the {MAX_RUNS} a sweep may have")
-    if not varied:
-        raise SweepError("give at least one --vary NAME=VALUES")
-    return varied
-
+# ---- what varies: distributions.py (the value grammar, counted before anything is made) ----------------------------
 
 def check_values(varied: dict[str, list]) -> None:
     """What the table could not hold, before any run starts: every value a finite number, every seed a whole number
@@ -177,11 +82,6 @@ def check_values(varied: dict[str, list]) -> None:
                 raise SweepError(f"--vary {name}={value!r}: every value must be a finite number")
             if name == "seed" and (value != int(value) or not low <= value <= high):
                 raise SweepError(f"--vary seed={value!r}: seeds are whole numbers from {low} to {high}")
-
-
-def combinations(varied: dict[str, list]) -> list[dict]:
-    names = list(varied)
-    return [dict(zip(names, values)) for values in itertools.product(*(varied[n] for n in names))]
 
 
 # ---- the files a run reads, shipped to the workers as bytes -------------------------------------
@@ -303,20 +203,43 @@ def impact_columns(result) -> dict:
             f"relative_impact_speed_{label}": from_si(contact["speed"] - other, raw.units)}
 
 
-def column_names(varied: list[str], units: Units, model=None) -> dict[str, str]:
+def column_names(varied: list[str], units: Units, model=None, scenario=None) -> dict[str, str]:
     """The table's column for each varied name, with its unit: `speed_ft/s`, `until_distance_m`,
-    `until_time_s`, an FMU parameter's declared unit (`brake_decel_max_m/s2`); seeds and RSA values (a
-    friction coefficient or an attribute number) have none."""
+    `until_time_s`, an FMU parameter's declared unit (`brake_decel_max_m/s2`), a scenario parameter's declared unit
+    (`gap_ft`, named without its `$`) or an address's field's unit (`12.2_ft`); seeds, RSA values (a friction
+    coefficient or an attribute number) and parameters declared without a unit have none."""
     from .units import length_label, speed_label
 
     units_of = {"speed": speed_label(units), "until_distance": length_label(units), "until_time": "s"}
     declared = {} if model is None else {v.name: v.unit for v in model.variables.values() if v.unit and v.unit != "1"}
     columns = {}
     for name in varied:
-        unit = units_of.get(name) if name in RUN_OPTIONS else (
-            None if name.startswith("rsa.") else declared.get(name.removeprefix("param.")))
-        columns[name] = f"{name}_{unit}" if unit else name
+        if name in RUN_OPTIONS:
+            column, unit = name, units_of.get(name)
+        elif scenario is not None and _scenario_value(name, scenario):
+            column, unit = name.removeprefix("$"), _scenario_unit(name, scenario)
+        else:
+            column, unit = name, None if name.startswith("rsa.") else declared.get(name.removeprefix("param."))
+        columns[name] = f"{column}_{unit}" if unit else column
     return columns
+
+
+def _scenario_value(name: str, scenario) -> bool:
+    from . import api
+
+    return api.value_target(name, scenario) == "scenario"
+
+
+def _scenario_unit(name: str, scenario) -> str | None:
+    """The unit of a scenario parameter's column: its declared unit, or for an address LINE.N the unit of that field
+    in the file's units (sdl.parser.address_unit)."""
+    from .sdl.parameters import address, parameter_name
+    from .sdl.parser import address_unit
+
+    place = address(name)
+    if place is None:
+        return next((p.unit for p in scenario.parameters if p.name == parameter_name(name)), None)
+    return None if place.rsa else address_unit(scenario, place.line, place.index)
 
 
 def criticality_columns(criticality: dict | None, units: Units) -> dict:
@@ -453,15 +376,16 @@ def _check_folder(out: Path, spec: dict) -> list[dict]:
     return list(rows.values())
 
 
-def write_table(rows: list[dict], out: Path, varied: list[str], units: Units) -> None:
+def write_table(rows: list[dict], out: Path, varied: list[str], units: Units, ranked: bool = False) -> None:
     """sweep.parquet and sweep.csv (same columns: varied values first, then the outcome), and sweep.png.
-    `varied`: the varied values' column names."""
+    `varied`: the varied values' column names. `ranked`: the rows in the order given, `rank` the first column (rank());
+    else in run order."""
     import pyarrow as pa
     import pyarrow.csv as pa_csv
     import pyarrow.parquet as pq
 
-    rows = sorted(rows, key=lambda r: r["run"])
-    first = ["run", *varied, "status", "error"]
+    rows = list(rows) if ranked else sorted(rows, key=lambda r: r["run"])
+    first = ["rank"] * ranked + ["run", *varied, "status", "error"]
     rest = sorted({key for row in rows for key in row} - set(first) - {"key", "traceback"},
                   key=_column_order)
     columns = {name: [row.get(name) for row in rows] for name in [*first, *rest]}
@@ -578,25 +502,158 @@ def _plot_sweep(rows: list[dict], varied: list[str], units: Units, path: Path) -
 
 # ---- the sweep ------------------------------------------------------------------------------------
 
-def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, workers: int | None = None,
-          scheduler: str | None = None, client=None, timeout: float = DEFAULT_TIMEOUT, progress: bool | None = None,
-          **fixed) -> list[dict]:
-    """Runs every combination of `varied` (see the module docstring) on Dask and writes the table into `out`.
-    `client`: an existing distributed.Client (tests); else `scheduler` (an address) or a LocalCluster of
-    `workers` processes (default: one per core). `fixed`: keyword options of sdl_fmu.api.run for every run.
-    Returns the rows, in run order."""
-    check_workers(workers if client is None and not scheduler else None)
-    check_scheduler(scheduler)
-    runs = math.prod(len(values) for values in varied.values())
+def preflight(scenario: str, varied: dict[str, list], joint: Sequence[str], fixed: dict):
+    """Everything a sweep's arguments can be told wrong by before anything runs or any cluster is contacted: the run
+    count, the values (finite, seeds whole), the scenario for the runs' vehicle, the fixed options and FMU start values,
+    the FMU (built once here, and instantiated), every --vary name (api.check_value_names: a name that is no run
+    option, scenario parameter or FMU parameter is one line), and the scenario with the scenario values of every run
+    (each distinct combination parsed once: a value its field refuses is a ScenarioError naming file, line, field and
+    parameter). Returns (the loaded scenario, the EgoModel, the scenario's absolute path)."""
+    from . import api
+
+    runs = run_count(varied, joint)
     if runs > MAX_RUNS:
         raise SweepError(f"--vary: {runs} runs, more than the {MAX_RUNS} a sweep may have")
     check_values(varied)
+    scenario_path = str(api.resolve_scenario(scenario).absolute())
+    # the scenario checked for the runs' vehicle (a bad file fails now, before any FMU is built or loaded)
+    vehicle = {"dynamics": fixed.get("dynamics"), "vehicle": fixed.get("vehicle")}
+    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False), **vehicle)
+    api.run_options(loaded, **{key: fixed[key] for key in api.RUN_OPTIONS if key in fixed})  # bad options fail now
+    model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
+    model.with_parameters(fixed.get("params"))  # and bad FMU start values
+    try:  # an FMU that cannot even be instantiated is a bad --fmu, not a table of failed runs
+        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
+    except Exception as error:  # noqa: BLE001 - whatever the FMU's start raised
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
+        raise api.InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: {reason}") from None
+    api.check_value_names(loaded, list(varied), model)
+    settings = [name for name in varied if api.value_target(name, loaded) == "scenario"]
+    if settings:
+        distinct = {tuple(values.items()): values for values in
+                    combinations({name: varied[name] for name in settings}, [n for n in joint if n in settings])}
+        api.check_settings(loaded, distinct.values(), **vehicle)
+    return loaded, model, scenario_path
+
+
+_NOT_MEASURES = {"run", "rank", "status", "error", "key", "traceback"}
+
+
+def sort_column(sort: str, scenario, model, varied: dict[str, list]) -> tuple[str, bool]:
+    """(the table column, descending) that `--sort MEASURE[:asc|:desc]` ranks by: a numeric column of the table (a
+    measure such as `min_ttc_s`, `collisions`, `A1_min_distance_ft`, a BRK's, the final state, a varied value), named
+    as the table names it or without its unit (`min_distance` for `min_distance_ft`). SweepError otherwise, before
+    anything runs."""
+    from .units import length_label, speed_label
+
+    measure, _, order = sort.strip().partition(":")
+    if order not in ("", "asc", "desc"):
+        raise SweepError(f"--sort {sort}: expected MEASURE, MEASURE:asc or MEASURE:desc")
+    length, speed = length_label(scenario.units), speed_label(scenario.units)
+    outcome = {"collisions", "final_time_s", f"final_distance_{length}", f"final_speed_{speed}",
+               f"final_lateral_{length}", "sim_wall_s", "real_time_factor", "run_wall_s", "warnings"}
+    measures = set(criticality_columns({}, scenario.units))  # the run-wide measures' columns
+    brk = {"on_time_s", "off_time_s", f"distance_{length}", f"stop_distance_{length}"}
+    known = outcome | measures | set(column_names(list(varied), scenario.units, model, scenario).values())
+
+    def is_column(name: str) -> bool:
+        if name in known:
+            return True
+        per = re.fullmatch(r"(A|brk)([1-9][0-9]*)_(.+)", name)
+        return per is not None and per[3] in (measures if per[1] == "A" else brk)
+
+    units = ("ft", "m", "ft/s", "m/s", "s", "ft/s2", "m/s2", "kg", "m/s2", "1/s", "rad", "N", "W", "%")
+    candidates = [name for name in (measure, *(f"{measure}_{unit}" for unit in units)) if is_column(name)]
+    if measure in _NOT_MEASURES or not candidates:
+        raise SweepError(f"--sort {sort}: not a numeric column of the table (a measure such as min_ttc_s, "
+                         f"min_distance_{length}, max_drac_{length}/s2, collisions, A1_min_distance_{length}, "
+                         f"brk1_distance_{length}, final_speed_{speed}, or a varied value)")
+    return candidates[0], order == "desc"
+
+
+def rank(rows: list[dict], ranking: tuple[str, bool] | None) -> list[dict]:
+    """The rows in run order, or (ranking: (column, descending)) ranked by that column, each with its `rank` (1 the
+    first); rows without a number there (failed, timed out, a measure that never applied) come last, in run order.
+    Ties keep run order."""
+    rows = sorted(rows, key=lambda r: r["run"])
+    if ranking is None:
+        return rows
+    column, descending = ranking
+
+    def number(row):
+        value = row.get(column)
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        return value if ok else None
+
+    valued = [row for row in rows if number(row) is not None]
+    valued.sort(key=number, reverse=descending)  # stable, reversed or not: ties keep run order
+    ranked = valued + [row for row in rows if number(row) is None]
+    return [{**row, "rank": place} for place, row in enumerate(ranked, start=1)]
+
+
+def rerun(scenario: str, varied: dict[str, list], index: int, out: str | os.PathLike | None, *,
+          joint: Sequence[str] = (), timeout: float | None = None, **fixed):
+    """Run `index` of the sweep these arguments describe (its values made again as the sweep made them: the same
+    --vary and --sample-seed give the same runs), alone, in this process, into the results folder `out` (None: none)
+    as `sdl-fmu run` writes one; returns (the api.Result, the run's values). The same preflight as sweep's."""
+    from . import api
+
+    runs = run_count(varied, joint)
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < runs:
+        raise SweepError(f"--rerun {index}: the sweep has {runs} run{'s' * (runs != 1)}, numbered 0 to {runs - 1} "
+                         "(the table's column run)")
+    loaded, model, scenario_path = preflight(scenario, varied, joint, fixed)
+    values = combinations(varied, joint)[index]
+    options = {key: value for key, value in fixed.items()}
+    options["fmu"] = str(model.fmu_path)
+    scenario_set, options = api.apply_values(scenario_path, values, options)
+    return api.run(scenario_set, out=out, timeout=timeout, **options), values
+
+
+def row_commands(scenario_path: str, values: dict, scenario) -> tuple[str, str]:
+    """A run's values as two command lines: `sdl-fmu resolve` of its scenario values (the row's scenario as plain
+    SDL) and the `sdl-fmu run` options of the rest (run options, FMU parameters), to follow `run RESOLVED.sdl`."""
+    from . import api
+    from .sdl.parameters import value_text
+
+    settings, options = [], []
+    for name, value in values.items():
+        target = api.value_target(name, scenario)
+        shown = value_text(value) if isinstance(value, float) else str(value)
+        if target == "scenario":
+            settings.append(f"--set {name}={shown}")
+        elif target == "option":
+            options.append(f"--{name.replace('_', '-')} {shown}")
+        else:
+            options.append(f"--param {name.removeprefix('param.')}={shown}")
+    resolve = " ".join(["sdl-fmu resolve", scenario_path, *settings, "--out", "FILE"])
+    return resolve, " ".join(options)
+
+
+def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, workers: int | None = None,
+          scheduler: str | None = None, client=None, timeout: float = DEFAULT_TIMEOUT, progress: bool | None = None,
+          joint: Sequence[str] = (), sort: str | None = None, **fixed) -> list[dict]:
+    """Runs every combination of `varied` (see the module docstring) on Dask and writes the table into `out`.
+    `client`: an existing distributed.Client (tests); else `scheduler` (an address) or a LocalCluster of
+    `workers` processes (default: one per core). `joint`: varied names zipped instead of combined (a Latin
+    hypercube's, distributions.lhs_names). `sort`: rank the table by this measure (`MEASURE` ascending,
+    `MEASURE:desc` descending; a `rank` column). `fixed`: keyword options of sdl_fmu.api.run for every run.
+    Every name and every scenario value is checked before any cluster is contacted (preflight). Returns the rows, in
+    run order (in rank order with `sort`)."""
+    from . import api
+
     if not timeout > 0:
         raise SweepError(f"--timeout {timeout}: must be > 0")
-    scenario_path, loaded, model, fixed, bundles = prepare(scenario, fixed)
+    loaded, model, scenario_path = preflight(scenario, varied, joint, fixed)
+    ranking = None if sort is None else sort_column(sort, loaded, model, varied)
+    check_workers(workers if client is None and not scheduler else None)
+    check_scheduler(scheduler)
+    fixed, bundles = shipped_files(scenario_path, model, fixed)
     out = Path(out).absolute()
     spec = {"scenario": scenario_path, "vary": varied, "fixed": json.loads(json.dumps(fixed, default=str)),
             "files": {option: bundle.digest for option, bundle in bundles.items()}}
+    if joint:
+        spec["joint"] = list(joint)
     from . import ownership
 
     if out.exists() and not out.is_dir():
@@ -611,7 +668,7 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
         with ownership.locked(out):
             held = True
             return _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
-                               progress)
+                               progress, tuple(joint), ranking)
     except ownership.Locked:
         raise SweepError(f"--out {out}: another sweep is writing into it; wait until it ends, or choose another "
                          "folder") from None
@@ -627,25 +684,21 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
 
 
 def prepare(scenario: str, fixed: dict) -> tuple[str, object, object, dict, dict[str, Bundle]]:
-    """Everything every run of a sweep (or a search) shares, checked once here before any cluster starts: the
-    scenario (a bad file fails now, before any FMU is built or loaded), the value options, the ego FMU (built once,
-    here; one that cannot be instantiated is a bad --fmu), its start values, the tire file, the controller and its
-    map. Returns the scenario's absolute path, the loaded Scenario, the EgoModel, the fixed options with every file
-    as an absolute path, and the file bundles the workers get."""
+    """What every run of a search shares, checked once here before any cluster starts (preflight with nothing
+    varied, then shipped_files): the scenario's absolute path, the loaded Scenario, the EgoModel, the fixed options
+    with every file as an absolute path, and the file bundles the workers get."""
+    loaded, model, scenario_path = preflight(scenario, {}, (), fixed)
+    fixed, bundles = shipped_files(scenario_path, model, fixed)
+    return scenario_path, loaded, model, fixed, bundles
+
+
+def shipped_files(scenario_path: str, model, fixed: dict) -> tuple[dict, dict[str, Bundle]]:
+    """The fixed options with every file as an absolute path (the ego FMU built once, the tire file and the
+    controller's map checked now, naming the local file; the map's own `fmu` resolved: the map travels alone), and the
+    file bundles the workers get."""
     from . import api
 
-    scenario_path = str(api.resolve_scenario(scenario).absolute())
-    loaded = api.load(scenario_path, skip_unsupported=fixed.get("skip_unsupported", False),
-                      dynamics=fixed.get("dynamics"), vehicle=fixed.get("vehicle"))
     fixed = dict(fixed)
-    api.run_options(loaded, **{key: fixed[key] for key in api.RUN_OPTIONS if key in fixed})  # bad options fail now
-    model = api.ego_model(fixed.get("dynamics"), fixed.get("fmu"), fixed.get("vehicle"))  # built once, here
-    model.with_parameters(fixed.get("params"))  # and bad FMU start values
-    try:  # an FMU that cannot even be instantiated is a bad --fmu, not a table of failed runs
-        model.instantiate(start={"speed": 0.0, "x": 0.0, "y": 0.0, "yaw": 0.0}, instance_name="probe").close()
-    except Exception as error:  # noqa: BLE001 - whatever the FMU's start raised
-        raise api.InputError("fmu", f"the FMU {model.fmu_path} cannot be instantiated: "
-                                    f"{str(error).strip().splitlines()[0] if str(error).strip() else error!r}") from None
     fixed["fmu"] = str(model.fmu_path)
     if fixed.get("tires") is not None:
         model.with_tires(fixed["tires"])  # a bad tire file fails now, naming the local file
@@ -656,17 +709,17 @@ def prepare(scenario: str, fixed: dict) -> tuple[str, object, object, dict, dict
     if controller is not None:  # the map's own `fmu` resolved here: the map travels alone
         fixed["controller"] = str(controller.fmu_path.absolute())
         fixed["controller_map"] = str(Path(controller.map_path).absolute())  # example-aeb: the shipped map
-    return scenario_path, loaded, model, fixed, _pack(scenario_path, fixed)
+    return fixed, _pack(scenario_path, fixed)
 
 
 def _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
-                progress) -> list[dict]:
+                progress, joint, ranking) -> list[dict]:
     """The sweep proper, with `out`'s lock held."""
     from . import ownership
 
     done = _check_folder(out, spec)
-    columns = column_names(list(varied), loaded.units, model)
-    runs = combinations(varied)
+    columns = column_names(list(varied), loaded.units, model, loaded)
+    runs = combinations(varied, joint)
     finished = {row["key"]: row for row in done}
     todo = [(index, values) for index, values in enumerate(runs) if _key(index, values) not in finished]
     rows = list(finished.values())
@@ -682,8 +735,9 @@ def _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, sched
     finally:
         for thing in owned:
             thing.close()
-    write_table(rows, out, list(columns.values()), loaded.units)  # and the manifest
-    return sorted(rows, key=lambda r: r["run"])
+    rows = rank(rows, ranking)
+    write_table(rows, out, list(columns.values()), loaded.units, ranked=ranking is not None)  # and the manifest
+    return rows
 
 
 def _keep_only(journal: Path, rows: list[dict]) -> None:

@@ -156,3 +156,34 @@ def test_the_command_line_shows_the_bar_when_stderr_is_a_terminal(tmp_path, simp
     os.close(controller)
     assert completed.returncode == 0
     assert b"%|" in shown and "%|" not in completed.stdout  # the bar is on the terminal, never in stdout
+
+
+def test_a_mapping_of_values_goes_where_each_name_says(simple_fmu):
+    # api.apply_values, as a sweep's row is run: run options to run's keywords, FMU parameters into params, scenario
+    # parameters (a declared name, $name, an address) into the scenario; a bare name the file declares that the FMU
+    # also has is ambiguous (api.check_value_names), an unknown one sets nothing
+    from sdl_fmu.sdl import parse_text
+
+    scenario = parse_text("English\n// @param mass = 2 in 1..8\n// @param gap = 800 ft\n"
+                          "100,A,50,$gap,-6,$mass\n", "m.sdl")
+    targets = {name: api.value_target(name, scenario) for name in
+               ("speed", "seed", "$mass", "mass", "gap", "4.2", "rsa.4", "param.mass", "drag_area")}
+    assert targets == {"speed": "option", "seed": "option", "$mass": "scenario", "mass": "scenario",
+                       "gap": "scenario", "4.2": "scenario", "rsa.4": "scenario", "param.mass": "fmu",
+                       "drag_area": "fmu"}
+    applied, options = api.apply_values(scenario, {"speed": 70.0, "$mass": 3, "4.0": 150, "param.mass": 1600.0},
+                                        {"params": {"drag_area": 0.5}, "plot": False})
+    assert options == {"speed": 70.0, "params": {"drag_area": 0.5, "mass": 1600.0}, "plot": False}
+    assert applied.events[0].model.low == 3 and applied.events[0].distance == pytest.approx(150 * 0.3048)
+    model = api.ego_model(fmu=simple_fmu)
+    api.check_value_names(scenario, ["speed", "$mass", "param.mass", "gap", "4.2", "drag_area"], model)
+    for names, needle in ((["mass"], "vary mass: is both a parameter of m.sdl and an FMU parameter of simple: write "
+                                     "$mass or param.mass"),
+                          (["gap", "$gap"], "vary $gap: is the parameter gap names too; give it once"),
+                          (["lead_speed"], "vary lead_speed: is no run option (speed, seed, until_distance, "
+                                           "until_time), no parameter of m.sdl (declared: mass, gap;"),
+                          (["$width"], "vary $width: m.sdl declares no parameter 'width' (declared: mass, gap)"),
+                          (["param.grip"], "vary param.grip: the FMU simple has no parameter 'grip' (parameters: ")):
+        with pytest.raises(api.InputError) as caught:
+            api.check_value_names(scenario, names, model)
+        assert str(caught.value).startswith(needle), str(caught.value)

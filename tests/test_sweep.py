@@ -393,3 +393,118 @@ def test_the_plot_draws_one_series_per_value_of_the_other_quantity_and_whole_col
     assert ticks and all(float(tick).is_integer() for tick in ticks)
     # the failed run is marked at the bottom, apart from the series
     assert [list(c.get_offsets()[:, 0]) for c in collisions_by_speed.collections] == [[90.0]]
+
+
+# Two declared parameters of the oncoming car: its gap and its lateral position (nearer the ego's lane: closer pass).
+PARAMETERS = ("English\n// @param gap = 800 ft in 400..1500\n// @param lateral = -6 ft in -9..-3\n"
+              "100,A,50,$gap,$lateral,1\n")
+TIMING = {"sim_wall_s", "real_time_factor", "run_wall_s"}
+
+
+def _outcome(row: dict) -> dict:
+    """A row's outcome columns (what a run computes; not its place, its status or the machine's timing)."""
+    return {key: value for key, value in row.items()
+            if key not in TIMING | {"run", "rank", "key", "status", "error", "gap_ft", "lateral_ft"}}
+
+
+def test_sort_ranks_the_table_and_rerun_reproduces_a_row(client, tmp_path):
+    import pyarrow.parquet as pq
+
+    from helpers import sdl_fmu
+
+    path = tmp_path / "p.sdl"
+    path.write_text(PARAMETERS)
+    assignments = ["gap=lhs(4)", "lateral=lhs(4)"]
+    varied = sweeping.parse_vary(assignments, 5, api.load(path))
+    joint = sweeping.lhs_names(assignments)
+    out = tmp_path / "sweep"
+    rows = sweeping.sweep(str(path), varied, out, client=client, progress=False, joint=joint, sort="min_distance",
+                          until_distance=900.0)
+    assert [r["status"] for r in rows] == ["ok"] * 4 and [r["rank"] for r in rows] == [1, 2, 3, 4]
+    distances = [r["min_distance_ft"] for r in rows]
+    assert distances == sorted(distances) and len(set(distances)) == 4
+    table = pq.read_table(out / sweeping.TABLE_NAME).to_pylist()
+    assert list(table[0])[:4] == ["rank", "run", "gap_ft", "lateral_ft"]
+    assert [r["run"] for r in table] == [r["run"] for r in rows]
+    # the same sweep ranked the other way: every row kept from the journal (nothing runs again), the order reversed
+    again = sweeping.sweep(str(path), varied, out, client=client, progress=False, joint=joint,
+                           sort="min_distance_ft:desc", until_distance=900.0)
+    assert [r["run"] for r in again] == [r["run"] for r in reversed(rows)]
+    assert [r["run_wall_s"] for r in again] == [r["run_wall_s"] for r in reversed(rows)]
+    with pytest.raises(sweeping.SweepError, match="--sort status: not a numeric column of the table"):
+        sweeping.sweep(str(path), varied, tmp_path / "unsorted", client=client, joint=joint, sort="status")
+    assert not (tmp_path / "unsorted").exists()
+
+    # the worst row run again, alone: the same values and the same outcome, to the last bit
+    worst = rows[0]
+    result, values = sweeping.rerun(str(path), varied, worst["run"], tmp_path / "again", joint=joint,
+                                    until_distance=900.0)
+    assert values == {"gap": worst["gap_ft"], "lateral": worst["lateral_ft"]}
+    assert _outcome(sweeping._summarise(result)) == _outcome(worst)
+    # from the command line: the sweep's arguments and --rerun K; its summary.json holds the row's values (written
+    # to 6 decimals: results/files.py)
+    completed = sdl_fmu("sweep", path, *(a for pair in zip(["--vary"] * 2, assignments) for a in pair),
+                        "--sample-seed", "5", "--until-distance", "900", "--rerun", worst["run"], "--out",
+                        tmp_path / "cli", cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    assert f"--set gap={worst['gap_ft']!r} --set lateral={worst['lateral_ft']!r}" in completed.stdout
+    summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    assert summary["collisions"] == worst["collisions"]
+    assert summary["criticality"]["min_distance"] == round(worst["min_distance_ft"], 6)
+    assert summary["final"]["distance"] == round(worst["final_distance_ft"], 6)
+    with pytest.raises(sweeping.SweepError, match="--rerun 4: the sweep has 4 runs, numbered 0 to 3"):
+        sweeping.rerun(str(path), varied, 4, tmp_path / "none", joint=joint)
+
+
+class _Listener:
+    """A TCP listener on a free port of 127.0.0.1 that counts the connections made to it: a --scheduler that
+    shows whether a sweep contacted its cluster at all."""
+
+    def __init__(self):
+        import socket
+        import threading
+
+        self.socket = socket.create_server(("127.0.0.1", 0))
+        self.address = f"tcp://127.0.0.1:{self.socket.getsockname()[1]}"
+        self.connections = 0
+        self.thread = threading.Thread(target=self._count, daemon=True)
+        self.thread.start()
+
+    def _count(self):
+        while True:
+            try:
+                connection, _ = self.socket.accept()
+            except OSError:
+                return
+            self.connections += 1
+            connection.close()
+
+    def close(self):
+        self.socket.close()
+
+
+@pytest.mark.parametrize("vary, code, needle", [
+    (["lead_speed=1,2"], 2, "sdl-fmu: --vary lead_speed: is no run option (speed, seed, until_distance, "
+                            "until_time), no parameter of p.sdl (declared: gap, lateral; or an address LINE.N"),
+    (["$width=1,2"], 2, "sdl-fmu: --vary $width: p.sdl declares no parameter 'width' (declared: gap, lateral)"),
+    (["4.2=800,0"], 1, "/p.sdl:4: A parameter 2 (gap), from address 4.2 = 0: '0': the vehicle cannot appear at gap 0"),
+    (["4.9=1"], 1, "/p.sdl:4: address 4.9: the A event on line 4 has 4 parameters"),
+    (["gap=100,800"], 2, "sdl-fmu: --vary gap=100,800: 100 is outside the declared range 400..1500 of gap (line 2)"),
+    (["gap=lhs(3)", "lateral=lhs(4)"], 2, "sdl-fmu: --vary lateral: the lhs() of one sweep are one Latin hypercube"),
+    (["speed=60"], 2, "sdl-fmu: --sort nothing: not a numeric column of the table"),
+])
+def test_names_and_values_that_set_nothing_are_refused_before_any_cluster_is_contacted(tmp_path, vary, code, needle):
+    from helpers import sdl_fmu
+
+    (tmp_path / "p.sdl").write_text(PARAMETERS)
+    listener = _Listener()
+    try:
+        sort = ["--sort", "nothing"] if vary == ["speed=60"] else []
+        completed = sdl_fmu("sweep", "p.sdl", *(a for name in vary for a in ("--vary", name)), *sort,
+                            "--scheduler", listener.address, "--out", tmp_path / "sweep", cwd=tmp_path)
+    finally:
+        listener.close()
+    assert completed.returncode == code and len(completed.stderr.splitlines()) == 1, completed.stderr
+    assert needle in completed.stderr and completed.stdout == ""  # a scenario's error names its absolute path
+    assert listener.connections == 0  # the scheduler was never even probed
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.sdl"]

@@ -13,9 +13,11 @@ from .events import (
     EndOfScenario,
     Event,
     ModelChoice,
+    Parameter,
     Relative,
     Road,
     Scenario,
+    Source,
     SurfaceAttribute,
 )
 from .parser import ScenarioError, SdlError, describe, load_scenario, parse_text
@@ -34,9 +36,11 @@ __all__ = [
     "EndOfScenario",
     "Event",
     "ModelChoice",
+    "Parameter",
     "Relative",
     "Road",
     "Scenario",
+    "Source",
     "SurfaceAttribute",
     "ScenarioError",
     "SdlError",

@@ -631,6 +631,21 @@ def _parse(text: str, path: str, skip_unsupported: bool, values: dict[str, float
     ), substitution
 
 
+def address_unit(scenario: Scenario, line: int, index: int) -> str | None:
+    """The unit (in the file's units) of the field at address LINE.N of a scenario read from text, None for a field
+    without one or one that cannot be told (no such line or field)."""
+    if scenario.source is None:
+        return None
+    lines = scenario.source.text.removeprefix("\ufeff").replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    if not 1 <= line <= len(lines):
+        return None
+    texts = [part.strip() for part in lines[line - 1].split("//", 1)[0].split(",")]
+    if len(texts) < 2 or index >= len(texts) - 1:
+        return None
+    unit = _field_of(texts[1].upper(), index, [texts[0], *texts[2:]], scenario.units)[1]
+    return None if unit == "?" else unit
+
+
 def _merged(scenario: Scenario, values: dict[str, float] | None) -> tuple[Source, dict[str, float]]:
     """The scenario's source and the values set on it with `values` set too (a later value for the same parameter
     wins: `$gap` and `gap` are one)."""

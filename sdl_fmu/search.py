@@ -581,10 +581,8 @@ def _batch_size(client, batch: int | None) -> int:
     behind it, so that no worker waits for the optimiser)."""
     if batch is not None:
         return batch
-    try:
-        threads = sum(worker.get("nthreads", 1) for worker in client.scheduler_info()["workers"].values())
-    except Exception:  # noqa: BLE001 - an old scheduler's answer
-        threads = 0
+    client.wait_for_workers(1)
+    threads = sum(client.nthreads().values())  # asked of the scheduler (the client's scheduler_info may lag)
     return max(1, 2 * threads)
 
 

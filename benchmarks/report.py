@@ -27,6 +27,7 @@ CRITICALITY_DENSE_OVERHEAD = 0.40  # with 32 cars oncoming in the next lane
 VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
 AEB_CCR_CPU_S = 60.0  # the whole CCR grid, Simple vehicle, example AEB, one core
 EXPORT_LIBCOSIM_RTF = 100.0  # the exported demo (Simple ego, step 10 ms) in libcosim
+SEARCH_CPU_RATIO = 1.2  # a search of 200 trials on 2 workers against a sweep of the same 200 runs
 
 
 def _load(name: str, results: Path) -> dict:
@@ -466,8 +467,76 @@ def run_process(results: Path) -> list[str]:
     return lines + [""]
 
 
+def search_benchmark(results: Path) -> list[str]:
+    data = _load("search_benchmark", results)
+    summary, problems = data["summary"], data["problems"]
+    names = {"random": "random", "tpe": "TPE", "cmaes": "CMA-ES"}
+
+    def shown(problem: str, value) -> str:
+        if value is None:
+            return "-"
+        return f"{value * 3.6:.2f} km/h" if problem == "ccr" else f"{value:.3f} m"
+
+    rows = []
+    for problem, methods in summary.items():
+        for method, entry in methods.items():
+            firsts = ", ".join("-" if x is None else str(x) for x in entry["runs_to_first_collision"])
+            rows.append([problem, names[method], shown(problem, entry["best_median"]),
+                         shown(problem, entry["best_min"]), shown(problem, entry["best_max"]),
+                         f"{entry['found_collision']} of {entry['searches']}",
+                         "-" if entry["runs_to_first_collision_median"] is None else
+                         f"{entry['runs_to_first_collision_median']:g}", firsts])
+    better = {problem: (lambda tpe, rnd: tpe is not None and rnd is not None and (
+        tpe > rnd if problems[problem]["direction"] == "maximize" else tpe < rnd))(
+        methods["tpe"]["best_median"], methods["random"]["best_median"]) for problem, methods in summary.items()}
+    pocket = summary["pocket"]["tpe"]
+    return [
+        "## 13. Worst-case search: random, TPE, CMA-ES", "", "Script: `benchmarks/search_benchmark.py`.", "",
+        "Two problems, as ARCH-COMP's falsification benchmarks are run: each a fixed budget of runs, searched by "
+        "random search (optuna's random sampler), TPE (optuna, multivariate, constant liar) and CMA-ES (the `cma` "
+        "package) over 5 seeds (0 … 4), through `sdl_fmu.search.search` (with `report=False`: no worst-case run, plot "
+        "or report, the same whatever the method) on one local Dask cluster of 2 worker processes per problem. These "
+        "searches ran in rounds of 2 trials (a round all back before the next was proposed), as the search ran before "
+        "it came to keep two trials per worker thread running; the samplers and their settings are the same. "
+        "**ccr** (`benchmarks/scenarios/ccr_rear.sdl`): the car-to-car rear encounter "
+        "with the example AEB in the loop, 4 parameters (the ego's speed 30 … 80 km/h, the target's speed 0 … 43 "
+        "km/h, the closure time at which the target brakes 0.5 … 6 s, its braking time to a stop 0.3 … 4 s), "
+        f"budget {problems['ccr']['budget']}, maximise the relative impact speed (shown in km/h). **pocket** "
+        "(`benchmarks/scenarios/pocket.sdl`): a car crossing the road ahead of the lane driver, 3 parameters (the "
+        "ego's speed 10 … 30 m/s, the closure time at which the car starts 0.2 … 30 s, its crossing time 0.3 … 3 s), a "
+        "collision pocket of a few per cent of the box (4 of 60 random draws collided when it was made), budget "
+        f"{problems['pocket']['budget']}, minimise the robustness of `{problems['pocket']['objective']}` "
+        "(negative: an overlap; shown in m). Best objective per method over the seeds (median, min, max); the runs "
+        "to the first collision per seed (`-`: none in the budget).", "",
+        *_table(["problem", "method", "best (median)", "best (min)", "best (max)", "found a collision",
+                 "runs to the first collision (median)", "per seed"], rows), "",
+        _measured(data["measured"]), "",
+        f"- At the same budget, TPE's median best objective is better than random search's on ccr: "
+        f"{_met(better['ccr'])}; on pocket: {_met(better['pocket'])}",
+        f"- A TPE search of {problems['pocket']['budget']} runs finds the pocket in at least 4 of 5 seeds: "
+        f"{pocket['found_collision']} of {pocket['searches']}, {_met(pocket['found_collision'] >= 4)}", ""]
+
+
+def search_cpu(results: Path) -> list[str]:
+    data = _load("search_cpu", results)
+    rows = [[str(k), f"{p['search_cpu_s']:.1f}", f"{p['sweep_cpu_s']:.1f}", f"{p['ratio']:.3f}",
+             f"{p['search_wall_s']:.0f}", f"{p['sweep_wall_s']:.0f}"] for k, p in enumerate(data["pairs"])]
+    return [
+        "## 14. What a search costs beyond its runs", "", "Script: `benchmarks/search_cpu.py`.", "",
+        f"`sdl-fmu search` of {data['trials']} TPE trials on {data['workers']} workers (`benchmarks/scenarios/"
+        "pocket.sdl`, 3 parameters, minimise min_distance; its table, worst.sdl, the worst case run again with its "
+        "plot, search.png and report.html included) against `sdl-fmu sweep` of the same runs on 2 workers (the "
+        "search's 200 speeds, which set each run's cost: every run drives the whole 2500 m), each command's whole "
+        "CPU time (its own and its Dask scheduler's, nannies' and workers', the children's rusage), side by side.", "",
+        *_table(["repeat", "search CPU s", "sweep CPU s", "search / sweep", "search wall s", "sweep wall s"], rows), "",
+        _measured(data["measured"]), "",
+        f"- A search of {data['trials']} trials costs at most {SEARCH_CPU_RATIO:g}× the CPU of a sweep of the same runs: "
+        f"median {data['ratio_median']:.3f}×, {_met(data['ratio_median'] <= SEARCH_CPU_RATIO)}", ""]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
-            aeb_ccr, scenario_step, export_speed, isolation, hosted_controller, run_process)
+            aeb_ccr, scenario_step, export_speed, isolation, hosted_controller, run_process, search_benchmark,
+            search_cpu)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -496,6 +565,8 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/isolation.py --repeat 7 --json benchmarks/results/isolation.json  # --part vehicles|controller",
         "python benchmarks/hosted_controller.py --reference CHECKOUT --json benchmarks/results/hosted_controller.json",
         "python benchmarks/run_process.py --repeat 7 --reference CHECKOUT --json benchmarks/results/run_process.json",
+        "python benchmarks/search_benchmark.py --json benchmarks/results/search_benchmark.json",
+        "python benchmarks/search_cpu.py --json benchmarks/results/search_cpu.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

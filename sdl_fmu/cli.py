@@ -1,5 +1,5 @@
-"""The `sdl-fmu` command line: build, check, resolve, run, sweep, verify, export. It only parses arguments, calls
-sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
+"""The `sdl-fmu` command line: build, check, resolve, run, sweep, search, verify, export. It only parses arguments,
+calls sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
 else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
 line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 from . import __version__, api
+from . import search as searching
 from . import sweep as sweeping
 from .hold import hold_here
 from .names import SHIPPED
@@ -159,7 +160,8 @@ def _run(args) -> int:
     return 0
 
 
-def _sweep(args) -> int:
+def _fixed_options(args) -> dict:
+    """sweep's and search's options that hold for every run, as api.run's keywords."""
     fixed = {"dynamics": args.dynamics} if args.dynamics else {}
     if args.fmu:
         fixed["fmu"] = args.fmu
@@ -181,6 +183,11 @@ def _sweep(args) -> int:
         fixed["on_collision"] = args.on_collision
     if args.skip_unsupported:
         fixed["skip_unsupported"] = True
+    return fixed
+
+
+def _sweep(args) -> int:
+    fixed = _fixed_options(args)
     scenario = api.resolve_scenario(args.scenario)
     # the scenario's declared ranges and whole parameters shape the values (lhs(n), normal truncated to the range)
     declared = api.load(scenario, skip_unsupported=args.skip_unsupported, dynamics=args.dynamics, vehicle=args.vehicle)
@@ -221,6 +228,44 @@ def _sweep(args) -> int:
     if failures is not None:
         print(f"sdl-fmu: {failures}; the same command runs them again", file=sys.stderr)
         return EXIT_RUNS_FAILED
+    return 0
+
+
+def _search(args) -> int:
+    ranges = searching.parse_ranges(args.vary)
+    objective = searching.objective_of(args.minimize, args.maximize, args.spec)
+    fixed = _fixed_options(args)
+    scenario = api.resolve_scenario(args.scenario)
+    out = Path(args.out)
+    sweeping.check_workers(args.workers)
+    sweeping.check_scheduler(args.scheduler)
+    try:
+        found = searching.search(str(scenario), ranges, out, objective=objective, budget=args.budget,
+                                 method=args.method, seed=args.seed, workers=args.workers, scheduler=args.scheduler,
+                                 timeout=args.timeout, progress=None, **fixed)
+    except KeyboardInterrupt as stop:
+        how = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted (Ctrl-C)"
+        if (out / searching.JOURNAL_NAME).exists():
+            print(f"sdl-fmu: search {how}; the finished trials are in {out / searching.JOURNAL_NAME}: "
+                  "the same command resumes the search", file=sys.stderr)
+        else:
+            print(f"sdl-fmu: search {how}; nothing was written", file=sys.stderr)
+        return EXIT_TERMINATED if isinstance(stop, Terminated) else EXIT_INTERRUPTED
+    rows, worst = found.rows, found.worst
+    ok = sum(row["status"] == "ok" for row in rows)
+    print(f"{scenario.name}: {len(rows)} trials ({ok} ok), {objective.direction} {objective.label}")
+    if worst is None:
+        print(f"sdl-fmu: no trial gave an objective ({out / searching.CSV_NAME}, columns status, error, objective)",
+              file=sys.stderr)
+        return EXIT_RUNS_FAILED
+    values = ", ".join(f"{name}={value!r}" for name, value in found.values.items())
+    print(f"worst: trial {worst['trial']}, objective {worst['objective']!r} ({values})")
+    print(f"worst case: {out / searching.WORST_SDL}, its results {out / searching.WORST_FOLDER}; "
+          f"again: {' '.join(found.command)}")
+    if not found.reproduced:
+        print("warning: the worst case run again gave another objective (search.json: worst)", file=sys.stderr)
+    print(f"table: {out / searching.TABLE_NAME}, {out / searching.CSV_NAME}")
+    print(f"report: {out / searching.REPORT_NAME}, plot: {out / searching.PLOT_NAME}")
     return 0
 
 
@@ -423,6 +468,44 @@ def parser() -> argparse.ArgumentParser:
     sweep.add_argument("--out", help="table folder: new, empty or an interrupted sweep's (resumed); "
                                      "default sweeps/<scenario name>")
     sweep.set_defaults(handler=_sweep)
+
+    search = commands.add_parser("search", help="the worst case within ranges: an optimiser's trials on Dask")
+    search.add_argument("scenario", help="SDL file, or the name of a shipped example such as demo")
+    search.add_argument("--vary", action="append", default=[], metavar="NAME=LOW..HIGH", required=True,
+                        help="a name a sweep varies (speed, seed, until_time, an FMU parameter, rsa.LINE[.LANE]) and "
+                             "its range")
+    goal = search.add_mutually_exclusive_group(required=True)
+    goal.add_argument("--minimize", metavar="MEASURE", help="a measure of the run to make small (min_ttc_s, "
+                      "min_distance, A1_min_distance, ...: docs/search.md)")
+    goal.add_argument("--maximize", metavar="MEASURE", help="a measure of the run to make large (impact_speed, "
+                      "collisions, max_drac, ...)")
+    goal.add_argument("--spec", metavar="STL", help="a signal temporal logic formula over timeseries.csv's columns "
+                      "(rtamt): its robustness is made small (negative: violated)")
+    search.add_argument("--budget", type=int, required=True, help="trials (runs) in all, a resumed search's included")
+    search.add_argument("--method", choices=searching.METHODS, default="tpe",
+                        help="tpe (default: optuna's TPE), cmaes (CMA-ES) or random")
+    search.add_argument("--seed", type=int, default=0, help="seed of the optimiser (default 0)")
+    where = search.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="worker processes of a local Dask cluster (default: one per core)")
+    where.add_argument("--scheduler", help="address of an existing Dask scheduler (tcp://host:port)")
+    search.add_argument("--dynamics", choices=SHIPPED, help="a shipped model for every run: simple (default) or "
+                        "advanced; not with --vehicle")
+    search.add_argument("--fmu", help="ego FMU (default: the cached build for --dynamics)")
+    search.add_argument("--vehicle", help="vehicle map (TOML) driving --fmu, any FMI 2.0/3.0 vehicle FMU")
+    search.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="FMU start value for every run, SI (repeatable)")
+    search.add_argument("--tires", help="Tire Attribute File for every run (advanced dynamics)")
+    search.add_argument("--until-distance", type=_float_argument, help="end every run at this distance, scenario "
+                        "units")
+    search.add_argument("--until-time", type=_float_argument, help="end every run at this time, s")
+    search.add_argument("--timeout", type=_float_argument, default=600.0,
+                        help="wall-clock limit per run, s (default 600)")
+    search.add_argument("--skip-unsupported", action="store_true",
+                        help="skip lines sdl-fmu does not simulate (one warning per code)")
+    _loop_arguments(search, " for every run")
+    search.add_argument("--out", required=True, help="search folder: new, empty or an earlier search's (resumed, "
+                                                     "or continued to a larger --budget)")
+    search.set_defaults(handler=_search)
 
     verify = commands.add_parser("verify", help="a test pack: vehicle manoeuvres or AEB car-to-car, report")
     verify.add_argument("--pack", choices=api.PACKS, default="vehicle",

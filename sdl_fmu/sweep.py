@@ -28,11 +28,9 @@ own deadline, and the sweep stops waiting for it after twice that, so the sweep 
 from __future__ import annotations
 
 import contextlib
-import itertools
 import json
 import math
 import os
-import random
 import re
 import time
 import traceback
@@ -121,9 +119,10 @@ def _pack(scenario_path: str, fixed: dict) -> dict[str, Bundle]:
 
 # ---- one run (on a worker) ------------------------------------------------------------------------
 
-def run_one(bundles: dict[str, Bundle], values: dict, fixed: dict, timeout: float) -> dict:
+def run_one(bundles: dict[str, Bundle], values: dict, fixed: dict, timeout: float,
+            measure: Callable | None = None) -> dict:
     """One run through sdl_fmu.api, its files from `bundles`; always returns a row, with the error if it
-    failed."""
+    failed. `measure(result, row)`: more of the row, computed here from the run's Result (the search's objective)."""
     from . import api
 
     began = time.perf_counter()
@@ -137,6 +136,8 @@ def run_one(bundles: dict[str, Bundle], values: dict, fixed: dict, timeout: floa
         scenario, options = api.apply_values(scenario, values, options)  # the row's values, where each goes
         result = api.run(scenario, timeout=timeout, **options)
         row.update(_summarise(result))
+        if measure is not None:
+            row.update(measure(result, row))
     except api.RunTimeout as error:
         row.update(status="timeout", error=str(error))
     except (api.InputError, api.ScenarioError, SweepError) as error:
@@ -174,7 +175,31 @@ def _summarise(result) -> dict:
             if event.get("reason") == "stopped":
                 row[f"brk{count}_stop_distance_{length}"] = event["distance"] - on["distance"]
     row.update(criticality_columns(result.criticality, raw.units))
+    row.update(impact_columns(result))
     return row
+
+
+def impact_columns(result) -> dict:
+    """The first contact's speeds (scenario units): `impact_speed_<unit>`, the ego's speed there, and
+    `relative_impact_speed_<unit>`, the ego's minus the touched vehicle's along the road (the ego's way); both 0 in a
+    run without contact (an avoided collision, as the AEB pack scores it)."""
+    from .units import from_si, speed_label
+
+    raw = result.raw
+    label = speed_label(raw.units)
+    contact = next((event for event in raw.events if event["code"] == "A" and event["action"] == "collision"), None)
+    if contact is None:
+        return {f"impact_speed_{label}": 0.0, f"relative_impact_speed_{label}": 0.0}
+    other = 0.0
+    track = next((track for track in raw.vehicles if track.vehicle == contact.get("vehicle")), None)
+    if track is not None:
+        times = np.asarray(raw.columns["time"], dtype=float)
+        sample = int(np.clip(np.searchsorted(times, contact["time_s"]), 0, len(times) - 1))  # contact: a sample
+        speeds = track.dense("speed", len(times))
+        if math.isfinite(speeds[sample]):
+            other = -float(speeds[sample])  # the track's speed counts toward the ego's start
+    return {f"impact_speed_{label}": from_si(contact["speed"], raw.units),
+            f"relative_impact_speed_{label}": from_si(contact["speed"] - other, raw.units)}
 
 
 def column_names(varied: list[str], units: Units, model=None, scenario=None) -> dict[str, str]:
@@ -691,18 +716,7 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
     ranking = None if sort is None else sort_column(sort, loaded, model, varied)
     check_workers(workers if client is None and not scheduler else None)
     check_scheduler(scheduler)
-    fixed = dict(fixed)
-    fixed["fmu"] = str(model.fmu_path)
-    if fixed.get("tires") is not None:
-        model.with_tires(fixed["tires"])  # a bad tire file fails now, naming the local file
-        fixed["tires"] = str(Path(fixed["tires"]).absolute())
-    if fixed.get("vehicle") is not None:
-        fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())
-    controller = api.controller_model(fixed.get("controller"), fixed.get("controller_map"))  # a bad map fails now
-    if controller is not None:  # the map's own `fmu` resolved here: the map travels alone
-        fixed["controller"] = str(controller.fmu_path.absolute())
-        fixed["controller_map"] = str(Path(controller.map_path).absolute())  # example-aeb: the shipped map
-    bundles = _pack(scenario_path, fixed)
+    fixed, bundles = shipped_files(scenario_path, model, fixed)
     out = Path(out).absolute()
     # sweep.json: the files by name (their digests tell them apart), no machine's path (docs/sweeps.md)
     named = {key: Path(value).name if key in SHIPPED and value is not None else value for key, value in fixed.items()}
@@ -737,6 +751,35 @@ def sweep(scenario: str, varied: dict[str, list], out: str | os.PathLike, *, wor
         if created and held:
             with contextlib.suppress(OSError):
                 out.rmdir()  # only if empty: a sweep that wrote nothing leaves nothing
+
+
+def prepare(scenario: str, fixed: dict) -> tuple[str, object, object, dict, dict[str, Bundle]]:
+    """What every run of a search shares, checked once here before any cluster starts (preflight with nothing
+    varied, then shipped_files): the scenario's absolute path, the loaded Scenario, the EgoModel, the fixed options
+    with every file as an absolute path, and the file bundles the workers get."""
+    loaded, model, scenario_path = preflight(scenario, {}, (), fixed)
+    fixed, bundles = shipped_files(scenario_path, model, fixed)
+    return scenario_path, loaded, model, fixed, bundles
+
+
+def shipped_files(scenario_path: str, model, fixed: dict) -> tuple[dict, dict[str, Bundle]]:
+    """The fixed options with every file as an absolute path (the ego FMU built once, the tire file and the
+    controller's map checked now, naming the local file; the map's own `fmu` resolved: the map travels alone), and the
+    file bundles the workers get."""
+    from . import api
+
+    fixed = dict(fixed)
+    fixed["fmu"] = str(model.fmu_path)
+    if fixed.get("tires") is not None:
+        model.with_tires(fixed["tires"])  # a bad tire file fails now, naming the local file
+        fixed["tires"] = str(Path(fixed["tires"]).absolute())
+    if fixed.get("vehicle") is not None:
+        fixed["vehicle"] = str(Path(fixed["vehicle"]).absolute())
+    controller = api.controller_model(fixed.get("controller"), fixed.get("controller_map"))  # a bad map fails now
+    if controller is not None:  # the map's own `fmu` resolved here: the map travels alone
+        fixed["controller"] = str(controller.fmu_path.absolute())
+        fixed["controller_map"] = str(Path(controller.map_path).absolute())  # example-aeb: the shipped map
+    return fixed, _pack(scenario_path, fixed)
 
 
 def _sweep_into(out, spec, bundles, varied, fixed, loaded, model, workers, scheduler, client, timeout,
@@ -789,57 +832,95 @@ def _client(workers: int | None, scheduler: str | None, runs: int | None = None)
 
 
 def _run_all(bundles, todo, fixed, timeout, out, client, progress, columns) -> list[dict]:
-    """Submits the runs, journals each row as it arrives. Every run stops itself at `timeout`; if no run at
-    all comes back for GRACE x timeout (+ 10 s), the runs still processing are given up (cancelled and
-    recorded as timeouts), so a stuck worker never hangs the sweep."""
+    """Submits the runs, journals each row as it arrives (run_rows)."""
     from tqdm import tqdm
 
     rows = []
-    patience = GRACE * timeout + 10.0
     import sys
 
     from .text import unescaped  # the bar's own carriage returns, not escaped
 
     bar = tqdm(total=len(todo), unit="run", file=unescaped(sys.stderr),
                disable=progress is False or (progress is None and not _stderr_is_terminal()))
-    shipped = {option: client.submit(_passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
-               for option, bundle in bundles.items()}
+    shipped = ship(client, bundles)
     try:
-        futures = {client.submit(run_one, shipped, values, fixed, timeout, pure=False): (index, values)
-                   for index, values in todo}
-        pending = set(futures)
-        last_progress = time.monotonic()
         with open(out / JOURNAL_NAME, "a", encoding="utf-8") as stream:
-            while pending:
-                finished = [future for future in pending if future.done()]
-                now = time.monotonic()
-                for future in finished:
-                    pending.discard(future)
-                    try:
-                        row = future.result()
-                    except Exception as error:  # the worker died or the task could not run
-                        row = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
-                    rows.append(_record(stream, row, *futures[future], columns))
-                    bar.update()
-                    last_progress = now
-                if finished or not pending:
-                    continue
-                if now - last_progress > patience:
-                    processing = {key for keys in client.processing().values() for key in keys}
-                    stuck = [future for future in pending if future.key in processing] or list(pending)
-                    for future in stuck:
-                        pending.discard(future)
-                        future.cancel()
-                        rows.append(_record(stream, {"status": "timeout", "error": f"no result within "
-                                                      f"{patience:.0f} s: given up"}, *futures[future], columns))
-                        bar.update()
-                    last_progress = now
-                time.sleep(0.05)
+            def arrived(row, index, values):
+                rows.append(_record(stream, row, index, values, columns))
+                bar.update()
+
+            run_rows(client, shipped, todo, fixed, timeout, arrived)
     finally:
         bar.close()
-        for future in shipped.values():
-            future.release()
+        release(shipped)
     return rows
+
+
+def ship(client, bundles: dict[str, Bundle]) -> dict:
+    """The file bundles as Dask futures (each moved to a worker once, recomputed if its holder dies); release() them
+    when the runs are done."""
+    return {option: client.submit(_passed_on, bundle, key=f"sdl-fmu-files-{bundle.digest}")
+            for option, bundle in bundles.items()}
+
+
+def release(shipped: dict) -> None:
+    for future in shipped.values():
+        future.release()
+
+
+def run_rows(client, shipped: dict, todo: list[tuple[int, dict]], fixed: dict, timeout: float,
+             arrived: Callable[[dict, int, dict], None], measure: Callable | None = None,
+             more: Callable[[], list[tuple[int, dict]]] | None = None) -> None:
+    """Runs `todo` ((index, values) pairs) on Dask with the shipped files, calling `arrived(row, index, values)` in
+    this thread as each row comes back (a worker that died or a task that could not run: a failed row), and then
+    `more()` for runs to add (a search's next trials). Every run stops itself at `timeout`; if no run at all comes
+    back for GRACE x timeout (+ 10 s), the runs still processing are given up (cancelled and given as timeout rows),
+    so a stuck worker never hangs the caller. Interrupted, the runs not yet back are cancelled."""
+    patience = GRACE * timeout + 10.0
+    futures: dict = {}
+    pending: set = set()
+
+    def submit(runs) -> None:
+        for index, values in runs:
+            future = client.submit(run_one, shipped, values, fixed, timeout, measure, pure=False)
+            futures[future] = (index, values)
+            pending.add(future)
+
+    submit(todo)
+    if more is not None:
+        submit(more())
+    try:
+        last_progress = time.monotonic()
+        while pending:
+            finished = [future for future in pending if future.done()]
+            now = time.monotonic()
+            for future in finished:
+                pending.discard(future)
+                try:
+                    row = future.result()
+                except Exception as error:  # the worker died or the task could not run
+                    row = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
+                arrived(row, *futures.pop(future))
+                last_progress = now
+                if more is not None:
+                    submit(more())
+            if finished or not pending:
+                continue
+            if now - last_progress > patience:
+                processing = {key for keys in client.processing().values() for key in keys}
+                stuck = [future for future in pending if future.key in processing] or list(pending)
+                for future in stuck:
+                    pending.discard(future)
+                    future.cancel()
+                    arrived({"status": "timeout", "error": f"no result within {patience:.0f} s: given up"},
+                            *futures.pop(future))
+                    if more is not None:
+                        submit(more())
+                last_progress = now
+            time.sleep(0.05)
+    finally:
+        for future in pending:
+            future.cancel()
 
 
 def _record(stream, row: dict, index: int, values: dict, columns: dict[str, str]) -> dict:

@@ -275,9 +275,9 @@ def held_work(tmp_path: Path) -> Path:
     return tmp_path
 
 
-def interrupted(work, command: list, how: str, **extra_env) -> tuple[int, str, str]:
-    """Starts the command, waits until it is held, signals it as `how` says, releases the hold once the command has
-    acted on the signal and returns (exit code, stdout, stderr)."""
+def interrupted(work, command: list, how: str, ready=None, **extra_env) -> tuple[int, str, str]:
+    """Starts the command, waits until it is held (and `ready()`, when given, says so too), signals it as `how` says,
+    releases the hold once the command has acted on the signal and returns (exit code, stdout, stderr)."""
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", **environment(work, **extra_env),
            HOLD_VARIABLE: str(work / "hold")}
     line = [str(arg) for arg in capped_command(*command)]
@@ -288,7 +288,7 @@ def interrupted(work, command: list, how: str, **extra_env) -> tuple[int, str, s
     try:
         running = work / "hold.running"
         deadline = time.monotonic() + HANG_LIMIT  # only against a hang: the loops end when the command is held
-        while not (running.exists() and running.read_text().endswith("\n")):
+        while not (running.exists() and running.read_text().endswith("\n") and (ready is None or ready())):
             assert process.poll() is None, process.communicate()
             assert time.monotonic() < deadline, "the command was never held"
             time.sleep(0.02)

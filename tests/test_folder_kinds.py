@@ -9,11 +9,11 @@ import shutil
 import distributed
 import pytest
 
-from sdl_fmu import api, ownership, sweep
+from sdl_fmu import api, ownership, search, sweep
 from sdl_fmu.cli import main
 from sdl_fmu.results.folder import EARLIER, HOLDS, MANIFEST_NAME, folder_kind
 
-KINDS = ("run", "verify", "export", "sweep")
+KINDS = ("run", "verify", "export", "sweep", "search")
 
 
 @pytest.fixture(scope="module")
@@ -27,6 +27,9 @@ def folders(tmp_path_factory, simple_fmu):
                                   dashboard_address=None) as cluster, distributed.Client(cluster) as client:
         sweep.sweep(str(api.resolve_scenario("demo")), {"until_time": [1.0]}, root / "sweep", client=client,
                     fmu=str(simple_fmu), progress=False)
+        search.search(str(api.resolve_scenario("demo")), search.parse_ranges(["until_time=1..1.5"]), root / "search",
+                      objective=search.objective_of("collisions", None, None), budget=1, client=client,
+                      fmu=str(simple_fmu), progress=False)
     return {kind: root / kind for kind in KINDS}
 
 
@@ -35,12 +38,14 @@ def command(kind: str, out, simple_fmu) -> list[str]:
     return {"run": ["run", "demo", "--fmu", simple_fmu, "--until-time", "1"],
             "verify": ["verify", "--only", "braking", "--fmu", simple_fmu],
             "export": ["export", "head_on", "--fmu", simple_fmu, "--until-time", "1"],
-            "sweep": ["sweep", "demo", "--fmu", simple_fmu, "--vary", "until_time=1", "--workers", "1"]}[kind] + [
+            "sweep": ["sweep", "demo", "--fmu", simple_fmu, "--vary", "until_time=1", "--workers", "1"],
+            "search": ["search", "demo", "--fmu", simple_fmu, "--vary", "until_time=1..1.5", "--minimize", "collisions",
+                       "--budget", "1", "--workers", "1"]}[kind] + [
         "--out", out]
 
 
 def contents(folder) -> dict:
-    return {path.name: path.read_bytes() for path in sorted(folder.iterdir())}
+    return {path.name: contents(path) if path.is_dir() else path.read_bytes() for path in sorted(folder.iterdir())}
 
 
 def test_each_command_writes_a_folder_of_its_kind(folders):

@@ -101,7 +101,7 @@ def test_every_column_with_a_unit_names_it(client, tmp_path):
     assert columns[:6] == ["run", "speed_m/s", "mass_kg", "until_time_s", "status", "error"]
     expected = {"collisions", "final_time_s", "final_distance_m", "final_speed_m/s", "final_lateral_m", "sim_wall_s",
                 "real_time_factor", "run_wall_s", "warnings", "brk1_on_time_s", "brk1_off_time_s", "brk1_reason",
-                "brk1_distance_m", "brk1_stop_distance_m"}
+                "brk1_distance_m", "brk1_stop_distance_m", "impact_speed_m/s", "relative_impact_speed_m/s"}
     # the criticality measures (docs/results.md), run-wide and for vehicle 1, lengths in m, DRAC in m/s2
     measures = {"min_distance_m", "min_distance_time_s", "min_ttc_s", "min_ttc_time_s", "max_drac_m/s2",
                 "max_drac_time_s", "min_pet_s", "min_headway_s", "min_headway_time_s"}

@@ -33,13 +33,16 @@ MANIFEST_NAME = ".sdl-fmu-results.json"
 MANIFEST_FORMAT = "sdl-fmu results 2"  # 1: names only, unsigned (proves nothing now)
 # a sweep's folder: its own manifest (sweep.py writes it; named here, where every command's --out is told apart)
 SWEEP_MANIFEST_NAME, SWEEP_MANIFEST_FORMAT = ".sdl-fmu-sweep.json", "sdl-fmu sweep 1"
-FolderKind = Literal["run", "verify", "export", "sweep"]  # the command that wrote a folder
-FOLDER_KINDS: tuple[FolderKind, ...] = ("run", "verify", "export", "sweep")
+SEARCH_MANIFEST_NAME, SEARCH_MANIFEST_FORMAT = ".sdl-fmu-search.json", "sdl-fmu search 1"  # search.py writes it
+FolderKind = Literal["run", "verify", "export", "sweep", "search"]  # the command that wrote a folder
+FOLDER_KINDS: tuple[FolderKind, ...] = ("run", "verify", "export", "sweep", "search")
 # what a folder of each kind holds, and the words for an earlier one, as the refusals say them
 HOLDS = {"run": "a run's results (sdl-fmu run)", "verify": "a test pack's results (sdl-fmu verify)",
-         "export": "an export (sdl-fmu export: an SSP and its FMUs)", "sweep": "a sweep's table (sdl-fmu sweep)"}
+         "export": "an export (sdl-fmu export: an SSP and its FMUs)", "sweep": "a sweep's table (sdl-fmu sweep)",
+         "search": "a worst-case search (sdl-fmu search)"}
 EARLIER = {"run": "an earlier run's results folder", "verify": "an earlier verify folder",
-           "export": "an earlier export folder", "sweep": "an interrupted sweep's folder"}
+           "export": "an earlier export folder", "sweep": "an interrupted sweep's folder",
+           "search": "an earlier search's folder"}
 # the names sdl-fmu writes into results folders (run, verify): one of them held by a file that is not sdl-fmu's is
 # refused before the run (it would have to be overwritten)
 RESULT_NAMES = ("timeseries.csv", "traffic.csv", "summary.json", "plot.png", "verify.json", "report.html",
@@ -98,6 +101,8 @@ def folder_kind(folder: Path) -> FolderKind | None:
     folder = Path(folder)
     if _authentic_manifest(folder / SWEEP_MANIFEST_NAME, SWEEP_MANIFEST_FORMAT) is not None:
         return "sweep"
+    if _authentic_manifest(folder / SEARCH_MANIFEST_NAME, SEARCH_MANIFEST_FORMAT) is not None:
+        return "search"
     data = _authentic_manifest(folder / MANIFEST_NAME, MANIFEST_FORMAT)
     if data is None:
         return None

@@ -466,10 +466,11 @@ class Result:
         """summary.json's content."""
         return summary(self.raw)
 
-    def write(self, out: str | os.PathLike, plot: bool = True) -> Path:
-        """Writes a results folder (timeseries.csv, summary.json, plot.png); see results/folder.py for the rules."""
+    def write(self, out: str | os.PathLike, plot: bool | os.PathLike = True) -> Path:
+        """Writes a results folder (timeseries.csv, summary.json, plot.png); see results/folder.py for the rules.
+        `plot`: False for none, or the path of this result's plot already drawn (Result.plot), copied in."""
         try:
-            return write_results(self.raw, Path(out), plot=plot)
+            return write_results(self.raw, Path(out), plot=plot if isinstance(plot, bool) else Path(plot))
         except ResultsFolderError as error:
             raise InputError("out", "", subject=str(error)) from None
 

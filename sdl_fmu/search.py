@@ -525,7 +525,11 @@ def search(scenario: str, ranges: dict[str, Range], out: str | os.PathLike, *, o
                                          loaded, workers, scheduler, client, timeout, progress, batch, given,
                                          report)
         if result is not None:  # a results folder is put in place under its parent's lock: once the search's is let go
-            result.write(out / WORST_FOLDER)
+            drawn = out / WORST_PLOT  # the worst run's plot, drawn once for the report and worst/ alike
+            try:
+                result.write(out / WORST_FOLDER, plot=drawn if drawn.exists() else True)
+            finally:
+                drawn.unlink(missing_ok=True)
         return found
     except ownership.Locked:
         raise SearchError(f"--out {out}: another search is writing into it; wait until it ends, or choose another "
@@ -911,11 +915,14 @@ def _write_outputs(out, spec, finished, ranges, columns, objective, fixed, given
                                                          worst_summary, partials[PLOT_NAME], partials[WORST_PLOT]),
                                              encoding="utf-8")
         ownership.write_json(partials[SPEC_NAME], description)
-        coming = {name: path for name, path in partials.items() if name not in (WORST_SDL, WORST_PLOT) and path.exists()}
+        coming = {name: path for name, path in partials.items()
+                  if name not in (WORST_SDL, WORST_PLOT) and path.exists()}
         _write_manifest(out, coming)
         for name, path in coming.items():
             os.replace(path, out / name)
         _write_manifest(out)
+        if result is not None and partials[WORST_PLOT].exists():
+            os.replace(partials[WORST_PLOT], out / WORST_PLOT)  # for worst/ (search() writes it and removes this)
     finally:
         for path in partials.values():
             path.unlink(missing_ok=True)

@@ -276,13 +276,18 @@ def write_summary_json(result: RunRecord, path: Path) -> None:
         file.write(("\n  ]" if written else "]") + tail + "\n")
 
 
-def write_results(result: RunRecord, out_dir: Path, plot: bool = True) -> Path:
+def write_results(result: RunRecord, out_dir: Path, plot: bool | Path = True) -> Path:
     """Write timeseries.csv, summary.json and plot.png into out_dir atomically: all of them or nothing, and
-    nothing sdl-fmu did not write is touched (folder.py)."""
+    nothing sdl-fmu did not write is touched (folder.py). `plot`: False for no plot; a Path: that PNG, already drawn
+    of this record (plots.plot_run), copied in instead of drawing it again."""
     def write(folder: Path) -> None:
         write_timeseries_csv(result, folder / "timeseries.csv")
         write_summary_json(result, folder / "summary.json")
-        if plot:
+        if isinstance(plot, Path):
+            import shutil
+
+            shutil.copyfile(plot, folder / "plot.png")
+        elif plot:
             from . import plots
 
             plots.plot_run(result, folder / "plot.png")

@@ -92,9 +92,8 @@ def test_the_build_progress_shows_on_a_terminal_only(capsys):
 @pytest.mark.slow
 def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its_stages(tmp_path, monkeypatch,
                                                                                          capsys):
-    # the model code at -O1 (every solver step calls it; -O2 costs 1.6 times the compile for a step 2 % faster), the
-    # sweeps at -O0 (only the directional and adjoint derivatives call them), the runtime and links at -O2; on a
-    # terminal (progress=True) each stage shows
+    # the model code at -O2 (every solver step calls it), the sweeps at -O0 (only the directional and adjoint
+    # derivatives call them), the runtime and links at -O2; on a terminal (progress=True) each stage shows
     from sdl_fmu.fmu import package
 
     commands = []
@@ -110,7 +109,7 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
         return next(flag for flag in command if re.fullmatch(r"-O\d", flag))
 
     objects = {Path(command[command.index("-c") + 1]).name: level(command) for command in commands if "-c" in command}
-    assert objects == {"EgoVehicleSimple_model.c": "-O1", "EgoVehicleSimple_derivatives.c": "-O0"}
+    assert objects == {"EgoVehicleSimple_model.c": "-O2", "EgoVehicleSimple_derivatives.c": "-O0"}
     links = [level(command) for command in commands if "-shared" in command]
     assert len(links) == 2 and set(links) == {"-O2"}  # the runtime, compiled and linked for Linux and Windows
     said = capsys.readouterr().err
@@ -121,7 +120,7 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
 
 @pytest.mark.slow
 def test_the_model_code_gives_the_same_bits_at_every_optimisation_level(tmp_path):
-    # The build compiles the model functions at MODEL_OPTIMIZATION (-O1), not -O2, for a cheaper first build. The level
+    # The optimisation level of the model code (MODEL_OPTIMIZATION, DERIVATIVES_OPTIMIZATION) is a cost choice that
     # must change no result: every level computes the same IEEE double operations (x86-64 SSE2, -std=c99 keeps
     # -ffp-contract=off, no -ffast-math), so the one generated model object at -O0, -O1 and -O2 gives the same bits
     # for all six model functions on 400 pseudo-random (x, d, u, p) (tests/fmu/model_bits.c hashes every result).
@@ -140,7 +139,7 @@ def test_the_model_code_gives_the_same_bits_at_every_optimisation_level(tmp_path
         shutil.copy(codegen.RUNTIME_DIRECTORY / name, generated / name)
     shutil.copy(Path(__file__).parent / "model_bits.c", generated / "model_bits.c")
     sweeps_object = tmp_path / "sweeps.o"
-    objects = {level: tmp_path / f"model{level}.o" for level in ("-O0", package.MODEL_OPTIMIZATION, "-O2")}
+    objects = {level: tmp_path / f"model{level}.o" for level in ("-O0", "-O1", "-O2", package.MODEL_OPTIMIZATION)}
     package.run_compilers(
         [package._object_command(generated, sweeps, sweeps_object, optimization=package.DERIVATIVES_OPTIMIZATION)]
         + [package._object_command(generated, model, path, optimization=level) for level, path in objects.items()])

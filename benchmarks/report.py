@@ -28,6 +28,7 @@ VERIFY_CPU_S = {"simple": 30.0, "advanced": 120.0}
 AEB_CCR_CPU_S = 60.0  # the whole CCR grid, Simple vehicle, example AEB, one core
 EXPORT_LIBCOSIM_RTF = 100.0  # the exported demo (Simple ego, step 10 ms) in libcosim
 SEARCH_CPU_RATIO = 1.2  # a search of 200 trials on 2 workers against a sweep of the same 200 runs
+BUILD_CPU_S = 120.0  # the Advanced FMU's first build, both FMI versions, Linux and Windows binaries
 
 
 def _load(name: str, results: Path) -> dict:
@@ -534,9 +535,39 @@ def search_cpu(results: Path) -> list[str]:
         f"median {data['ratio_median']:.3f}×, {_met(data['ratio_median'] <= SEARCH_CPU_RATIO)}", ""]
 
 
+def build_cost(results: Path) -> list[str]:
+    data = _load("build_cost", results)
+    kinds = ("with mingw-w64", "without mingw-w64")
+    rows = []
+    labels = {"new": "this checkout", "reference": "reference checkout"}  # other keys: a variant, by its name
+    for name in [key for key in data if key != "measured"]:
+        label = labels.get(name, name)
+        for kind in kinds:
+            r = data[name].get(kind)
+            if r is not None:
+                rows.append([label, kind, str(len(r["runs"])), f"**{r['cpu_min_s']:.1f}**", f"{r['cpu_median_s']:.1f}",
+                             f"{r['wall_median_s']:.0f}",
+                             ", ".join(f"{run['load_start']:g}–{run['load_end']:g}" for run in r["runs"])])
+    new = data["new"].get("with mingw-w64")
+    verdict = (f"The first build with both binaries < {BUILD_CPU_S:g} s CPU: {_met(new['cpu_median_s'] < BUILD_CPU_S)}"
+               if new else "")
+    return [
+        "## 15. The Advanced FMU's first build", "", "Script: `benchmarks/build_cost.py`.", "",
+        "CPU time (user + system of the whole process tree, `os.wait4`) of `python build_fmu.py --dynamics advanced "
+        "--out DIR` with a fresh empty `SDL_FMU_CACHE` each run: one code generation, the model code compiled once per "
+        "platform and linked into both FMI versions' binaries; with mingw-w64 (the Windows DLLs too) and without it "
+        "(`SDL_FMU_MINGW_CC` naming no compiler). A reference checkout's build (`--reference`) or a variant, where "
+        "measured, ran alongside. CPU time also grows with the machine's load (shared caches), so compare rows measured together; "
+        "wall time depends on the load far more.", "",
+        *_table(["checkout", "kind", "runs", "CPU s, min", "CPU s, median", "wall s, median", "load average"],
+                rows), "",
+        _measured(data["measured"]), "",
+        *([f"- {verdict}"] if verdict else []), ""]
+
+
 SECTIONS = (fmu_step, demo_speed, scaling, sweep_workers, criticality_overhead, vehicle_path_speed, verify_pack,
             aeb_ccr, scenario_step, export_speed, isolation, hosted_controller, run_process, search_benchmark,
-            search_cpu)
+            search_cpu, build_cost)
 
 
 def render(results: Path = RESULTS) -> str:
@@ -567,6 +598,7 @@ def render(results: Path = RESULTS) -> str:
         "python benchmarks/run_process.py --repeat 7 --reference CHECKOUT --json benchmarks/results/run_process.json",
         "python benchmarks/search_benchmark.py --json benchmarks/results/search_benchmark.json",
         "python benchmarks/search_cpu.py --json benchmarks/results/search_cpu.json",
+        "python benchmarks/build_cost.py --reference CHECKOUT --json benchmarks/results/build_cost.json",
         "python benchmarks/report.py                   # regenerates this page",
         "```", "",
         "`summary.json` of every run records `timing`: `wall_s` (the co-simulation loop, from the first step to the "

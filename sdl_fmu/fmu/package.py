@@ -25,12 +25,15 @@ from .xml import build_description, model_description, model_description_fmi3
 FmiVersion = Literal[2, 3]  # the FMI standard's major version an FMU is built for
 
 WARNING_FLAGS = ["-Wall", "-Wextra", "-Werror"]
-# Optimisation: -O2 for the runtime and the model functions the solver calls every step; -O0 for the derivative
-# sweeps (<Model>_derivatives.c), which only fmi2GetDirectionalDerivative / fmi3GetDirectionalDerivative /
-# fmi3GetAdjointDerivative call. The Advanced FMU's 1.2 MB of generated sweeps cost 28 s of gcc and 31 s of mingw-w64
-# CPU at -O2, 3.3 s and 3.4 s at -O0; a directional derivative then takes 31 instead of 20 us (docs/fmu-runtime.md,
-# The FMU cache).
+# Optimisation: -O2 for the runtime and the model functions (<Model>_model.c, MODEL_OPTIMIZATION) the solver calls
+# every step; -O0 for the derivative sweeps (<Model>_derivatives.c), which only fmi2GetDirectionalDerivative /
+# fmi3GetDirectionalDerivative / fmi3GetAdjointDerivative call. Nearly all of a build is gcc and mingw-w64 on the
+# Advanced FMU's generated C: its 5.2 MB of model functions took 104 s of gcc CPU at -O2, 65 s at -O1, 47 s at -O0
+# (side by side on a loaded machine), and give the same bits at every level (IEEE double in SSE2, -std=c99 keeps
+# -ffp-contract=off, no -ffast-math); but at -O1 a co-simulation step of the Advanced FMU took 1.75 to 2.2 times as
+# long (a model-exchange interval 1.2 times), so the model functions stay at -O2 (docs/fmu-runtime.md, The FMU cache).
 OPTIMIZATION = "-O2"
+MODEL_OPTIMIZATION = "-O2"
 DERIVATIVES_OPTIMIZATION = "-O0"
 # only the fmi* functions are exported: CasADi's generated functions stay internal to the library
 EXPORT_FLAGS = ["-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT="]
@@ -217,7 +220,7 @@ def _build(dynamics: Dynamics, equations, out_dir: Path, fmi_versions: tuple[Fmi
         shown.advance()
         # the model code, compiled once per platform (gcc and mingw-w64 side by side, each file its own
         # process), linked into each version; the derivative sweeps at DERIVATIVES_OPTIMIZATION
-        levels = [OPTIMIZATION, DERIVATIVES_OPTIMIZATION]
+        levels = [MODEL_OPTIMIZATION, DERIVATIVES_OPTIMIZATION]
         linux_objects = [Path(work) / "linux" / (Path(source).stem + ".o") for source in model_sources]
         windows_objects = [Path(work) / "windows" / (Path(source).stem + ".o") for source in model_sources]
         commands = [_object_command(generated, source, output, optimization=level)

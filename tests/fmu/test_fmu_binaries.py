@@ -118,6 +118,42 @@ def test_a_build_compiles_the_derivative_sweeps_at_their_own_level_and_shows_its
         assert f"EgoVehicleSimple: {stage}" in said
 
 
+@pytest.mark.slow
+def test_the_model_code_gives_the_same_bits_at_every_optimisation_level(tmp_path):
+    # The optimisation level of the model code (MODEL_OPTIMIZATION, DERIVATIVES_OPTIMIZATION) is a cost choice that
+    # must change no result: every level computes the same IEEE double operations (x86-64 SSE2, -std=c99 keeps
+    # -ffp-contract=off, no -ffast-math), so the one generated model object at -O0, -O1 and -O2 gives the same bits
+    # for all six model functions on 400 pseudo-random (x, d, u, p) (tests/fmu/model_bits.c hashes every result).
+    import importlib
+
+    from sdl_fmu.fmu import codegen, package
+
+    equations = importlib.import_module("sdl_fmu.dynamics.simple").equations()
+    generated = tmp_path / "generated"
+    generated.mkdir()
+    functions, casadi_source = codegen.generate_casadi(equations, generated)
+    guid = codegen.model_guid(equations.interface, casadi_source)
+    model = codegen.generate_model_source(equations, functions, guid, generated).name
+    sweeps = codegen.generate_derivatives_source(equations, generated).name
+    for name in codegen.RUNTIME_HEADERS:
+        shutil.copy(codegen.RUNTIME_DIRECTORY / name, generated / name)
+    shutil.copy(Path(__file__).parent / "model_bits.c", generated / "model_bits.c")
+    sweeps_object = tmp_path / "sweeps.o"
+    objects = {level: tmp_path / f"model{level}.o" for level in ("-O0", "-O1", "-O2", package.MODEL_OPTIMIZATION)}
+    package.run_compilers(
+        [package._object_command(generated, sweeps, sweeps_object, optimization=package.DERIVATIVES_OPTIMIZATION)]
+        + [package._object_command(generated, model, path, optimization=level) for level, path in objects.items()])
+    said = {}
+    for level, path in objects.items():
+        program = tmp_path / f"bits{level}"
+        subprocess.run([package._compiler(None), "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{generated}",
+                        str(generated / "model_bits.c"), str(path), str(sweeps_object), "-o", str(program), "-lm"],
+                       check=True, capture_output=True)
+        said[level] = subprocess.run([str(program), "400"], capture_output=True, text=True, check=True).stdout
+    assert len(set(said.values())) == 1, said
+    assert int(said["-O2"].split()[2]) > 10_000  # nonzero results: the cases exercise the functions
+
+
 def test_a_failed_compile_names_the_file_it_was_to_write(tmp_path):
     # a link line ends with -lm: the message names the output (its -o argument), not the last argument
     from sdl_fmu.fmu.package import BuildError, binary_command, run_compilers

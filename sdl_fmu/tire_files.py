@@ -334,15 +334,15 @@ def slot_values(attribute_file: Path | str,
     by_attribute: dict[int, dict[str, float]] = {}
     for entry in read_attribute_file(attribute_file):
         if entry.attribute >= slot_count:
-            warnings.append(f"{attribute_file}:{entry.line}: attribute {entry.attribute} is beyond the FMU's "
-                            f"{slot_count} tire slots (0..{slot_count - 1}); surfaces with attribute "
+            warnings.append(f"{Path(attribute_file).name}:{entry.line}: attribute {entry.attribute} is beyond the "
+                            f"FMU's {slot_count} tire slots (0..{slot_count - 1}); surfaces with attribute "
                             f"{entry.attribute} use attribute 0 (standard tires)")
             continue
         by_attribute[entry.attribute] = coefficients(entry, attribute_file)
     if 0 not in by_attribute:
         standard = next(e for e in read_attribute_file(DEFAULT_ATTRIBUTE_FILE) if e.attribute == 0)
         by_attribute[0] = coefficients(standard, DEFAULT_ATTRIBUTE_FILE)
-        warnings.append(f"{attribute_file}: no attribute 0 (standard tires); using the shipped standard tire "
-                        f"{standard.tire_file}")
+        warnings.append(f"{Path(attribute_file).name}: no attribute 0 (standard tires); using the shipped standard "
+                        f"tire {Path(standard.tire_file).name}")  # file names: a result names no path of the machine
     slots = [by_attribute.get(slot, by_attribute[0]) for slot in range(slot_count)]
     return slots, {attribute: attribute for attribute in sorted(by_attribute)}, warnings

@@ -114,3 +114,23 @@ def test_the_aeb_packs_folder_holds_no_machine_path(tmp_path_factory, inputs):
                    controller=inputs["controller"], controller_map=inputs["controller_map"], out=out,
                    scheduler=cluster.scheduler_address)
     assert leaks(out, machine_paths(tmp_path_factory)) == []
+
+
+def test_a_tire_attribute_files_warnings_name_files_not_paths(tmp_path_factory, advanced_fmu):
+    """The warnings of a --tires file given by its absolute path (its attribute 9 beyond the Advanced FMU's 8 slots,
+    no attribute 0: the shipped standard tire) name it and the standard tire by their file names."""
+    from sdl_fmu.paths import TIRE_DIRECTORY
+
+    folder = tmp_path_factory.mktemp("tires")
+    tire = shutil.copy(TIRE_DIRECTORY / "dry_asphalt.tir", folder / "slick.tir")
+    attributes = folder / "attr.txt"
+    attributes.write_text(f"2 = {Path(tire).name}\n9 = {Path(tire).name}\n")
+    (folder / "road.sdl").write_text("English\n1000,ES\n")
+    out = folder / "run"
+    result = api.run(folder / "road.sdl", dynamics="advanced", fmu=advanced_fmu,
+                     tires=attributes.absolute(), until_time=1.0, out=out)
+    tire_warnings = [w for w in result.warnings if "attr.txt" in w]
+    assert len(tire_warnings) == 2, result.warnings
+    assert tire_warnings[0].startswith("attr.txt:2: attribute 9 is beyond the FMU's 8 tire slots")
+    assert tire_warnings[1].startswith("attr.txt: no attribute 0 (standard tires); using the shipped standard tire ")
+    assert leaks(out, machine_paths(tmp_path_factory)) == []

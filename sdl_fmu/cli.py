@@ -1,7 +1,7 @@
-"""The `sdl-fmu` command line: build, check, resolve, run, sweep, search, verify, export. It only parses arguments,
-calls sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2: anything
-else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one
-line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
+"""The `sdl-fmu` command line: build, check, resolve, run, sweep, search, verify, export. It only parses
+arguments, calls sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario
+file, 2: anything else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3,
+after one line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
 quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
 
 from __future__ import annotations
@@ -100,33 +100,29 @@ def _check(args) -> int:
     return 0
 
 
-def _parse_parameters(assignments: list[str]) -> dict[str, float]:
-    parameters = {}
+def _assignments(assignments: list[str], option: str, meaning: str) -> dict[str, float]:
+    """NAME=VALUE ... (each VALUE a number) as {NAME: VALUE}; a malformed one is an InputError naming `option`."""
+    values = {}
     for assignment in assignments:
         name, separator, value = assignment.partition("=")
         try:
             if not separator or not name.strip():
                 raise ValueError
-            parameters[name.strip()] = float(value)
+            values[name.strip()] = float(value)
         except ValueError:
-            raise InputError("params", "", subject=f"{assignment}: expected NAME=VALUE with a number (SI "
-                                                   "units)") from None
-    return parameters
+            raise InputError(option, "", subject=f"{assignment}: expected NAME=VALUE with a number "
+                                                 f"({meaning})") from None
+    return values
+
+
+def _parse_parameters(assignments: list[str]) -> dict[str, float]:
+    """--param NAME=VALUE ...: FMU start values, SI."""
+    return _assignments(assignments, "params", "SI units")
 
 
 def _parse_settings(assignments: list[str]) -> dict[str, float]:
     """--set NAME=VALUE ...: scenario parameters (a declared name or an address), in the file's units."""
-    settings = {}
-    for assignment in assignments:
-        name, separator, value = assignment.partition("=")
-        try:
-            if not separator or not name.strip():
-                raise ValueError
-            settings[name.strip()] = float(value)
-        except ValueError:
-            raise InputError("set", "", subject=f"{assignment}: expected NAME=VALUE with a number (a scenario "
-                                                "parameter or an address LINE.N, in the file's units)") from None
-    return settings
+    return _assignments(assignments, "set", "a scenario parameter or an address LINE.N, in the file's units")
 
 
 def _resolve(args) -> int:

@@ -37,14 +37,14 @@ class SweepError(ClusterError):
     """A mistake in the sweep's arguments or output folder, or a cluster it cannot use (one line)."""
 
 
-def _finite(text: str) -> float:
+def finite_number(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):
         raise ValueError
     return value
 
 
-def _shown(name: str, text: str) -> str:
+def shown_assignment(name: str, text: str) -> str:
     assignment = f"{name}={text}"
     return assignment if len(assignment) <= 60 else f"{assignment[:45]}...{assignment[-10:]}"
 
@@ -64,7 +64,7 @@ def _count(text: str) -> int:
 def value_count(name: str, text: str, parameter: Parameter | None = None) -> int:
     """How many values `text` gives, found without generating them (a,b,c: commas; a range: its arithmetic; samples:
     n); SweepError for a form that cannot be read, a non-finite bound, or more than MAX_RUNS."""
-    shown = _shown(name, text)
+    shown = shown_assignment(name, text)
     if len(text) > MAX_VALUES_TEXT:
         raise SweepError(f"--vary {shown}: longer than {MAX_VALUES_TEXT} characters")
     sample = _call(text)
@@ -74,11 +74,11 @@ def value_count(name: str, text: str, parameter: Parameter | None = None) -> int
             if kind == "choice":
                 count = _count(args[-1]) if len(args) >= 2 else -1
                 for value in args[:-1]:
-                    _finite(value)
+                    finite_number(value)
             elif kind in ("uniform", "lhs") and len(args) == 1:
                 count = _count(args[0])
             elif len(args) == 3:
-                low, high, count = _finite(args[0]), _finite(args[1]), _count(args[2])
+                low, high, count = finite_number(args[0]), finite_number(args[1]), _count(args[2])
                 if (kind == "normal" and not high > 0) or (kind != "normal" and high < low):
                     raise ValueError
             else:
@@ -88,7 +88,7 @@ def value_count(name: str, text: str, parameter: Parameter | None = None) -> int
         elif re.match(r"\s*[A-Za-z_]+\s*\(", text):  # a sample of another name
             raise ValueError
         elif ":" in text:
-            start, stop, step = (_finite(part) for part in text.split(":"))
+            start, stop, step = (finite_number(part) for part in text.split(":"))
             if step <= 0 or stop < start:
                 raise ValueError
             count = math.floor((stop - start) / step + 1e-9) + 1  # finite operands: a finite float
@@ -143,7 +143,7 @@ def parse_values(name: str, text: str, rng: random.Random, parameter: Parameter 
     """The values of one --vary (see the module docstring): finite values, at most MAX_RUNS (counted before any is
     made); seeds are whole numbers in 0 .. 2^63 - 1; a declared parameter's values lie in its declared range."""
     text = text.strip()
-    shown = _shown(name, text)
+    shown = shown_assignment(name, text)
     count = value_count(name, text, parameter)
     sample = _call(text)
     continuous = False
@@ -156,7 +156,7 @@ def parse_values(name: str, text: str, rng: random.Random, parameter: Parameter 
                     raise SweepError(f"--vary {shown}: integers() takes whole bounds")
                 values = [rng.randint(int(low), int(high)) for _ in range(count)]
             elif kind == "choice":
-                options = [_finite(value) for value in args[:-1]]
+                options = [finite_number(value) for value in args[:-1]]
                 values = [rng.choice(options) for _ in range(count)]
             elif kind == "normal":
                 mu, sigma = float(args[0]), float(args[1])
@@ -184,7 +184,7 @@ def parse_values(name: str, text: str, rng: random.Random, parameter: Parameter 
             start, stop, step = (float(part) for part in text.split(":"))
             values = [start + k * step for k in range(count)]
         else:
-            values = [_finite(part) for part in text.split(",")]
+            values = [finite_number(part) for part in text.split(",")]
     except SweepError:
         raise
     except ValueError:

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Literal
 
 from . import sweep as sweeping
+from .distributions import finite_number, shown_assignment
 from .journal import append as append_row, line as row_line
 from .results.folder import SEARCH_MANIFEST_FORMAT, SEARCH_MANIFEST_NAME
 from .shipping import ClusterError
@@ -94,18 +95,6 @@ class Range:
         return int(round(value)) if self.integer else value
 
 
-def _finite(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError
-    return value
-
-
-def _shown(name: str, text: str) -> str:
-    assignment = f"{name}={text}"
-    return assignment if len(assignment) <= 60 else f"{assignment[:45]}...{assignment[-10:]}"
-
-
 def parse_ranges(assignments: list[str]) -> dict[str, Range]:
     """NAME=LOW..HIGH, each name once; finite LOW <= HIGH (seed: whole numbers in 0 .. 2^63 - 1). NAME alone: a
     scenario parameter's declared range (`// @param NAME = VALUE in LOW..HIGH`), read with the scenario (declared)."""
@@ -124,11 +113,11 @@ def parse_ranges(assignments: list[str]) -> dict[str, Range]:
         try:
             if not separator or not name or not dots:
                 raise ValueError
-            low_value, high_value = _finite(low), _finite(high)
+            low_value, high_value = finite_number(low), finite_number(high)
             if high_value < low_value:
                 raise ValueError
         except ValueError:
-            raise SearchError(f"--vary {_shown(name, text)}: expected NAME=LOW..HIGH (finite numbers, "
+            raise SearchError(f"--vary {shown_assignment(name, text)}: expected NAME=LOW..HIGH (finite numbers, "
                               "LOW <= HIGH)") from None
         if name in ranges:
             raise SearchError(f"--vary {name} is given twice")
@@ -154,8 +143,9 @@ def declared(ranges: dict[str, Range], scenario) -> dict[str, Range]:
             parameter = parameters.get(name.removeprefix("$"))
             if parameter is None or parameter.low is None or parameter.high is None:
                 what = "declares no range for it" if parameter is not None else "declares no parameter of that name"
-                raise SearchError(f"--vary {name}: {Path(scenario.path).name} {what} (// @param {name.removeprefix('$')}"
-                                  " = VALUE in LOW..HIGH); give NAME=LOW..HIGH")
+                declared = name.removeprefix("$")
+                raise SearchError(f"--vary {name}: {Path(scenario.path).name} {what} (// @param {declared} = VALUE "
+                                  "in LOW..HIGH); give NAME=LOW..HIGH")
             r = Range(name, float(parameter.low), float(parameter.high), parameter.whole)
         elif not r.integer and name not in ("seed",):
             parameter = parameters.get(name.removeprefix("$"))

@@ -1,8 +1,8 @@
-"""The `sdl-fmu` command line: build, check, resolve, run, sweep, search, verify, export. It only parses
-arguments, calls sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario
-file, 2: anything else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3,
-after one line on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it
-quietly with exit 141, as the shell reports a program that SIGPIPE stopped."""
+"""The `sdl-fmu` command line: build, check, resolve, run, sweep, search, verify, export. It only parses arguments,
+calls sdl_fmu.api and prints; every user mistake is one line per problem on stderr (exit 1: the scenario file, 2:
+anything else), Ctrl-C is one line and exit 130. A sweep in which any run failed or timed out exits 3, after one line
+on stderr saying how many and where their errors are. A reader that closes the pipe early (`| head`) ends it quietly
+with exit 141, as the shell reports a program that SIGPIPE stopped."""
 
 from __future__ import annotations
 
